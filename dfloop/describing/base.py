@@ -1,0 +1,86 @@
+"""The describing-function protocol shared by every nonlinear element in dfloop.
+
+Convention (DESIGN.md section 2): the input is x(t) = A sin(w t); the output's fundamental is
+Y1 sin(w t + phi1); N(A, w) = (Y1 / A) exp(j phi1). Amplitudes are amplitudes of the fundamental.
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+import numpy as np
+
+from .._checks import amplitude_array, frequency_array
+
+__all__ = ["DescribingFunction", "negative_inverse"]
+
+
+class DescribingFunction(ABC):
+    """A describing function N(A, omega), called with numpy broadcasting and returning complex values.
+
+    Subclasses implement :meth:`_evaluate` on validated float arrays (already broadcast-compatible)
+    and set the class attributes below.
+
+    Attributes
+    ----------
+    frequency_dependent : bool
+        Whether N depends on omega. Amplitude-only elements accept and ignore ``omega``.
+    input_name, input_unit : str
+        Name and unit of the input amplitude (e.g. ``"X"``, ``"m"``; ``"F"``, ``"N"``).
+    """
+
+    frequency_dependent: bool = False
+    input_name: str = "A"
+    input_unit: str = ""
+
+    def __call__(self, A, omega=None) -> np.ndarray:
+        """Evaluate N(A, omega).
+
+        Parameters
+        ----------
+        A : array_like
+            Input amplitude(s), >= 0, in ``input_unit``. NaN entries give NaN in those entries only.
+        omega : array_like, optional
+            Frequency in rad/s (> 0), broadcast against ``A``. Required when ``frequency_dependent``.
+
+        Returns
+        -------
+        numpy.ndarray of complex
+            N with the broadcast shape of ``A`` and ``omega`` (a 0-d array for scalar input).
+        """
+        a = amplitude_array(A, self.input_name)
+        if omega is None:
+            if self.frequency_dependent:
+                raise ValueError(f"omega is required: {type(self).__name__} depends on frequency")
+            w = None
+        else:
+            w = frequency_array(omega)
+            a, w = np.broadcast_arrays(a, w)
+        return np.asarray(self._evaluate(a, w), dtype=complex)
+
+    @abstractmethod
+    def _evaluate(self, A: np.ndarray, omega: np.ndarray | None) -> np.ndarray:
+        """N on validated, broadcast arrays (``omega`` is None only for amplitude-only elements)."""
+
+    def amplitude_domain(self, omega=None) -> tuple[np.ndarray, np.ndarray]:
+        """Open interval (lo, hi) of amplitudes where N is defined and non-zero.
+
+        For frequency-dependent elements the bounds may depend on ``omega`` (broadcast).
+        Default: (0, inf).
+        """
+        shape = np.shape(omega) if omega is not None else ()
+        return np.zeros(shape), np.full(shape, np.inf)
+
+    def __repr__(self) -> str:
+        params = ", ".join(f"{k}={v!r}" for k, v in vars(self).items() if not k.startswith("_"))
+        return f"{type(self).__name__}({params})"
+
+
+def negative_inverse(N: DescribingFunction, A, omega=None) -> np.ndarray:
+    """-1/N(A, omega) for plots; entries where N = 0 give complex infinity (not NaN)."""
+    n = N(A, omega)
+    out = np.full(n.shape, complex(np.inf, 0.0))
+    nz = n != 0
+    out[nz] = -1.0 / n[nz]
+    nan = np.isnan(n)
+    out[nan] = complex(np.nan, np.nan)
+    return out

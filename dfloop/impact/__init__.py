@@ -1,0 +1,2 @@
+"""dfloop.impact"""
+__all__: list[str] = []

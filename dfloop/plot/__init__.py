@@ -1,0 +1,2 @@
+"""dfloop.plot"""
+__all__: list[str] = []

@@ -1,0 +1,2 @@
+"""dfloop.solve"""
+__all__: list[str] = []
