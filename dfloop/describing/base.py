@@ -70,6 +70,28 @@ class DescribingFunction(ABC):
         shape = np.shape(omega) if omega is not None else ()
         return np.zeros(shape), np.full(shape, np.inf)
 
+    def validity(self, A, omega=None) -> np.ndarray:
+        """Boolean mask: True where N(A, omega) is a trustworthy DF value (broadcast shape).
+
+        Analytic elements are valid wherever N is finite. Tabulated elements (e.g. dynamic backlash)
+        return False where the motion was not periodic or the value lies outside the model's range;
+        the solver reports cycles found there with reduced confidence instead of dropping them.
+        """
+        return np.isfinite(self(A, omega))
+
+    def error_estimate(self, A, omega=None) -> np.ndarray:
+        """Estimated absolute error of N(A, omega) (0 for closed forms; interpolation error for tables)."""
+        return np.zeros(np.shape(self(A, omega)))
+
+    def operator(self):
+        """A fresh time-domain operator of this element, for closed-loop simulation.
+
+        Returns a stateful callable ``op`` with ``op(x: float) -> float`` giving the output for the next
+        input sample (rate-independent elements: static functions, backlash, relays with hysteresis),
+        starting from rest (zero output, centred state). Elements without one raise NotImplementedError.
+        """
+        raise NotImplementedError(f"{type(self).__name__} has no time-domain operator")
+
     def __repr__(self) -> str:
         params = ", ".join(f"{k}={v!r}" for k, v in vars(self).items() if not k.startswith("_"))
         return f"{type(self).__name__}({params})"
