@@ -1,0 +1,517 @@
+"""Analytic describing functions of rate-independent elements (closed forms, vectorised).
+
+Convention (DESIGN.md section 2): input x(t) = A sin(w t), N(A) = (Y1 / A) exp(j phi1) where Y1 sin(w t + phi1)
+is the output's fundamental. Every ``N`` here is amplitude-only, evaluated with numpy broadcasting, equal to
+0 exactly (never NaN) where the output has no fundamental (inside dead bands, below switching levels); NaN
+entries of ``A`` give NaN in those entries only; negative ``A`` raises ``ValueError``.
+
+Each element also provides :meth:`operator`, a fresh stateful callable ``op(x) -> y`` for time-domain
+simulation, and static (memoryless) elements provide a vectorised :meth:`StaticElement.output` ``y = f(x)``
+and their :meth:`StaticElement.breakpoints` (where f or f' jumps), which :class:`dfloop.NumericDF` can use.
+"""
+from __future__ import annotations
+
+import math
+from abc import abstractmethod
+
+import numpy as np
+
+from .._checks import finite, nonnegative, positive
+from .base import DescribingFunction
+
+__all__ = [
+    "StaticElement",
+    "Backlash",
+    "PlayOperator",
+    "Saturation",
+    "DeadZone",
+    "Relay",
+    "RelayOperator",
+    "CubicStiffness",
+    "Quantizer",
+    "PreloadedSpring",
+    "CoulombViscousFriction",
+]
+
+_QUANTIZER_MAX_LEVELS = 10**7
+_SERIES_COEFFS = np.array([math.comb(2 * n, n) / 4.0**n * 2.0 / (2 * n + 3) for n in range(16)])
+
+
+def _asin_minus(t: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """phi(t) = asin(t) - t sqrt(1 - t^2) on [0, 1] to full relative precision, given c = sqrt(1 - t^2).
+
+    asin(t) is taken as atan2(t, c), well conditioned up to t = 1 when c is computed without
+    cancellation by the caller; phi grows like (2/3) t^3, so for t < 0.25 the Taylor series
+    phi(t) = 2 sum_n C(2n, n) 4^-n t^(2n+3) / (2n + 3) is summed instead (16 terms: error < 1e-19 phi).
+    """
+    tc = np.clip(t, 0.0, 1.0)
+    direct = np.arctan2(tc, c) - tc * c
+    t2 = tc * tc
+    series = np.polynomial.polynomial.polyval(t2, _SERIES_COEFFS) * t2 * tc
+    return np.where(np.isnan(t), np.nan, np.where(tc < 0.25, series, direct))
+
+
+def _f(u: np.ndarray) -> np.ndarray:
+    """f(u) = (2/pi)(asin u + u sqrt(1 - u^2)) for u in [0, 1] (the saturation gain), well conditioned."""
+    c = np.sqrt((1.0 - u) * (1.0 + u))
+    return (2.0 / np.pi) * (np.arctan2(u, c) + u * c)
+
+
+def _ratio(level: float, A: np.ndarray) -> np.ndarray:
+    """level / A with level / 0 = inf (no warning) and level / inf = 0; NaN stays NaN."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return level / A
+
+
+def _one_minus_ratio(level: float, A: np.ndarray) -> np.ndarray:
+    """1 - level / A computed as (A - level) / A (exact near A = level), 1 at A = inf, -inf at A = 0."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(np.isinf(A), 1.0, (A - level) / A)
+
+
+def _keep_nan(A: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``values`` with NaN wherever ``A`` is NaN."""
+    return np.where(np.isnan(A), np.nan, values)
+
+
+def _domain(lo: float, hi: float, omega) -> tuple[np.ndarray, np.ndarray]:
+    shape = np.shape(omega) if omega is not None else ()
+    return np.full(shape, float(lo)), np.full(shape, float(hi))
+
+
+class StaticElement(DescribingFunction):
+    """A memoryless odd element y = f(x): real N, a vectorised :meth:`output` and a static operator."""
+
+    @abstractmethod
+    def output(self, x) -> np.ndarray:
+        """Output y = f(x), vectorised over ``x`` (same shape)."""
+
+    def breakpoints(self, A_max: float | None = None) -> np.ndarray:
+        """Sorted input levels >= 0 where f or its slope jumps, up to ``A_max`` (empty for smooth f)."""
+        return np.empty(0)
+
+    def operator(self):
+        """A static time-domain operator ``op(x) -> float`` (no state; a fresh object each call)."""
+        f = self.output
+
+        def op(x: float) -> float:
+            return float(f(float(x)))
+
+        return op
+
+
+# ---------------------------------------------------------------------------------------------- backlash
+
+
+class PlayOperator:
+    """Friction-controlled backlash (the play operator), stateful: ``op(x) -> y``.
+
+    The driven side sits at ``c``; it stays put while |x - c| <= h/2 and is dragged along otherwise
+    (c = x -/+ h/2). Output y = k c. Starts at rest with the play centred (c = 0), as python-control's
+    ``friction_backlash_nonlinearity`` (which is this operator with k = 1).
+    """
+
+    def __init__(self, h: float, k: float = 1.0):
+        self.h = positive("h", h)
+        self.k = positive("k", k)
+        self.center = 0.0
+
+    def __call__(self, x: float) -> float:
+        x = float(x)
+        half = 0.5 * self.h
+        if x - self.center > half:
+            self.center = x - half
+        elif x - self.center < -half:
+            self.center = x + half
+        return self.k * self.center
+
+    def __repr__(self) -> str:
+        return f"PlayOperator(h={self.h!r}, k={self.k!r}, center={self.center!r})"
+
+
+class Backlash(DescribingFunction):
+    """Backlash (friction-controlled, geometric) of total clearance ``h`` and slope ``k``.
+
+    Input x is the driving side's position (m), output y = k * (position of the driven side). Its DF
+    (paper eq. (4), written as in DESIGN.md section 2) with r = h / X:
+
+        Im N = -(k / pi) r (2 - r)                      (= -(2 k h / (pi X^2)) (X - h/2)),
+        Re N = k [1 - phi(t) / pi]   for X >= h,        Re N = (k / pi) phi(t)   for h/2 < X < h,
+
+    with t = sqrt(r (2 - r)) and phi(t) = asin t - t sqrt(1 - t^2); this equals (k/2)[1 + f(1 - h/X)] with
+    f(u) = (2/pi)(asin u + u sqrt(1 - u^2)), rewritten so that it keeps full relative precision near
+    X = h/2 and for X >> h. N = 0 exactly for X <= h/2; N(h) = k/2 - j k/pi; N -> k as X -> inf.
+
+    Parameters
+    ----------
+    h : float
+        Total clearance (m), > 0.
+    k : float
+        Slope of the engaged characteristic, > 0.
+    """
+
+    input_name = "X"
+    input_unit = "m"
+
+    def __init__(self, h: float, k: float = 1.0):
+        self.h = positive("h", h)
+        self.k = positive("k", k)
+
+    def _evaluate(self, A, omega):
+        r = _ratio(self.h, A)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rc = np.clip(r, 0.0, 2.0)
+            u = _one_minus_ratio(self.h, A)  # 1 - h/X: (X - h) is exact near X = h (Sterbenz)
+            s = np.clip(2.0 * _one_minus_ratio(0.5 * self.h, A), 0.0, 2.0)  # 2 - r, exact near X = h/2
+            t = np.sqrt(rc * s)
+            phi = _asin_minus(t, np.abs(np.clip(u, -1.0, 1.0)))
+            re = np.where(rc <= 1.0, self.k * (1.0 - phi / np.pi), self.k * phi / np.pi)
+            im = -(self.k / np.pi) * rc * s
+            return np.where(r >= 2.0, 0.0, re + 1j * im)
+
+    def amplitude_domain(self, omega=None):
+        """(h/2, inf): N = 0 for X <= h/2 (the input never crosses the play)."""
+        return _domain(0.5 * self.h, np.inf, omega)
+
+    def operator(self) -> PlayOperator:
+        """A fresh :class:`PlayOperator` (play centred, output 0)."""
+        return PlayOperator(self.h, self.k)
+
+
+# ------------------------------------------------------------------------------------ saturation, dead zone
+
+
+class Saturation(StaticElement):
+    """Saturation: y = k x for |x| <= limit, y = k limit sign(x) beyond.
+
+    N = k for A <= limit, N = k f(limit / A) above, f(u) = (2/pi)(asin u + u sqrt(1 - u^2)).
+
+    Parameters
+    ----------
+    limit : float
+        Input level at which the element saturates (output saturates at +/- k limit), > 0.
+    k : float
+        Slope of the linear part, > 0.
+    """
+
+    def __init__(self, limit: float, k: float = 1.0):
+        self.limit = positive("limit", limit)
+        self.k = positive("k", k)
+
+    def output(self, x):
+        return self.k * np.clip(np.asarray(x, dtype=float), -self.limit, self.limit)
+
+    def breakpoints(self, A_max=None):
+        return np.array([self.limit])
+
+    def _evaluate(self, A, omega):
+        r = _ratio(self.limit, A)
+        with np.errstate(invalid="ignore"):
+            return _keep_nan(A, np.where(r >= 1.0, self.k, self.k * _f(np.clip(r, 0.0, 1.0))))
+
+    def amplitude_domain(self, omega=None):
+        """(0, inf): N is non-zero for every amplitude (N(0) = k)."""
+        return _domain(0.0, np.inf, omega)
+
+
+class DeadZone(StaticElement):
+    """Dead zone: y = 0 for |x| <= delta, y = k (x - delta sign x) beyond.
+
+    N = k [1 - f(delta / A)] = (2 k / pi) phi(sqrt(1 - (delta/A)^2)) for A > delta, N = 0 exactly for
+    A <= delta (phi(t) = asin t - t sqrt(1 - t^2); the second form is used near the edge, where the
+    first cancels).
+
+    Parameters
+    ----------
+    delta : float
+        Half-width of the dead band, > 0.
+    k : float
+        Slope outside the dead band, > 0.
+    """
+
+    def __init__(self, delta: float, k: float = 1.0):
+        self.delta = positive("delta", delta)
+        self.k = positive("k", k)
+
+    def output(self, x):
+        x = np.asarray(x, dtype=float)
+        return self.k * (x - np.clip(x, -self.delta, self.delta))
+
+    def breakpoints(self, A_max=None):
+        return np.array([self.delta])
+
+    def _evaluate(self, A, omega):
+        r = _ratio(self.delta, A)
+        with np.errstate(invalid="ignore"):
+            rc = np.clip(r, 0.0, 1.0)
+            gap = np.clip(_one_minus_ratio(self.delta, A), 0.0, 1.0)  # 1 - delta/A without cancellation
+            near_edge = (2.0 * self.k / np.pi) * _asin_minus(np.sqrt(gap * (1.0 + rc)), rc)
+            n = np.where(rc < 0.5, self.k * (1.0 - _f(rc)), near_edge)
+            return np.where(r >= 1.0, 0.0, n)
+
+    def amplitude_domain(self, omega=None):
+        """(delta, inf)."""
+        return _domain(self.delta, np.inf, omega)
+
+
+# -------------------------------------------------------------------------------------------------- relay
+
+
+class RelayOperator:
+    """Three-state relay with switching levels ``on`` >= |``off``|, output in {-M, 0, +M}: ``op(x) -> y``.
+
+    Crossings are strict: from 0 it switches to +M when x > on and to -M when x < -on; from +M it
+    leaves when x < off (to -M if also x < -on, else to 0); from -M symmetrically when x > -off.
+    Starts at rest, output 0. With on = off = 0 (ideal relay) the output is M sign(x).
+    """
+
+    def __init__(self, M: float, on: float, off: float):
+        self.M, self.on, self.off = M, on, off
+        self.state = 0
+
+    def __call__(self, x: float) -> float:
+        x = float(x)
+        if self.state == 1 and x < self.off:
+            self.state = -1 if x < -self.on else 0
+        elif self.state == -1 and x > -self.off:
+            self.state = 1 if x > self.on else 0
+        elif self.state == 0:
+            self.state = 1 if x > self.on else (-1 if x < -self.on else 0)
+        return self.M * self.state
+
+    def __repr__(self) -> str:
+        return f"RelayOperator(M={self.M!r}, on={self.on!r}, off={self.off!r}, state={self.state})"
+
+
+class Relay(DescribingFunction):
+    """Relay of output level ``M`` with optional ``hysteresis`` a and ``dead_zone`` d.
+
+    Switching levels (both combine): the output switches on (to +M) when x rises through the on-level
+    d + a, and off when x falls back through the off-level d - a (symmetrically for negative x). So a = 0
+    gives the dead-zone relay (levels +/- d), d = 0 the hysteresis relay (up at x = +a, down at x = -a),
+    and d > 0, a > 0 the classical three-level relay with hysteresis. For A >= d + a:
+
+        N = (2M / (pi A)) [sqrt(1 - ((d + a)/A)^2) + sqrt(1 - ((d - a)/A)^2)] - j 4 M a / (pi A^2),
+
+    which reduces to (4M / (pi A)) exp(-j asin(a / A)) for d = 0 and to 4M sqrt(1 - (d/A)^2) / (pi A) for
+    a = 0. Switching needs x to pass a level strictly, so N = 0 exactly for A <= d + a (no switching, no
+    fundamental), and N(0) = inf for the ideal relay (a = d = 0).
+
+    Parameters
+    ----------
+    M : float
+        Output level, > 0.
+    hysteresis : float
+        Half-width a of each hysteresis band, >= 0.
+    dead_zone : float
+        Centre d of the switching band (the dead-zone half-width when a = 0), >= 0.
+    """
+
+    def __init__(self, M: float = 1.0, hysteresis: float = 0.0, dead_zone: float = 0.0):
+        self.M = positive("M", M)
+        self.hysteresis = nonnegative("hysteresis", hysteresis)
+        self.dead_zone = nonnegative("dead_zone", dead_zone)
+
+    @property
+    def on_level(self) -> float:
+        """Input level d + a at which the output switches on."""
+        return self.dead_zone + self.hysteresis
+
+    @property
+    def off_level(self) -> float:
+        """Input level d - a at which the output switches off (negative when a > d)."""
+        return self.dead_zone - self.hysteresis
+
+    def _evaluate(self, A, omega):
+        on, off = self.on_level, self.off_level
+        r_on, r_off = _ratio(on, A), _ratio(off, A)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            c_on = np.clip(r_on, -1.0, 1.0)
+            c_off = np.clip(r_off, -1.0, 1.0)
+            gap_on = np.clip(_one_minus_ratio(on, A), 0.0, 2.0)  # 1 - on/A without cancellation
+            gap_off = np.clip(_one_minus_ratio(off, A), 0.0, 2.0)
+            re = (2.0 * self.M / (np.pi * A)) * (
+                np.sqrt(gap_on * (1.0 + c_on)) + np.sqrt(gap_off * (1.0 + c_off))
+            )
+            im = -(4.0 * self.M / np.pi) * self.hysteresis / (A * A)
+            n = re + 1j * im
+            if on == 0.0:
+                return np.where(A == 0.0, complex(np.inf, 0.0), n)
+            return np.where(A <= on, 0.0, n)
+
+    def amplitude_domain(self, omega=None):
+        """(d + a, inf)."""
+        return _domain(self.on_level, np.inf, omega)
+
+    def operator(self) -> RelayOperator:
+        """A fresh :class:`RelayOperator` at rest (output 0 until |x| exceeds the on-level d + a)."""
+        return RelayOperator(self.M, self.on_level, self.off_level)
+
+
+# ------------------------------------------------------------------------------------- further elements
+
+
+class CubicStiffness(StaticElement):
+    """Cubic (Duffing) spring: y = k1 x + k3 x^3, N = k1 + 3 k3 A^2 / 4.
+
+    Parameters
+    ----------
+    k1 : float
+        Linear stiffness (N/m), > 0.
+    k3 : float
+        Cubic stiffness (N/m^3), finite and non-zero: > 0 hardening, < 0 softening.
+    """
+
+    input_name = "X"
+    input_unit = "m"
+
+    def __init__(self, k1: float, k3: float):
+        self.k1 = positive("k1", k1)
+        self.k3 = finite("k3", k3)
+        if self.k3 == 0.0:
+            raise ValueError("k3 must be non-zero (use a linear gain for k3 = 0)")
+
+    def output(self, x):
+        x = np.asarray(x, dtype=float)
+        return self.k1 * x + self.k3 * x**3
+
+    def _evaluate(self, A, omega):
+        return self.k1 + 0.75 * self.k3 * A * A
+
+    def amplitude_domain(self, omega=None):
+        """(0, inf) when hardening; (0, sqrt(4 k1 / (3 |k3|))) when softening (N = 0 at the upper end)."""
+        hi = np.inf if self.k3 > 0 else math.sqrt(4.0 * self.k1 / (3.0 * -self.k3))
+        return _domain(0.0, hi, omega)
+
+
+class Quantizer(StaticElement):
+    """Mid-tread quantizer: y = step * round(x / step) (half-way points rounded away from zero).
+
+    It is a sum of dead-zone relays of level ``step`` at thresholds c_i = (i - 1/2) step, so
+
+        N = (4 step / (pi A)) sum_{i : c_i < A} sqrt(1 - (c_i / A)^2),
+
+    N = 0 exactly for A <= step/2, N -> 1 as A -> inf. The sum has A/step + 1/2 terms; more than 1e7
+    levels raise ``ValueError`` (the quantizer is then a unit gain to about 1e-7).
+
+    Parameters
+    ----------
+    step : float
+        Quantization step, > 0.
+    """
+
+    def __init__(self, step: float):
+        self.step = positive("step", step)
+
+    def output(self, x):
+        x = np.asarray(x, dtype=float)
+        return self.step * np.sign(x) * np.floor(np.abs(x) / self.step + 0.5)
+
+    def breakpoints(self, A_max: float | None = None) -> np.ndarray:
+        """Thresholds (i - 1/2) step below ``A_max`` (required: there are infinitely many)."""
+        if A_max is None:
+            raise ValueError("A_max is required: a quantizer has infinitely many breakpoints")
+        n = self._levels(np.asarray(A_max, dtype=float))
+        return (np.arange(1, int(n) + 1) - 0.5) * self.step
+
+    def _levels(self, A: np.ndarray) -> np.ndarray:
+        n = np.ceil(np.nan_to_num(A, nan=0.0) / self.step - 0.5)
+        n = np.maximum(n, 0.0)
+        if n.size and n.max() > _QUANTIZER_MAX_LEVELS:
+            raise ValueError(
+                f"A / step exceeds the bound of {_QUANTIZER_MAX_LEVELS} quantization levels "
+                "(the quantizer is a unit gain there to about 1e-7)"
+            )
+        return n
+
+    def _evaluate(self, A, omega):
+        n = self._levels(A)
+        total = np.zeros(A.shape)
+        chunk = 4096
+        n_max = int(n.max()) if n.size else 0
+        with np.errstate(invalid="ignore", divide="ignore"):
+            for start in range(0, n_max, chunk):  # bounded: n_max / chunk <= 2442 passes
+                i = np.arange(start + 1, min(start + chunk, n_max) + 1)
+                c = (i - 0.5) * self.step
+                r = c / A[..., None]
+                rc = np.clip(r, 0.0, 1.0)
+                terms = np.where(i <= n[..., None], np.sqrt((1.0 - rc) * (1.0 + rc)), 0.0)
+                total += terms.sum(axis=-1)
+            n_out = 4.0 * self.step / (np.pi * A) * total
+        return _keep_nan(A, np.where(A <= 0.5 * self.step, 0.0, n_out))
+
+    def amplitude_domain(self, omega=None):
+        """(step/2, inf)."""
+        return _domain(0.5 * self.step, np.inf, omega)
+
+
+class PreloadedSpring(StaticElement):
+    """Preloaded spring: y = k x + F0 sign(x), N = k + 4 F0 / (pi A) (N(0) = inf).
+
+    Parameters
+    ----------
+    preload : float
+        Preload force F0 (N), > 0.
+    k : float
+        Spring stiffness (N/m), >= 0.
+    """
+
+    input_name = "X"
+    input_unit = "m"
+
+    def __init__(self, preload: float, k: float = 1.0):
+        self.preload = positive("preload", preload)
+        self.k = nonnegative("k", k)
+
+    def output(self, x):
+        x = np.asarray(x, dtype=float)
+        return self.k * x + self.preload * np.sign(x)
+
+    def breakpoints(self, A_max=None):
+        return np.array([0.0])
+
+    def _evaluate(self, A, omega):
+        with np.errstate(divide="ignore"):
+            return self.k + 4.0 * self.preload / (np.pi * A)
+
+    def amplitude_domain(self, omega=None):
+        """(0, inf)."""
+        return _domain(0.0, np.inf, omega)
+
+
+class CoulombViscousFriction(StaticElement):
+    """Coulomb plus viscous friction as a static function of the sliding velocity v (the input).
+
+    y = Fc sign(v) + c v (N), input amplitude V in m/s: N = c + 4 Fc / (pi V) (N(0) = inf). Static in the
+    input because the input is the velocity: the element sits in a loop whose plant outputs velocity
+    (e.g. 1 / (m s + ...)); a position-driven loop must include the differentiation in the plant.
+
+    Parameters
+    ----------
+    Fc : float
+        Coulomb friction force (N), > 0.
+    c : float
+        Viscous coefficient (N s/m), >= 0.
+    """
+
+    input_name = "V"
+    input_unit = "m/s"
+
+    def __init__(self, Fc: float, c: float = 0.0):
+        self.Fc = positive("Fc", Fc)
+        self.c = nonnegative("c", c)
+
+    def output(self, x):
+        x = np.asarray(x, dtype=float)
+        return self.c * x + self.Fc * np.sign(x)
+
+    def breakpoints(self, A_max=None):
+        return np.array([0.0])
+
+    def _evaluate(self, A, omega):
+        with np.errstate(divide="ignore"):
+            return self.c + 4.0 * self.Fc / (np.pi * A)
+
+    def amplitude_domain(self, omega=None):
+        """(0, inf)."""
+        return _domain(0.0, np.inf, omega)

@@ -1,0 +1,81 @@
+"""Fourier fundamental and periodicity measures of sampled signals.
+
+Convention (DESIGN.md section 2): a signal A sin(w t + phi) has the complex fundamental A exp(j phi),
+i.e. x(t) ~ Im(c exp(j w t)).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["fundamental", "upward_crossings", "SteadyState", "steady_state"]
+
+
+def fundamental(t: np.ndarray, x: np.ndarray, omega: float) -> complex:
+    """Complex fundamental c of x at ``omega`` (rad/s) over the samples given (trapezoidal rule).
+
+    The samples should span a whole number of periods 2 pi / omega; then x = A sin(w t + phi) gives
+    c = A exp(j phi).
+    """
+    t, x = np.asarray(t, float), np.asarray(x, float)
+    if t.size < 3 or t[-1] <= t[0]:
+        raise ValueError("t must hold at least 3 increasing samples")
+    if not (np.isfinite(omega) and omega > 0):
+        raise ValueError(f"omega must be > 0 and finite, got {omega}")
+    span = t[-1] - t[0]
+    return complex(1j * 2.0 / span * np.trapezoid(x * np.exp(-1j * omega * t), t))
+
+
+def upward_crossings(t: np.ndarray, x: np.ndarray, level: float = 0.0) -> np.ndarray:
+    """Times where x crosses ``level`` upwards (linear interpolation between samples)."""
+    d = np.asarray(x, float) - level
+    k = np.flatnonzero((d[:-1] < 0) & (d[1:] >= 0))
+    return t[k] - d[k] * (t[k + 1] - t[k]) / (d[k + 1] - d[k])
+
+
+@dataclass(frozen=True)
+class SteadyState:
+    """Amplitude and frequency of the fundamental over the last whole periods of a signal.
+
+    Attributes
+    ----------
+    amplitude : float
+        |fundamental| over the periods measured (0 when the signal no longer oscillates).
+    frequency : float
+        Mean angular frequency (rad/s) from upward zero crossings (0 when not oscillating).
+    periodicity : float
+        Relative spread (std / mean) of the per-period fundamental amplitudes: ~0 for a periodic signal.
+    n_periods : int
+        Number of periods used.
+    oscillating : bool
+        False when fewer than two crossings were found in the tail.
+    """
+
+    amplitude: float
+    frequency: float
+    periodicity: float
+    n_periods: int
+    oscillating: bool
+
+
+def steady_state(t: np.ndarray, x: np.ndarray, periods: int = 10) -> SteadyState:
+    """Measure the steady oscillation of x over its last ``periods`` periods (zero mean assumed)."""
+    t, x = np.asarray(t, float), np.asarray(x, float)
+    if periods < 1:
+        raise ValueError(f"periods must be >= 1, got {periods}")
+    crossings = upward_crossings(t, x)
+    if crossings.size < 2:
+        return SteadyState(float(np.max(np.abs(x[-max(t.size // 10, 1):]))), 0.0, 0.0, 0, False)
+    use = crossings[-(periods + 1):]
+    n = use.size - 1
+    omega = 2 * np.pi * n / (use[-1] - use[0])
+    amps = []
+    for t0, t1 in zip(use[:-1], use[1:]):
+        sel = (t >= t0) & (t <= t1)
+        if np.count_nonzero(sel) >= 3:
+            amps.append(abs(fundamental(t[sel], x[sel], 2 * np.pi / (t1 - t0))))
+    sel = (t >= use[0]) & (t <= use[-1])
+    amplitude = abs(fundamental(t[sel], x[sel], omega))
+    spread = float(np.std(amps) / np.mean(amps)) if amps and np.mean(amps) > 0 else 0.0
+    return SteadyState(float(amplitude), float(omega), spread, n, True)

@@ -1,0 +1,340 @@
+"""The paper's dynamic backlash (two masses, clearance, impacts) as a tabulated describing function N(F, w).
+
+N(F, w) = X1/F is the ratio of the phasor of x1's fundamental to the force F cos(w t) on M2 (m/N).
+The table stores the dimensionless, well-conditioned D = N M2 w^2 (D -> -M2/(M1+M2) for slow forcing).
+
+Paper's model (no effects): with x = h xi and tau = w t the motion depends only on
+beta = F / (M2 h w^2), M1/M2 and eps, so D is a function of beta alone: one adaptive table in ln beta
+serves every (F, w). For beta <= 1/4 (w >= w_L of eq. 11) the masses never touch: N = 0 exactly.
+Effects that add a time or length scale (:mod:`dfloop.impact.effects`) break the law: the table is then
+two-dimensional in (ln beta, ln w). Tables are built lazily over the window callers ask for and cached
+on disk (:mod:`dfloop.impact.cache`).
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .. import _checks
+from ..describing.base import DescribingFunction
+from . import cache as _cache
+from .table import Samples, Table1D, Table2D, TableSettings, TableValues, settings_dict, stderr_progress
+
+__all__ = ["DynamicBacklash"]
+
+BETA_NO_IMPACT = 0.25
+_U_START = math.log(BETA_NO_IMPACT) + 1e-9     # first table point, just above the no-impact limit
+_OMEGA_REF = 1.0                               # frequency of the similarity-table simulations (rad/s)
+_REGIME_BASE = 1000                            # regime label = (period * BASE + impacts per cycle) * BASE + runs
+
+
+def _regime_label(period, impacts, runs):
+    return (np.asarray(period, dtype=np.int64) * _REGIME_BASE + np.asarray(impacts, dtype=np.int64)) * _REGIME_BASE \
+        + np.asarray(runs, dtype=np.int64)
+
+
+class DynamicBacklash(DescribingFunction):
+    """Describing function of the two-mass impact system, force amplitude F (N) -> x1 (m).
+
+    Parameters
+    ----------
+    m1, m2 : float
+        Masses (kg); the force F cos(w t) acts on ``m2``, the output is x1.
+    h : float
+        Clearance (m).
+    restitution : float
+        Coefficient of restitution eps in [0, 1].
+    effects : sequence, optional
+        Extra physics from :mod:`dfloop.impact.effects`; any effect with ``keeps_similarity`` False makes
+        the table two-dimensional.
+    tol : float
+        Relative interpolation tolerance of D (hence of -1/N) inside smooth periodic regions.
+    method : {'cubic', 'pchip', 'linear'}
+        Interpolation inside smooth segments.
+    transient_periods, periods : int
+        Forcing periods discarded, then used for the fundamental, per simulated sample.
+    base_dx, min_dx : float
+        Initial spacing and smallest refined interval of the table in ln beta (and ln w for 2-D tables).
+    beta_max : float
+        Largest beta the table may reach; requests beyond raise ValueError.
+    cache : bool
+        Load and save tables in :func:`dfloop.impact.cache.cache_dir`.
+    progress : bool or callable
+        True prints a progress line on stderr; a callable gets ``(n_samples, stage)``.
+
+    Notes
+    -----
+    ``validity`` is False where the sampled motion was not periodic (irregular / chaotic, below the
+    lower limit w_c) and inside the tiny brackets around jumps; ``error_estimate`` is the interpolation
+    error measured during refinement (absolute, m/N). Subharmonic but periodic motion is valid.
+    """
+
+    frequency_dependent = True
+    input_name = "F"
+    input_unit = "N"
+
+    def __init__(self, m1: float, m2: float, h: float, restitution: float, effects=(), *, tol: float = 1e-4,
+                 method: str = "cubic", transient_periods: int = 100, periods: int = 20,
+                 base_dx: float = 0.05, min_dx: float = 2e-4, beta_max: float = 1e4, cache: bool = True,
+                 progress: bool | Callable[[int, str], None] = False):
+        self.m1 = _checks.positive("m1", m1)
+        self.m2 = _checks.positive("m2", m2)
+        self.h = _checks.positive("h", h)
+        self.restitution = _checks.in_closed_interval("restitution", restitution, 0.0, 1.0)
+        self.effects = tuple(effects)
+        self.transient_periods = int(_checks.nonnegative("transient_periods", transient_periods))
+        self.periods = int(_checks.positive("periods", periods))
+        self.beta_max = _checks.positive("beta_max", beta_max)
+        if self.beta_max <= BETA_NO_IMPACT:
+            raise ValueError(f"beta_max must exceed 1/4, got {self.beta_max}")
+        self._settings = TableSettings(tol=_checks.positive("tol", tol), method=method,
+                                       base_dx=_checks.positive("base_dx", base_dx),
+                                       min_dx=_checks.positive("min_dx", min_dx))
+        self._y_settings = TableSettings(tol=tol, method=method, base_dx=0.25, min_dx=max(min_dx, 1e-3))
+        self._use_cache = bool(cache)
+        self._progress = progress
+        self._table: Table1D | Table2D | None = None
+        self._loaded_from_cache = False
+
+    # ------------------------------------------------------------------ identity
+    @property
+    def similarity(self) -> bool:
+        """True when the motion obeys the similarity law (1-D table in beta)."""
+        return all(getattr(e, "keeps_similarity", False) for e in self.effects)
+
+    def parameters(self) -> dict:
+        """Everything the table's content depends on (the cache key is built from this)."""
+        p = {"kind": "DynamicBacklash/1" if self.similarity else "DynamicBacklash/2",
+             "restitution": self.restitution, "effects": [repr(e) for e in self.effects],
+             "transient_periods": self.transient_periods, "periods": self.periods,
+             "settings": settings_dict(self._settings)}
+        if self.similarity:
+            p["mass_ratio"] = self.m1 / self.m2        # D(beta) depends on m1/m2 and eps only
+        else:
+            p.update(m1=self.m1, m2=self.m2, h=self.h, y_settings=settings_dict(self._y_settings))
+        return p
+
+    @property
+    def cache_path(self) -> Path:
+        return _cache.cache_dir() / f"dynamic_backlash_{_cache.cache_key(self.parameters())[:32]}.npz"
+
+    @property
+    def n_simulations(self) -> int:
+        """Number of motions simulated by this object so far (0 when everything came from the cache)."""
+        return 0 if self._table is None else self._table.n_sampled
+
+    @property
+    def table(self):
+        """The current table (None before the first evaluation)."""
+        return self._table
+
+    # ------------------------------------------------------------------ sampling
+    def _extract(self, force: np.ndarray, omega: np.ndarray):
+        from .extract import impact_describing_function_batch
+
+        return impact_describing_function_batch(self.m1, self.m2, self.h, self.restitution, force, omega,
+                                                effects=self.effects, transient_periods=self.transient_periods,
+                                                periods=self.periods)
+
+    def _samples(self, force: np.ndarray, omega: np.ndarray) -> Samples:
+        r = self._extract(force, omega)
+        period = np.asarray(r.period, dtype=np.int64)
+        per_cycle = np.rint(np.asarray(r.impacts_per_period) * np.maximum(period, 1)).astype(np.int64)
+        regular = period > 0
+        label = _regime_label(period, np.where(regular, per_cycle, 0),
+                              np.where(regular, 10 * r.max_run_A + r.max_run_B, 0))
+        value = np.asarray(r.N, dtype=complex) * self.m2 * omega ** 2
+        extra = {"period": period, "periodicity": np.asarray(r.periodicity, dtype=float),
+                 "n_A": np.asarray(r.max_run_A, dtype=float), "n_B": np.asarray(r.max_run_B, dtype=float),
+                 "impacts_per_period": np.asarray(r.impacts_per_period, dtype=float),
+                 "stuck_fraction": np.asarray(r.stuck_fraction, dtype=float)}
+        return Samples(value, label, regular, extra)
+
+    def _sampler_1d(self, u: np.ndarray) -> Samples:
+        beta = np.exp(u)
+        omega = np.full(u.shape, _OMEGA_REF)
+        return self._samples(beta * self.m2 * self.h * _OMEGA_REF ** 2, omega)
+
+    def _sampler_2d(self, u: np.ndarray, v: float) -> Samples:
+        w = math.exp(v)
+        return self._samples(np.exp(u) * self.m2 * self.h * w * w, np.full(u.shape, w))
+
+    def collides(self, beta) -> np.ndarray:
+        """Whether a motion from rest collides within its first two forcing periods, per beta (paper's model)."""
+        from .kernel import simulate
+
+        beta = np.atleast_1d(np.asarray(beta, dtype=float))
+        out = np.empty(beta.shape, dtype=bool)
+        for i, b in enumerate(beta.ravel()):
+            tr = simulate(self.m1, self.m2, self.h, self.restitution, b * self.m2 * self.h * _OMEGA_REF ** 2,
+                          _OMEGA_REF, 4 * math.pi / _OMEGA_REF, effects=self.effects)
+            out.ravel()[i] = tr.n_impacts > 0
+        return out
+
+    # ------------------------------------------------------------------ table management
+    def _progress_callback(self):
+        if callable(self._progress):
+            return self._progress
+        if self._progress:
+            return stderr_progress(f"DynamicBacklash(eps={self.restitution:g}) table")
+        return None
+
+    def _load_cached(self) -> None:
+        if self._table is not None or not self._use_cache:
+            return
+        f = _cache.load_table(self.cache_path, _cache.cache_key(self.parameters()))
+        if f is None:
+            return
+        if self.similarity:
+            self._table = Table1D.from_arrays(f.arrays, self._settings)
+        else:
+            self._table = Table2D.from_arrays(f.arrays, self._settings, self._y_settings)
+        self._loaded_from_cache = True
+
+    def _store(self) -> None:
+        if self._use_cache:
+            self.save(self.cache_path)
+
+    def _check_beta(self, beta_hi: float) -> None:
+        if beta_hi > self.beta_max:
+            raise ValueError(f"F is too large for omega: beta = F/(M2 h w^2) = {beta_hi:.6g} exceeds beta_max = "
+                             f"{self.beta_max:g} (deep in the irregular low-frequency region); raise beta_max "
+                             f"to tabulate further")
+
+    def similarity_table(self, beta_max: float) -> Table1D:
+        """The 1-D table D(ln beta), extended to cover 1/4 < beta <= ``beta_max``."""
+        if not self.similarity:
+            raise ValueError("effects break the similarity law: this DynamicBacklash has a 2-D table")
+        self._ensure_1d(float(beta_max))
+        return self._table
+
+    def _ensure_1d(self, beta_hi: float) -> None:
+        self._check_beta(beta_hi)
+        self._load_cached()
+        u_hi = max(math.log(beta_hi), _U_START + self._settings.base_dx)
+        if self._table is not None and self._table.covers(_U_START, u_hi):
+            return
+        progress = self._progress_callback()
+        if self._table is None:
+            self._table = Table1D.build(self._sampler_1d, _U_START, u_hi, self._settings, progress)
+        else:
+            self._table.extend(self._sampler_1d, _U_START, u_hi, progress)
+        self._store()
+
+    def _ensure_2d(self, u_lo, u_hi, v_lo, v_hi) -> None:
+        self._check_beta(math.exp(u_hi))
+        self._load_cached()
+        pad = 1e-12
+        xw = (u_lo - pad, max(u_hi, u_lo + self._settings.base_dx) + pad)
+        yw = (v_lo - pad, max(v_hi, v_lo + self._y_settings.base_dx) + pad)
+        if self._table is not None and self._table.covers(xw, yw):
+            return
+        progress = self._progress_callback()
+        if self._table is None:
+            self._table = Table2D.build(self._sampler_2d, xw, yw, self._settings, self._y_settings, progress)
+        else:
+            self._table.extend(self._sampler_2d, xw, yw, progress)
+        self._store()
+
+    def prepare(self, F, omega) -> "DynamicBacklash":
+        """Build (or load) the table over the window spanned by force amplitudes F and frequencies omega."""
+        F = _checks.amplitude_array(F, "F")
+        w = _checks.frequency_array(omega)
+        self._lookup(*np.broadcast_arrays(np.array([np.nanmin(F), np.nanmax(F)]),
+                                          np.array([np.nanmax(w), np.nanmin(w)])))
+        return self
+
+    # ------------------------------------------------------------------ evaluation
+    def _lookup(self, F: np.ndarray, w: np.ndarray) -> TableValues:
+        """N, absolute error and validity at validated, broadcast (F, w)."""
+        shape = F.shape
+        F, w = F.ravel(), w.ravel()
+        n = np.zeros(F.size, dtype=complex)
+        err = np.zeros(F.size)
+        valid = np.ones(F.size, dtype=bool)
+        regime = np.zeros(F.size, dtype=np.int64)
+        nan = np.isnan(F) | np.isnan(w)
+        n[nan], err[nan], valid[nan] = complex(np.nan, np.nan), np.nan, False
+        scale = self.m2 * w ** 2
+        with np.errstate(divide="ignore"):
+            beta = F / (self.m2 * self.h * w ** 2)
+        if self.similarity:
+            need = ~nan & (beta > BETA_NO_IMPACT)
+            if np.any(need):
+                u = np.maximum(np.log(beta[need]), _U_START)
+                self._ensure_1d(float(np.exp(u.max())))
+                tv = self._table.evaluate(u)
+        else:
+            need = ~nan & (beta > 0)
+            if np.any(need):
+                u, v = np.log(beta[need]), np.log(w[need])
+                self._ensure_2d(float(u.min()), float(u.max()), float(v.min()), float(v.max()))
+                tv = self._table.evaluate(u, v)
+        if np.any(need):
+            n[need] = tv.value / scale[need]
+            err[need] = tv.error / scale[need]
+            valid[need] = tv.valid
+            regime[need] = tv.regime
+        return TableValues(n.reshape(shape), err.reshape(shape), valid.reshape(shape), regime.reshape(shape))
+
+    def _evaluate(self, A: np.ndarray, omega: np.ndarray) -> np.ndarray:
+        return self._lookup(A, omega).value
+
+    def _validated(self, F, omega):
+        a = _checks.amplitude_array(F, "F")
+        if omega is None:
+            raise ValueError("omega is required: DynamicBacklash depends on frequency")
+        return np.broadcast_arrays(a, _checks.frequency_array(omega))
+
+    def validity(self, A, omega=None) -> np.ndarray:
+        """True where N is a trustworthy DF value: periodic motion (or no impacts), not at a jump."""
+        return self._lookup(*self._validated(A, omega)).valid
+
+    def error_estimate(self, A, omega=None) -> np.ndarray:
+        """Estimated absolute interpolation error of N (m/N); 0 where N = 0 exactly (no impacts)."""
+        return self._lookup(*self._validated(A, omega)).error
+
+    def amplitude_domain(self, omega=None) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) force amplitudes (N): N = 0 below lo (no impacts, eq. 11); hi from ``beta_max``."""
+        w = np.asarray(omega if omega is not None else np.nan, dtype=float)
+        base = self.m2 * self.h * w ** 2
+        return BETA_NO_IMPACT * base, self.beta_max * base
+
+    def negative_inverse(self, F, omega) -> np.ndarray:
+        """-1/N(F, w) (N/m) computed from the table as -M2 w^2 / D; complex infinity where N = 0."""
+        n = self(F, omega)
+        out = np.full(n.shape, complex(np.inf, 0.0))
+        nz = n != 0
+        out[nz] = -1.0 / n[nz]
+        return out
+
+    # ------------------------------------------------------------------ persistence
+    def save(self, path) -> Path:
+        """Write the current table with its provenance (parameters, code version, date, build settings)."""
+        if self._table is None:
+            raise ValueError("nothing to save: the table has not been built yet (call prepare first)")
+        params = self.parameters()
+        params_full = dict(params, m1=self.m1, m2=self.m2, h=self.h)
+        return _cache.save_table(path, self._table.to_arrays(), _cache.cache_key(params), params_full,
+                                 {"settings": settings_dict(self._settings),
+                                  "y_settings": settings_dict(self._y_settings)})
+
+    def load(self, path) -> bool:
+        """Adopt a table saved by :meth:`save` if it was built for exactly these parameters and this code.
+
+        Returns False (and keeps the current table) when the file is missing, corrupted or stale.
+        """
+        f = _cache.load_table(path, _cache.cache_key(self.parameters()))
+        if f is None:
+            return False
+        self._table = (Table1D.from_arrays(f.arrays, self._settings) if self.similarity
+                       else Table2D.from_arrays(f.arrays, self._settings, self._y_settings))
+        return True
+
+    def __repr__(self) -> str:
+        eff = f", effects={list(self.effects)!r}" if self.effects else ""
+        return (f"DynamicBacklash(m1={self.m1:g}, m2={self.m2:g}, h={self.h:g}, restitution={self.restitution:g}"
+                f"{eff}, table={self._table!r})")

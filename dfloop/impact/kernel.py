@@ -1,0 +1,296 @@
+"""Exact event-driven simulation of the paper's two-mass clearance system (Fig. 4, eqs. 6-12).
+
+Model: masses ``m1`` and ``m2`` with clearance ``h``; gap g = x2 - x1 in [0, h] (side A: g = 0, side B: g = h).
+The force F cos(w t) acts on M2 only; M1 is free between impacts. Impacts follow Newton's law with restitution
+eps (eq. 6) and momentum conservation (eq. 7), i.e. eqs. (8a)/(8b). Initial state: both at rest, x1 = 0,
+g = h/2, force from t = 0. Chattering (infinitely many impacts in finite time) is cut when the post-impact
+relative speed falls below ``chatter_tol * max(h w, F/(M2 w))`` while the force presses the masses together:
+they then move as one body until the contact force changes sign (a closed-form instant).
+
+Free flights are closed form in local time; impact instants are roots of the gap function bracketed by its
+closed-form turning points and refined by Newton with a bisection safeguard to ~machine precision.
+With optional effects (see :mod:`dfloop.impact.effects`) the same interface is served by a linear-mode engine.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import _checks
+from . import _core
+from ._core import (FREE, GAP, IMPACT_A, IMPACT_B, PHI0, STUCK_A, STUCK_B, T0, U, U_POST, U_PRE, V1, V1_POST,
+                    V1_PRE, X1)
+
+__all__ = ["ImpactParameters", "Trajectory", "simulate", "EventLimitError"]
+
+DEFAULT_MAX_EVENTS = 5_000_000
+DEFAULT_CHATTER_TOL = 1e-9
+
+
+class EventLimitError(RuntimeError):
+    """The simulation reached its bound on the number of events (impacts, separations)."""
+
+
+@dataclass(frozen=True)
+class ImpactParameters:
+    """Validated physical parameters (SI units: kg, m, N, rad/s).
+
+    Attributes
+    ----------
+    m1, m2 : float
+        Masses (kg); the force acts on ``m2``, the output is x1.
+    h : float
+        Total clearance (m).
+    restitution : float
+        Coefficient of restitution eps in [0, 1].
+    force : float
+        Force amplitude F (N) of F cos(w t).
+    omega : float
+        Forcing frequency w (rad/s).
+    """
+
+    m1: float
+    m2: float
+    h: float
+    restitution: float
+    force: float
+    omega: float
+
+    def __post_init__(self):
+        for name in ("m1", "m2", "h", "force", "omega"):
+            object.__setattr__(self, name, _checks.positive(name, getattr(self, name)))
+        object.__setattr__(self, "restitution", _checks.in_closed_interval("restitution",
+                                                                           self.restitution, 0.0, 1.0))
+
+    @property
+    def beta(self) -> float:
+        """Similarity parameter F / (M2 h w^2) (dimensionless)."""
+        return self.force / (self.m2 * self.h * self.omega ** 2)
+
+    @property
+    def period(self) -> float:
+        """Forcing period 2 pi / w (s)."""
+        return 2.0 * math.pi / self.omega
+
+
+@dataclass(frozen=True, repr=False)
+class Trajectory:
+    """Piecewise-analytic motion returned by :func:`simulate`.
+
+    Segment k starts at ``t0[k]`` (phase ``phase0[k]`` = w t0 mod 2 pi) with state ``x1, v1, gap, u``
+    (u = v2 - v1) and lasts to ``t0[k+1]`` (the last one to ``t_end``). ``mode`` is 0 (free flight),
+    1 (stuck on side A) or 2 (stuck on side B); ``cause`` is 0 (start), 1/2 (impact on side A/B),
+    3 (separation). Pre/post-impact velocities are stored per segment (meaningful where cause is 1 or 2).
+    """
+
+    params: ImpactParameters
+    t_end: float
+    t0: np.ndarray
+    phase0: np.ndarray
+    x1: np.ndarray
+    v1: np.ndarray
+    gap: np.ndarray
+    u: np.ndarray
+    v1_pre: np.ndarray
+    u_pre: np.ndarray
+    v1_post: np.ndarray
+    u_post: np.ndarray
+    mode: np.ndarray
+    cause: np.ndarray
+    effects: tuple = field(default=())
+
+    # --- events -----------------------------------------------------------------------------------
+    @property
+    def impact_mask(self) -> np.ndarray:
+        """Boolean mask over segments that start with an impact."""
+        return (self.cause == IMPACT_A) | (self.cause == IMPACT_B)
+
+    @property
+    def n_impacts(self) -> int:
+        """Number of impacts."""
+        return int(np.count_nonzero(self.impact_mask))
+
+    @property
+    def impacts(self) -> dict:
+        """Impact times (s), sides ('A' = 0, 'B' = 1), and pre/post velocities v1, v2 (m/s)."""
+        m = self.impact_mask
+        return {"t": self.t0[m], "side": (self.cause[m] == IMPACT_B).astype(np.int8),
+                "v1_pre": self.v1_pre[m], "v2_pre": self.v1_pre[m] + self.u_pre[m],
+                "v1_post": self.v1_post[m], "v2_post": self.v1_post[m] + self.u_post[m]}
+
+    @property
+    def stuck_intervals(self) -> np.ndarray:
+        """(n, 3) array of [start, end, side] for the stuck phases (side 0 = A, 1 = B)."""
+        ends = np.append(self.t0[1:], self.t_end)
+        m = self.mode != FREE
+        return np.column_stack([self.t0[m], ends[m], (self.mode[m] == STUCK_B).astype(float)])
+
+    @property
+    def segment_ends(self) -> np.ndarray:
+        """End time of every segment (s)."""
+        return np.append(self.t0[1:], self.t_end)
+
+    # --- evaluation -------------------------------------------------------------------------------
+    def evaluate(self, t) -> dict:
+        """x1, v1, x2, v2 (m, m/s) and the gap at times ``t`` (s, array_like within [0, t_end])."""
+        t = np.asarray(t, dtype=float)
+        if np.any(~np.isfinite(t)) or np.any(t < 0.0) or np.any(t > self.t_end):
+            raise ValueError(f"t must lie in [0, t_end = {self.t_end}]")
+        k = np.searchsorted(self.t0, t, side="right") - 1
+        s = t - self.t0[k]
+        p = self.params
+        w = p.omega
+        th = w * s
+        c0 = np.cos(self.phase0[k])
+        s0 = np.sin(self.phase0[k])
+        shp = c0 * 2.0 * np.sin(0.5 * th) ** 2 + s0 * _sin_minus_x(th)
+        dshp = c0 * np.sin(th) - s0 * 2.0 * np.sin(0.5 * th) ** 2
+        stuck = self.mode[k] != FREE
+        Bc = p.force / ((p.m1 + p.m2) * w * w)
+        B = p.force / (p.m2 * w * w)
+        x1 = self.x1[k] + self.v1[k] * s + np.where(stuck, Bc * shp, 0.0)
+        v1 = self.v1[k] + np.where(stuck, Bc * w * dshp, 0.0)
+        gap = np.where(stuck, self.gap[k], self.gap[k] + self.u[k] * s + B * shp)
+        u = np.where(stuck, 0.0, self.u[k] + B * w * dshp)
+        return {"x1": x1, "v1": v1, "x2": x1 + gap, "v2": v1 + u, "gap": gap}
+
+    def piece_integrals(self, starts: np.ndarray, ends: np.ndarray, t_ref: float):
+        """Exact integrals of x1 over pieces [starts, ends] that each lie inside one segment.
+
+        Returns (int x1 e^{-j w t} dt, int x1 dt, int x1 (t - t_ref) dt), one entry per piece, from the
+        closed form x1 = p0 + p1 (t - t0) + q cos(w t) of every segment (q = 0 in free flight).
+        """
+        starts = np.asarray(starts, dtype=float)
+        ends = np.asarray(ends, dtype=float)
+        k = np.searchsorted(self.t0, starts, side="right") - 1
+        p = self.params
+        w = p.omega
+        Bc = p.force / ((p.m1 + p.m2) * w * w)
+        stuck = self.mode[k] != FREE
+        phi0 = self.phase0[k]
+        c0, s0 = np.cos(phi0), np.sin(phi0)
+        q = np.where(stuck, -Bc, 0.0)
+        p0 = self.x1[k] - q * c0
+        p1 = self.v1[k] + q * w * s0
+        sa = starts - self.t0[k]
+        sb = ends - self.t0[k]
+        tau0 = self.t0[k] - t_ref
+        return _linear_cos_integrals(p0, p1, q, phi0, w, sa, sb, tau0)
+
+    def __repr__(self) -> str:
+        p = self.params
+        return (f"Trajectory(m1={p.m1:g}, m2={p.m2:g}, h={p.h:g}, eps={p.restitution:g}, F={p.force:g}, "
+                f"omega={p.omega:g}, beta={p.beta:.4g}, t_end={self.t_end:g}, segments={self.t0.size}, "
+                f"impacts={self.n_impacts}, stuck_phases={int(np.count_nonzero(self.mode != FREE))})")
+
+
+def _linear_cos_integrals(p0, p1, q, phi0, w, sa, sb, tau0):
+    """Integrals over local time s in [sa, sb] of x = p0 + p1 s + q cos(phi0 + w s) (see piece_integrals).
+
+    tau0 is the segment start relative to the reference time of the moment integral.
+    """
+    def fourier(s):  # antiderivative of x e^{-j(phi0 + w s)} without the common factor e^{-j phi0}
+        e = np.exp(-1j * w * s)
+        a0 = (1.0 - e) / (1j * w)
+        a1 = 1j * s * e / w - (1.0 - e) / w ** 2
+        # cos(phi0 + w s) e^{-j w s} = (e^{j phi0} + e^{-j phi0} e^{-2j w s}) / 2
+        ac = np.exp(1j * phi0) * 0.5 * s + np.exp(-1j * phi0) * (1.0 - e * e) / (4j * w)
+        return p0 * a0 + p1 * a1 + q * ac
+
+    def mean(s):  # antiderivatives of x and of x (tau0 + s)
+        sn, cs = np.sin(phi0 + w * s), np.cos(phi0 + w * s)
+        m0 = p0 * s + p1 * s ** 2 / 2 + q * sn / w
+        m1 = (p0 * tau0 * s + (p0 + p1 * tau0) * s ** 2 / 2 + p1 * s ** 3 / 3
+              + q * (tau0 * sn / w + s * sn / w + cs / w ** 2))
+        return m0, m1
+
+    four = np.exp(-1j * phi0) * (fourier(sb) - fourier(sa))
+    m0b, m1b = mean(sb)
+    m0a, m1a = mean(sa)
+    return four, m0b - m0a, m1b - m1a
+
+
+def _sin_minus_x(th: np.ndarray) -> np.ndarray:
+    """sin(th) - th, vectorised, without cancellation for small |th|."""
+    th = np.asarray(th, dtype=float)
+    small = np.abs(th) < 1.0
+    t2 = th * th
+    term = -th * t2 / 6.0
+    series = term.copy()
+    for k in range(2, 12):
+        term = term * (-t2 / ((2 * k) * (2 * k + 1)))
+        series = series + term
+    return np.where(small, series, np.sin(th) - th)
+
+
+def simulate(m1: float, m2: float, h: float, restitution: float, force: float, omega: float, t_end: float, *,
+             effects=(), max_events: int = DEFAULT_MAX_EVENTS,
+             chatter_tol: float = DEFAULT_CHATTER_TOL) -> Trajectory:
+    """Simulate the two-mass impact system from rest (g = h/2, x1 = 0) over [0, t_end].
+
+    Parameters
+    ----------
+    m1, m2 : float
+        Masses (kg); F cos(w t) acts on ``m2``.
+    h : float
+        Clearance (m).
+    restitution : float
+        Coefficient of restitution eps in [0, 1].
+    force, omega : float
+        Force amplitude F (N) and frequency w (rad/s).
+    t_end : float
+        End time (s).
+    effects : sequence of effect objects, optional
+        Optional physics (:mod:`dfloop.impact.effects`). Empty: the paper's model, JIT kernel.
+    max_events : int
+        Bound on the number of events (impacts and separations); reaching it raises EventLimitError.
+    chatter_tol : float
+        Relative post-impact speed (of max(h w, F/(M2 w))) below which a converging chatter is cut into
+        a stuck phase.
+
+    Returns
+    -------
+    Trajectory
+    """
+    p = ImpactParameters(m1, m2, h, restitution, force, omega)
+    t_end = _checks.positive("t_end", t_end)
+    chatter_tol = _checks.positive("chatter_tol", chatter_tol)
+    if int(max_events) < 1:
+        raise ValueError(f"max_events must be >= 1, got {max_events}")
+    if effects:
+        from .effects import simulate_with_effects
+        return simulate_with_effects(p, t_end, tuple(effects), int(max_events), chatter_tol)
+    return _simulate_paper_model(p, t_end, int(max_events), chatter_tol)
+
+
+def _simulate_paper_model(p: ImpactParameters, t_end: float, max_events: int, chatter_tol: float) -> Trajectory:
+    v_stick = chatter_tol * max(p.h * p.omega, p.force / (p.m2 * p.omega))
+    params = np.array([p.m1, p.m2, p.h, p.force, p.omega, p.restitution, v_stick])
+    state = np.array([0.0, 0.0, 0.0, 0.0, 0.5 * p.h, 0.0, float(FREE), -1.0])
+    # expected events: about 2 impacts per period in the regular regime; grow geometrically when needed
+    capacity = int(min(max_events + 1, max(64, 4 * t_end / p.period + 16)))
+    seg, mode, cause = _core.empty_buffers(capacity)
+    seg[0] = [0.0, 0.0, 0.0, 0.0, 0.5 * p.h, 0.0, 0.0, 0.0, 0.0, 0.0]
+    mode[0] = FREE
+    cause[0] = _core.START
+    n = 1
+    while True:
+        n, status = _core.run_kernel(params, state, t_end, seg, mode, cause, n)
+        if status == _core.DONE:
+            break
+        if n - 1 >= max_events:
+            raise EventLimitError(f"max_events = {max_events} reached at t = {state[0]:.6g} s "
+                                  f"(t_end = {t_end:g} s)")
+        new_cap = int(min(max_events + 1, 2 * capacity))
+        seg2, mode2, cause2 = _core.empty_buffers(new_cap)
+        seg2[:n], mode2[:n], cause2[:n] = seg[:n], mode[:n], cause[:n]
+        seg, mode, cause, capacity = seg2, mode2, cause2, new_cap
+    seg = seg[:n]
+    return Trajectory(params=p, t_end=t_end, t0=seg[:, T0].copy(), phase0=seg[:, PHI0].copy(),
+                      x1=seg[:, X1].copy(), v1=seg[:, V1].copy(), gap=seg[:, GAP].copy(), u=seg[:, U].copy(),
+                      v1_pre=seg[:, V1_PRE].copy(), u_pre=seg[:, U_PRE].copy(),
+                      v1_post=seg[:, V1_POST].copy(), u_post=seg[:, U_POST].copy(),
+                      mode=mode[:n].astype(np.int64), cause=cause[:n].astype(np.int64))
+

@@ -1,0 +1,140 @@
+"""Limit frequencies of the paper's backlash models (eqs. 5, 10, 11, 12) and their measured counterparts.
+
+With the similarity variable beta = F / (M2 h w^2) the dynamic-backlash limits are fixed values of beta:
+eq. (11) w_L is beta = 1/4 (exact no-impact limit from rest with a centred gap), eq. (12) w_J is
+beta ~ 1, eq. (10) w_c is beta = 1 / (2 (1 - eps)^(5/2)). The ``measured_*`` functions read the same
+limits off the model itself (the exact impact simulation, through a :class:`DynamicBacklash` table).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._checks import in_closed_interval, positive
+
+__all__ = ["static_limit_frequency", "lower_limit_frequency", "no_impact_frequency", "jump_frequency",
+           "beta_of", "omega_of", "beta_lower_limit", "BETA_NO_IMPACT", "BETA_JUMP",
+           "x2_peak_excursion", "MeasuredLimits", "measured_limits"]
+
+BETA_NO_IMPACT = 0.25   # eq. (11)
+BETA_JUMP = 1.0         # eq. (12), approximate
+
+
+def _arr(name, value):
+    a = np.asarray(value, dtype=float)
+    if np.any(np.isnan(a)) or np.any(~np.isfinite(a)) or np.any(a <= 0):
+        raise ValueError(f"{name} must be finite and > 0")
+    return a
+
+
+def beta_of(F, omega, m2: float, h: float):
+    """Similarity variable beta = F / (M2 h w^2) (dimensionless); F in N, omega in rad/s."""
+    m2, h = positive("m2", m2), positive("h", h)
+    return _arr("F", F) / (m2 * h * _arr("omega", omega) ** 2)
+
+
+def omega_of(beta, F, m2: float, h: float):
+    """Frequency (rad/s) at which force amplitude F gives similarity variable beta."""
+    m2, h = positive("m2", m2), positive("h", h)
+    return np.sqrt(_arr("F", F) / (m2 * h * _arr("beta", beta)))
+
+
+def static_limit_frequency(F, m1: float, m2: float, h: float):
+    """Eq. (5): w_L = sqrt(2 F / (h (M1 + M2))), upper limit of the static (geometric) backlash model."""
+    m1, m2, h = positive("m1", m1), positive("m2", m2), positive("h", h)
+    return np.sqrt(2 * _arr("F", F) / (h * (m1 + m2)))
+
+
+def beta_lower_limit(restitution: float) -> float:
+    """beta at the paper's lower-limit frequency (eq. 10): 1 / (2 (1 - eps)^(5/2)); inf for eps = 1."""
+    eps = in_closed_interval("restitution", restitution, 0.0, 1.0)
+    return math.inf if eps == 1.0 else 0.5 / (1.0 - eps) ** 2.5
+
+
+def lower_limit_frequency(F, m2: float, h: float, restitution: float):
+    """Eq. (10): w_c ~ [(2 F / (M2 h))^2 (1 - eps)^5]^(1/4), below which the motion is irregular."""
+    m2, h = positive("m2", m2), positive("h", h)
+    eps = in_closed_interval("restitution", restitution, 0.0, 1.0)
+    return ((2 * _arr("F", F) / (m2 * h)) ** 2 * (1.0 - eps) ** 5) ** 0.25
+
+
+def no_impact_frequency(F, m2: float, h: float):
+    """Eq. (11): w_L = 2 sqrt(F / (h M2)); for w >= w_L the masses never collide (N = 0)."""
+    m2, h = positive("m2", m2), positive("h", h)
+    return 2.0 * np.sqrt(_arr("F", F) / (h * m2))
+
+
+def jump_frequency(F, m2: float, h: float):
+    """Eq. (12): w_J ~ sqrt(F / (h M2)), the approximate frequency of the jump phenomenon."""
+    m2, h = positive("m2", m2), positive("h", h)
+    return np.sqrt(_arr("F", F) / (h * m2))
+
+
+def x2_peak_excursion(F, omega, m2: float):
+    """Peak of x2(t) - x2(0) for M2 driven by F cos(w t) from rest, without impacts: 2 F / (M2 w^2) (m)."""
+    m2 = positive("m2", m2)
+    return 2 * _arr("F", F) / (m2 * _arr("omega", omega) ** 2)
+
+
+@dataclass(frozen=True)
+class MeasuredLimits:
+    """Limits read off the simulated model, as beta values (multiply out with :func:`omega_of`).
+
+    beta_no_impact : smallest beta at which the masses collide (simulation; eq. 11 says 1/4).
+    beta_jumps : betas of the jumps between regular regimes, located by bisection (eq. 12 says ~1).
+    beta_jump : the jump with the largest change of N among ``beta_jumps`` (nan if none).
+    beta_regular_limit : largest beta of the regular (periodic) band that starts at the no-impact limit
+        (the observed lower limit of regular motion; eq. 10 gives its approximation).
+    """
+
+    beta_no_impact: float
+    beta_jumps: np.ndarray
+    beta_jump: float
+    beta_regular_limit: float
+
+    def omegas(self, F, m2: float, h: float) -> dict:
+        """The same limits as frequencies (rad/s) for force amplitude F."""
+        conv = lambda b: float(omega_of(b, F, m2, h)) if np.isfinite(b) and b > 0 else math.nan
+        return {"omega_L": conv(self.beta_no_impact), "omega_J": conv(self.beta_jump),
+                "omega_c": conv(self.beta_regular_limit)}
+
+    def __repr__(self) -> str:
+        return (f"MeasuredLimits(beta_no_impact={self.beta_no_impact:.6g}, beta_jump={self.beta_jump:.6g}, "
+                f"beta_regular_limit={self.beta_regular_limit:.6g}, jumps={np.round(self.beta_jumps, 4).tolist()})")
+
+
+def measured_limits(backlash, beta_max: float = 100.0, rel_tol: float = 1e-6) -> MeasuredLimits:
+    """Measure the limit betas of a similarity-law :class:`DynamicBacklash` from its table and kernel.
+
+    The no-impact limit is bisected on whether a simulation from rest collides within its first
+    forcing periods (to relative width ``rel_tol``); the jumps and the regular band come from the
+    table over 1/4 < beta <= ``beta_max`` (built on demand).
+    """
+    beta_max = positive("beta_max", beta_max)
+    rel_tol = positive("rel_tol", rel_tol)
+    lo, hi = 0.05, 1.0
+    if backlash.collides(np.array([lo]))[0] or not backlash.collides(np.array([hi]))[0]:
+        raise RuntimeError("no-impact limit not bracketed in beta in [0.05, 1]")
+    for _ in range(200):
+        if hi - lo <= rel_tol * hi:
+            break
+        mid = 0.5 * (lo + hi)
+        if backlash.collides(np.array([mid]))[0]:
+            hi = mid
+        else:
+            lo = mid
+    else:
+        raise RuntimeError("bisection bound of 200 steps reached")
+    table = backlash.similarity_table(beta_max)
+    beta = np.exp(table.x)
+    jump = table.jumps()
+    both_regular = table.regular[:-1] & table.regular[1:]
+    regular_jumps = np.flatnonzero(jump & both_regular)
+    beta_jumps = np.sqrt(beta[regular_jumps] * beta[regular_jumps + 1])
+    size = np.abs(table.value[regular_jumps + 1] - table.value[regular_jumps])
+    beta_jump = float(beta_jumps[np.argmax(size)]) if size.size else math.nan
+    irregular = np.flatnonzero(~table.regular)
+    beta_regular_limit = float(beta[irregular[0] - 1]) if irregular.size and irregular[0] > 0 else float(beta[-1])
+    return MeasuredLimits(0.5 * (lo + hi), beta_jumps, beta_jump, beta_regular_limit)

@@ -1,0 +1,584 @@
+"""Adaptive tabulation of an expensive complex function of one or two variables, with regime jumps.
+
+A *sampler* maps a batch of points to :class:`Samples`: a complex value, an integer regime label
+(samples with equal labels belong to the same smooth branch) and a ``regular`` flag (False where the
+value is only an average, e.g. chaotic motion). :class:`Table1D` places samples where the function
+varies fast (midpoint-versus-interpolant check against a relative tolerance), brackets every jump
+between regimes (or in value) by bisection and never interpolates across one. Every interpolated
+value comes with an error estimate (the discrepancy measured by the check that accepted its interval)
+and a validity flag. :class:`Table2D` stacks adaptive 1-D tables (lines) along a second coordinate.
+"""
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import asdict, dataclass, field
+from typing import Callable
+
+import numpy as np
+from scipy.interpolate import CubicSpline, PchipInterpolator
+
+__all__ = ["Samples", "TableSettings", "Table1D", "Table2D", "TableValues", "stderr_progress"]
+
+IRREGULAR = -1          # regime label used internally for every non-regular sample
+_METHODS = ("linear", "pchip", "cubic")
+
+
+@dataclass(frozen=True)
+class Samples:
+    """What a sampler returns for a batch of n points.
+
+    Attributes
+    ----------
+    value : complex array (n,)
+    regime : int array (n,)
+        Label of the smooth branch; a change of label between neighbours is a jump.
+    regular : bool array (n,)
+        False where the value is not trustworthy as a smooth function (irregular motion).
+    extra : dict of str -> array (n,)
+        Diagnostics stored with each sample (impact counts, periodicity, ...).
+    """
+
+    value: np.ndarray
+    regime: np.ndarray
+    regular: np.ndarray
+    extra: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class TableSettings:
+    """Build settings of an adaptive table (x is the table coordinate, e.g. ln beta).
+
+    tol : relative tolerance of the interpolant, |error| <= tol * max(|value|, abs_floor).
+    abs_floor : absolute floor of the error scale (keeps refinement bounded near zeros of the value).
+    base_dx : spacing of the initial grid in x.
+    min_dx : narrowest interval the refinement creates; intervals failing there keep their measured error.
+    jump_dx : width to which jumps are bracketed by bisection.
+    jump_rel : a failing interval at min_dx whose end values differ by more than jump_rel * scale is a jump.
+    method : interpolation inside smooth segments: 'linear', 'pchip' or 'cubic' (not-a-knot spline).
+    max_samples : bound on the number of samples; exceeding it raises RuntimeError.
+    """
+
+    tol: float = 1e-4
+    abs_floor: float = 1e-9
+    base_dx: float = 0.1
+    min_dx: float = 1e-4
+    jump_dx: float = 1e-7
+    jump_rel: float = 1e-2
+    method: str = "cubic"
+    max_samples: int = 50_000
+
+    def __post_init__(self):
+        for name in ("tol", "base_dx", "min_dx", "jump_dx", "jump_rel"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+        if not (math.isfinite(self.abs_floor) and self.abs_floor >= 0):
+            raise ValueError(f"abs_floor must be finite and >= 0, got {self.abs_floor!r}")
+        if self.method not in _METHODS:
+            raise ValueError(f"method must be one of {_METHODS}, got {self.method!r}")
+        if int(self.max_samples) < 4:
+            raise ValueError(f"max_samples must be >= 4, got {self.max_samples!r}")
+
+
+@dataclass(frozen=True)
+class TableValues:
+    """Interpolated values with, per entry, the error estimate, validity and regime label."""
+
+    value: np.ndarray
+    error: np.ndarray
+    valid: np.ndarray
+    regime: np.ndarray
+
+    def __repr__(self) -> str:
+        return (f"TableValues(n={self.value.size}, valid={int(np.count_nonzero(self.valid))}, "
+                f"max_error={float(np.max(self.error, initial=0.0)):.3g})")
+
+
+def stderr_progress(label: str) -> Callable[[int, str], None]:
+    """A progress callback printing one updating line on stderr: ``label: <n> samples (<stage>)``."""
+    def report(n: int, stage: str) -> None:
+        sys.stderr.write(f"\r{label}: {n} samples ({stage})\x1b[K")
+        if stage == "done":
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+    return report
+
+
+def _regime_key(regime: np.ndarray, regular: np.ndarray) -> np.ndarray:
+    return np.where(regular, regime, IRREGULAR).astype(np.int64)
+
+
+class Table1D:
+    """Adaptive table of a complex function of one variable x over a growing window [lo, hi].
+
+    Build with :meth:`build`; grow with :meth:`extend`; evaluate with :meth:`evaluate`.
+    ``n_sampled`` counts every sampler evaluation made by this object (0 for a table loaded from disk).
+    """
+
+    def __init__(self, settings: TableSettings | None = None):
+        self.settings = settings or TableSettings()
+        self.x = np.empty(0)
+        self.value = np.empty(0, dtype=complex)
+        self.regime = np.empty(0, dtype=np.int64)
+        self.regular = np.empty(0, dtype=bool)
+        self.extra: dict[str, np.ndarray] = {}
+        # per interval (len n - 1)
+        self.err = np.empty(0)          # absolute error estimate of the interpolant on the interval
+        self.checked = np.empty(0, dtype=bool)
+        self.value_jump = np.empty(0, dtype=bool)
+        self.n_sampled = 0
+        self._segments = None
+
+    # ------------------------------------------------------------------ building
+    @classmethod
+    def build(cls, sampler: Callable[[np.ndarray], Samples], lo: float, hi: float,
+              settings: TableSettings | None = None, progress: Callable[[int, str], None] | None = None
+              ) -> "Table1D":
+        """Tabulate ``sampler`` over [lo, hi] (x units), refined to ``settings.tol``."""
+        table = cls(settings)
+        table.extend(sampler, lo, hi, progress)
+        return table
+
+    @property
+    def lo(self) -> float:
+        return float(self.x[0]) if self.x.size else math.nan
+
+    @property
+    def hi(self) -> float:
+        return float(self.x[-1]) if self.x.size else math.nan
+
+    def covers(self, lo: float, hi: float) -> bool:
+        return bool(self.x.size) and self.x[0] <= lo and hi <= self.x[-1]
+
+    def extend(self, sampler: Callable[[np.ndarray], Samples], lo: float, hi: float,
+               progress: Callable[[int, str], None] | None = None) -> None:
+        """Grow the table to cover [lo, hi] (base grid on the new part), then refine."""
+        lo, hi = float(lo), float(hi)
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+            raise ValueError(f"table window must satisfy lo < hi (finite), got ({lo}, {hi})")
+        dx = self.settings.base_dx
+        if not self.x.size:
+            n = max(2, int(math.ceil((hi - lo) / dx)) + 1)
+            new = np.linspace(lo, hi, n)
+        else:
+            parts = []
+            if lo < self.x[0]:
+                n = max(1, int(math.ceil((self.x[0] - lo) / dx)))
+                parts.append(np.linspace(lo, self.x[0], n + 1)[:-1])
+            if hi > self.x[-1]:
+                n = max(1, int(math.ceil((hi - self.x[-1]) / dx)))
+                parts.append(np.linspace(self.x[-1], hi, n + 1)[1:])
+            if not parts:
+                return
+            new = np.concatenate(parts)
+        self._insert(new, self._sample(sampler, new, progress, "base grid"))
+        self._refine(sampler, progress)
+
+    def _sample(self, sampler, x, progress, stage) -> Samples:
+        if self.x.size + x.size > self.settings.max_samples:
+            raise RuntimeError(f"table bound max_samples={self.settings.max_samples} reached "
+                               f"(tolerance {self.settings.tol:g} too tight or window too wide)")
+        s = sampler(x)
+        value = np.asarray(s.value, dtype=complex).reshape(x.shape)
+        if not np.all(np.isfinite(value)):
+            raise RuntimeError("sampler returned a non-finite value")
+        self.n_sampled += x.size
+        if progress is not None:
+            progress(self.n_sampled, stage)
+        return Samples(value, np.asarray(s.regime, dtype=np.int64).reshape(x.shape),
+                       np.asarray(s.regular, dtype=bool).reshape(x.shape),
+                       {k: np.asarray(v).reshape(x.shape) for k, v in s.extra.items()})
+
+    def _insert(self, xn: np.ndarray, s: Samples, err=None, checked=None, value_jump=None) -> None:
+        """Insert samples; new intervals get (err, checked, value_jump) pairs (left, right) if given."""
+        n_old = self.x.size
+        x = np.concatenate([self.x, xn])
+        order = np.argsort(x, kind="stable")
+        self.x = x[order]
+        self.value = np.concatenate([self.value, s.value])[order]
+        self.regime = np.concatenate([self.regime, s.regime])[order]
+        self.regular = np.concatenate([self.regular, s.regular])[order]
+        keys = set(self.extra) | set(s.extra)
+        for k in keys:
+            old = self.extra.get(k, np.full(n_old, np.nan))
+            add = s.extra.get(k, np.full(xn.size, np.nan))
+            self.extra[k] = np.concatenate([old, add])[order]
+        # interval attributes: each new interval inherits from the interval it splits
+        rank = np.empty_like(order)
+        rank[order] = np.arange(order.size)
+        new_err = np.full(self.x.size - 1, np.inf)
+        new_checked = np.zeros(self.x.size - 1, dtype=bool)
+        new_vj = np.zeros(self.x.size - 1, dtype=bool)
+        if n_old > 1:
+            # an old interval (i, i+1) whose endpoints stayed adjacent keeps its attributes
+            left, right = rank[:n_old - 1], rank[1:n_old]
+            keep = right == left + 1
+            new_err[left[keep]] = self.err[keep]
+            new_checked[left[keep]] = self.checked[keep]
+            new_vj[left[keep]] = self.value_jump[keep]
+        if err is not None:
+            r = rank[n_old:]                   # position of each new point
+            for side, pos in ((0, r - 1), (1, r)):
+                new_err[pos] = err[:, side]
+                new_checked[pos] = checked[:, side]
+                new_vj[pos] = value_jump[:, side]
+        self.err, self.checked, self.value_jump = new_err, new_checked, new_vj
+        self._segments = None
+
+    def _scale(self, v: np.ndarray) -> np.ndarray:
+        return np.maximum(np.abs(v), self.settings.abs_floor)
+
+    def jumps(self) -> np.ndarray:
+        """Boolean per interval: True where the interval brackets a jump (regime change or value jump)."""
+        key = _regime_key(self.regime, self.regular)
+        return (key[:-1] != key[1:]) | self.value_jump
+
+    def _refine(self, sampler, progress) -> None:
+        st = self.settings
+        max_gen = 2 * int(math.ceil(math.log2(max(self.x[-1] - self.x[0], st.jump_dx) / st.jump_dx))) + 16
+        for generation in range(max_gen):
+            jump = self.jumps()
+            width = np.diff(self.x)
+            smooth = ~jump & self.regular[:-1] & self.regular[1:]
+            irregular = ~jump & ~smooth
+            self.err[irregular] = np.abs(np.diff(self.value))[irregular]
+            self.checked[irregular] = True
+            # intervals too narrow to split are closed with their last measured discrepancy
+            narrow = smooth & ~self.checked & (width < 2 * st.min_dx)
+            if np.any(narrow):
+                dv = np.abs(np.diff(self.value))
+                never = narrow & np.isinf(self.err)       # bisection leftovers: bound by the change across
+                self.err[never] = dv[never]
+                scale = self._scale(np.minimum(np.abs(self.value[:-1]), np.abs(self.value[1:])))
+                self.checked[narrow] = True
+                new_vj = narrow & (self.err > st.tol * scale) & (dv > st.jump_rel * scale)
+                self.value_jump |= new_vj
+                self._reopen_neighbours(new_vj)
+                jump = self.jumps()
+                smooth = ~jump & self.regular[:-1] & self.regular[1:]
+            check = np.flatnonzero(smooth & ~self.checked)
+            bisect = np.flatnonzero(jump & (width > st.jump_dx))
+            if check.size == 0 and bisect.size == 0:
+                break
+            idx = np.concatenate([check, bisect])
+            xm = 0.5 * (self.x[idx] + self.x[idx + 1])
+            predicted = self._interpolate(xm[:check.size], check)
+            s = self._sample(sampler, xm, progress, f"refine {generation}")
+            err = np.empty((idx.size, 2))
+            checked = np.zeros((idx.size, 2), dtype=bool)
+            vj = np.zeros((idx.size, 2), dtype=bool)
+            nc = check.size
+            disc = np.abs(predicted - s.value[:nc])
+            ok = disc <= st.tol * self._scale(s.value[:nc])
+            err[:nc] = disc[:, None]
+            checked[:nc] = ok[:, None]
+            # a check whose midpoint falls in a new regime has found a jump: reopen its neighbours
+            km = _regime_key(s.regime[:nc], s.regular[:nc])
+            key = _regime_key(self.regime, self.regular)
+            found = (km != key[check]) | (km != key[check + 1])
+            err[nc:] = np.inf
+            old_vj = self.value_jump[bisect]
+            va, vb, vm = self.value[bisect], self.value[bisect + 1], s.value[nc:]
+            left_bigger = np.abs(vm - va) >= np.abs(vb - vm)
+            vj[nc:, 0] = old_vj & left_bigger
+            vj[nc:, 1] = old_vj & ~left_bigger
+            # the side of a value-jump bracket without the jump becomes an ordinary interval to check
+            self._insert(xm, s, err, checked, vj)
+            if np.any(found):
+                self._reopen_near_points(xm[:nc][found])
+        else:
+            raise RuntimeError(f"table refinement bound of {max_gen} generations reached")
+        self._segments = None
+        if progress is not None:
+            progress(self.n_sampled, "done")
+
+    def _reopen_neighbours(self, new_jump: np.ndarray, reach: int = 2) -> None:
+        for i in np.flatnonzero(new_jump):
+            lo, hi = max(0, i - reach), min(self.err.size, i + reach + 1)
+            sel = np.arange(lo, hi)
+            sel = sel[sel != i]
+            self.checked[sel] = False
+
+    def _reopen_near_points(self, xp: np.ndarray, reach: int = 2) -> None:
+        pos = np.searchsorted(self.x, xp)
+        for p in pos:
+            lo, hi = max(0, p - reach - 1), min(self.err.size, p + reach)
+            self.checked[lo:hi] = False
+
+    # ------------------------------------------------------------------ evaluation
+    def _segment_ids(self):
+        if self._segments is None:
+            breaks = self.jumps()
+            self._segments = (np.concatenate([[0], np.cumsum(breaks)]), breaks, {})
+        return self._segments
+
+    def _interpolant(self, seg: int):
+        seg_of, _, cache = self._segment_ids()
+        if seg not in cache:
+            idx = np.flatnonzero(seg_of == seg)
+            x, y = self.x[idx], np.column_stack([self.value[idx].real, self.value[idx].imag])
+            method = self.settings.method if self.regular[idx[0]] else "linear"
+            if idx.size == 1:
+                cache[seg] = lambda q, y0=y[0]: np.broadcast_to(y0, (np.size(q), 2))
+            elif method == "linear" or idx.size == 2:
+                cache[seg] = lambda q, x=x, y=y: np.column_stack(
+                    [np.interp(q, x, y[:, 0]), np.interp(q, x, y[:, 1])])
+            elif method == "pchip":
+                cache[seg] = PchipInterpolator(x, y, extrapolate=True)
+            else:
+                cache[seg] = CubicSpline(x, y, extrapolate=True)
+        return cache[seg]
+
+    def _interval_error(self) -> np.ndarray:
+        """Error estimate per interval: the largest discrepancy measured on it and its two neighbours
+        (a single midpoint check can be small by coincidence)."""
+        e = self.err.copy()
+        e[1:] = np.maximum(e[1:], self.err[:-1])
+        e[:-1] = np.maximum(e[:-1], self.err[1:])
+        jump = self.jumps()
+        return np.where(jump, np.abs(np.diff(self.value)), np.where(np.isinf(e), self.err, e))
+
+    def _interpolate(self, q: np.ndarray, interval: np.ndarray) -> np.ndarray:
+        """Interpolated values at q lying in the given non-jump intervals (segment-wise)."""
+        seg_of, breaks, _ = self._segment_ids()
+        out = np.empty(q.size, dtype=complex)
+        segs = seg_of[interval]
+        for seg in np.unique(segs):
+            m = segs == seg
+            y = np.asarray(self._interpolant(int(seg))(q[m]))
+            out[m] = y[:, 0] + 1j * y[:, 1]
+        return out
+
+    def evaluate(self, q) -> TableValues:
+        """Interpolate at points q (x units) inside the table window; outside raises ValueError.
+
+        Inside a jump bracket the value of the nearer end is returned, flagged invalid, with the jump
+        size as its error estimate.
+        """
+        q = np.asarray(q, dtype=float)
+        flat = q.ravel()
+        if np.any(np.isnan(flat)):
+            raise ValueError("table query contains NaN")
+        if flat.size and (flat.min() < self.x[0] or flat.max() > self.x[-1]):
+            raise ValueError(f"table query [{flat.min():.6g}, {flat.max():.6g}] outside the table window "
+                             f"[{self.x[0]:.6g}, {self.x[-1]:.6g}]: extend the table first")
+        i = np.clip(np.searchsorted(self.x, flat, side="right") - 1, 0, self.x.size - 2)
+        _, breaks, _ = self._segment_ids()
+        jump = breaks[i]
+        value = np.empty(flat.size, dtype=complex)
+        err = np.empty(flat.size)
+        smooth = ~jump
+        value[smooth] = self._interpolate(flat[smooth], i[smooth])
+        err[smooth] = self._interval_error()[i[smooth]]
+        ij = i[jump]
+        nearer = np.where(flat[jump] - self.x[ij] <= self.x[ij + 1] - flat[jump], ij, ij + 1)
+        value[jump] = self.value[nearer]
+        err[jump] = np.abs(self.value[ij + 1] - self.value[ij])
+        key = _regime_key(self.regime, self.regular)
+        valid = smooth & self.regular[i] & self.regular[i + 1]
+        regime = key[i]
+        regime[jump] = key[nearer]
+        shape = q.shape
+        return TableValues(value.reshape(shape), err.reshape(shape), valid.reshape(shape), regime.reshape(shape))
+
+    # ------------------------------------------------------------------ persistence
+    def to_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
+        """The table's state as named arrays (for :mod:`dfloop.impact.cache`)."""
+        arrays = {"x": self.x, "value": self.value, "regime": self.regime, "regular": self.regular,
+                  "err": self.err, "checked": self.checked, "value_jump": self.value_jump}
+        arrays.update({f"extra.{k}": v for k, v in self.extra.items()})
+        return {prefix + k: v for k, v in arrays.items()}
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray], settings: TableSettings, prefix: str = "") -> "Table1D":
+        table = cls(settings)
+        for name in ("x", "value", "regime", "regular", "err", "checked", "value_jump"):
+            setattr(table, name, np.asarray(arrays[prefix + name]))
+        table.extra = {k[len(prefix) + 6:]: np.asarray(v) for k, v in arrays.items()
+                       if k.startswith(prefix + "extra.")}
+        return table
+
+    def __repr__(self) -> str:
+        if not self.x.size:
+            return "Table1D(empty)"
+        return (f"Table1D(x=[{self.lo:.4g}, {self.hi:.4g}], samples={self.x.size}, "
+                f"jumps={int(np.count_nonzero(self.jumps()))}, regular={int(np.count_nonzero(self.regular))}, "
+                f"method={self.settings.method!r}, tol={self.settings.tol:g})")
+
+
+class Table2D:
+    """Adaptive table of a complex function of (x, y): 1-D tables in x (lines) at adaptive values of y.
+
+    Between lines the value is interpolated in y at fixed x (cubic Lagrange on four lines, linear at
+    the edges or with ``settings.method == 'linear'``); a y-interval is refined until the midpoint line
+    agrees with that interpolant to ``settings.tol`` at its regular samples. Where the lines used
+    disagree on the regime at x, the nearer line's value is returned, flagged invalid.
+    """
+
+    def __init__(self, settings: TableSettings | None = None, y_settings: TableSettings | None = None):
+        self.settings = settings or TableSettings()
+        self.y_settings = y_settings or self.settings
+        self.y = np.empty(0)
+        self.lines: list[Table1D] = []
+        self.yerr = np.empty(0)          # relative error estimate of the y-interpolation per y-interval
+        self.ychecked = np.empty(0, dtype=bool)
+
+    @property
+    def n_sampled(self) -> int:
+        return sum(line.n_sampled for line in self.lines)
+
+    @classmethod
+    def build(cls, sampler: Callable[[np.ndarray, float], Samples], x_window, y_window,
+              settings=None, y_settings=None, progress=None) -> "Table2D":
+        """Tabulate ``sampler(x_array, y)`` over x_window x y_window."""
+        table = cls(settings, y_settings)
+        table.extend(sampler, x_window, y_window, progress)
+        return table
+
+    def covers(self, x_window, y_window) -> bool:
+        return (bool(self.lines) and self.lines[0].covers(*x_window)
+                and self.y[0] <= y_window[0] and y_window[1] <= self.y[-1])
+
+    def extend(self, sampler, x_window, y_window, progress=None) -> None:
+        """Grow to cover x_window x y_window: extend existing lines in x, add lines in y, refine in y."""
+        xlo, xhi = float(x_window[0]), float(x_window[1])
+        ylo, yhi = float(y_window[0]), float(y_window[1])
+        if not (ylo < yhi and math.isfinite(ylo) and math.isfinite(yhi)):
+            raise ValueError(f"y window must satisfy lo < hi (finite), got ({ylo}, {yhi})")
+        if self.lines:
+            xlo, xhi = min(xlo, self.lines[0].lo), max(xhi, self.lines[0].hi)
+            for yk, line in zip(self.y, self.lines):
+                line.extend(lambda x, yk=yk: sampler(x, yk), xlo, xhi, progress)
+        dy = self.y_settings.base_dx
+        if not self.lines:
+            new_y = np.linspace(ylo, yhi, max(2, int(math.ceil((yhi - ylo) / dy)) + 1))
+        else:
+            parts = []
+            if ylo < self.y[0]:
+                n = max(1, int(math.ceil((self.y[0] - ylo) / dy)))
+                parts.append(np.linspace(ylo, self.y[0], n + 1)[:-1])
+            if yhi > self.y[-1]:
+                n = max(1, int(math.ceil((yhi - self.y[-1]) / dy)))
+                parts.append(np.linspace(self.y[-1], yhi, n + 1)[1:])
+            new_y = np.concatenate(parts) if parts else np.empty(0)
+        old_y, old_err, old_checked = self.y, self.yerr, self.ychecked
+        for yk in new_y:
+            line = Table1D.build(lambda x, yk=yk: sampler(x, yk), xlo, xhi, self.settings, progress)
+            k = int(np.searchsorted(self.y, yk))
+            self.y = np.insert(self.y, k, yk)
+            self.lines.insert(k, line)
+        # y-intervals between two old adjacent lines keep their attributes; new ones are to be checked
+        self.yerr = np.full(self.y.size - 1, np.inf)
+        self.ychecked = np.zeros(self.y.size - 1, dtype=bool)
+        if old_y.size > 1:
+            pos = np.searchsorted(self.y, old_y)
+            keep = np.diff(pos) == 1
+            self.yerr[pos[:-1][keep]] = old_err[keep]
+            self.ychecked[pos[:-1][keep]] = old_checked[keep]
+        self._refine(sampler, progress)
+
+    def _refine(self, sampler, progress) -> None:
+        st = self.y_settings
+        max_gen = int(math.ceil(math.log2(max(self.y[-1] - self.y[0], st.min_dx) / st.min_dx))) + 4
+        for _ in range(max_gen):
+            todo = np.flatnonzero(~self.ychecked)
+            if todo.size == 0:
+                return
+            width = np.diff(self.y)
+            xlo, xhi = self.lines[0].lo, self.lines[0].hi
+            for k in todo[::-1]:                       # right to left keeps indices of the rest valid
+                if width[k] < 2 * st.min_dx:
+                    self.ychecked[k] = True
+                    continue
+                ym = 0.5 * (self.y[k] + self.y[k + 1])
+                line_m = Table1D.build(lambda x, ym=ym: sampler(x, ym), xlo, xhi, self.settings, progress)
+                key = _regime_key(line_m.regime, line_m.regular)
+                pred = self.evaluate(line_m.x, np.full(line_m.x.size, ym))
+                use = line_m.regular & pred.valid & (pred.regime == key)
+                scale = np.maximum(np.abs(line_m.value), self.settings.abs_floor)
+                rel = np.abs(pred.value - line_m.value)[use] / scale[use]
+                disc = float(rel.max(initial=0.0))
+                ok = disc <= st.tol
+                self.y = np.insert(self.y, k + 1, ym)
+                self.lines.insert(k + 1, line_m)
+                self.yerr = np.insert(self.yerr, k + 1, disc)
+                self.yerr[k] = disc
+                self.ychecked = np.insert(self.ychecked, k + 1, ok)
+                self.ychecked[k] = ok
+        raise RuntimeError(f"2-D table refinement bound of {max_gen} generations in y reached")
+
+    def evaluate(self, xq, yq) -> TableValues:
+        """Interpolate at (xq, yq) (broadcast) inside the window; outside raises ValueError."""
+        xq, yq = np.broadcast_arrays(np.asarray(xq, dtype=float), np.asarray(yq, dtype=float))
+        shape = xq.shape
+        xq, yq = xq.ravel(), yq.ravel()
+        if np.any(np.isnan(yq)):
+            raise ValueError("table query contains NaN")
+        if yq.size and (yq.min() < self.y[0] or yq.max() > self.y[-1]):
+            raise ValueError(f"table query y in [{yq.min():.6g}, {yq.max():.6g}] outside the table window "
+                             f"[{self.y[0]:.6g}, {self.y[-1]:.6g}]: extend the table first")
+        ny = self.y.size
+        k = np.clip(np.searchsorted(self.y, yq, side="right") - 1, 0, ny - 2)
+        cubic = self.settings.method != "linear" and ny >= 4
+        if cubic:
+            first = np.clip(k - 1, 0, ny - 4)
+            stencil = first[:, None] + np.arange(4)
+        else:
+            stencil = k[:, None] + np.arange(2)
+        vals = np.empty(stencil.shape, dtype=complex)
+        errs = np.empty(stencil.shape)
+        valid = np.ones(stencil.shape, dtype=bool)
+        regs = np.empty(stencil.shape, dtype=np.int64)
+        for j in np.unique(stencil):
+            m = stencil == j
+            rows = np.any(m, axis=1)
+            tv = self.lines[j].evaluate(xq[rows])
+            col = np.argmax(m[rows], axis=1)
+            r = np.flatnonzero(rows)
+            vals[r, col], errs[r, col], valid[r, col], regs[r, col] = tv.value, tv.error, tv.valid, tv.regime
+        ys = self.y[stencil]
+        weights = np.ones(stencil.shape)
+        for a in range(stencil.shape[1]):              # Lagrange weights in y
+            for b in range(stencil.shape[1]):
+                if a != b:
+                    weights[:, a] *= (yq - ys[:, b]) / (ys[:, a] - ys[:, b])
+        value = np.sum(weights * vals, axis=1)
+        same = np.all(regs == regs[:, :1], axis=1)
+        near = np.where(yq - self.y[k] <= self.y[k + 1] - yq, k, k + 1)
+        near_col = near - stencil[:, 0]
+        rows = np.arange(yq.size)
+        scale = np.maximum(np.abs(value), self.settings.abs_floor)
+        error = np.max(errs, axis=1) + self.yerr[k] * scale
+        value = np.where(same, value, vals[rows, near_col])
+        spread = np.max(np.abs(vals - vals[rows, near_col][:, None]), axis=1)
+        error = np.where(same, error, spread)
+        ok = same & np.all(valid, axis=1)
+        regime = np.where(same, regs[:, 0], regs[rows, near_col])
+        return TableValues(value.reshape(shape), error.reshape(shape), ok.reshape(shape), regime.reshape(shape))
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        arrays = {"y": self.y, "yerr": self.yerr, "ychecked": self.ychecked}
+        for j, line in enumerate(self.lines):
+            arrays.update(line.to_arrays(prefix=f"line{j}."))
+        return arrays
+
+    @classmethod
+    def from_arrays(cls, arrays, settings, y_settings=None) -> "Table2D":
+        table = cls(settings, y_settings)
+        table.y = np.asarray(arrays["y"])
+        table.yerr = np.asarray(arrays["yerr"])
+        table.ychecked = np.asarray(arrays["ychecked"])
+        table.lines = [Table1D.from_arrays(arrays, settings, prefix=f"line{j}.") for j in range(table.y.size)]
+        return table
+
+    def __repr__(self) -> str:
+        if not self.lines:
+            return "Table2D(empty)"
+        return (f"Table2D(x=[{self.lines[0].lo:.4g}, {self.lines[0].hi:.4g}], y=[{self.y[0]:.4g}, "
+                f"{self.y[-1]:.4g}], lines={self.y.size}, samples={sum(l.x.size for l in self.lines)})")
+
+
+def settings_dict(settings: TableSettings) -> dict:
+    """Settings as a plain dict (for cache keys and provenance)."""
+    return asdict(settings)

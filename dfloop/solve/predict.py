@@ -1,0 +1,227 @@
+"""``predict_limit_cycles``: all roots of 1 + G(jw) N(A, w) = 0 in an (A, w) window, with stability."""
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+from .plant import as_plant
+from .result import LimitCycle, LimitCycles
+from .roots import Residual, find_roots
+from .stability import MARGINAL_TOL, loeb
+
+__all__ = ["predict_limit_cycles"]
+
+_MAX_REFINE_ROUNDS = 30
+_MAX_GRID = 50_000  # points per axis
+_MIN_LOG_STEP = 1e-6  # grid intervals narrower than this (in ln A or ln w) are not split further
+_PHASE_STEP = np.pi / 6  # max change of arg(G N) between neighbours where |G N| is near 1
+_LOG_MAG_STEP = 0.3  # max change of ln|G N| between neighbours where |G N| is near 1
+_NEAR_UNIT = math.log(20.0)  # "near 1": 1/20 <= |G N| <= 20
+
+
+def _window(name: str, value) -> tuple[float, float]:
+    try:
+        lo, hi = (float(x) for x in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} window must be a pair (lo, hi); got {value!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise ValueError(f"{name} window must be finite; got ({lo}, {hi})")
+    if lo <= 0 or hi <= 0:
+        raise ValueError(f"{name} window must be positive; got ({lo}, {hi})")
+    if lo >= hi:
+        raise ValueError(f"{name} window must satisfy lo < hi; got ({lo}, {hi})")
+    return lo, hi
+
+
+def _grid_size(grid) -> tuple[int, int]:
+    try:
+        na, nw = (int(x) for x in grid)
+    except (TypeError, ValueError):
+        raise ValueError(f"grid must be a pair (n_amplitudes, n_frequencies); got {grid!r}") from None
+    if na < 2 or nw < 2 or na > _MAX_GRID or nw > _MAX_GRID:
+        raise ValueError(f"grid sizes must lie in [2, {_MAX_GRID}]; got {grid!r}")
+    return na, nw
+
+
+def _amplitude_domain(N, v: np.ndarray) -> tuple[float, float]:
+    if N.frequency_dependent:
+        lo, hi = N.amplitude_domain(np.exp(v))
+    else:
+        lo, hi = N.amplitude_domain()
+    return float(np.min(lo)), float(np.max(hi))
+
+
+def _default_amplitude_window(res: Residual, v: np.ndarray, dom: tuple[float, float]):
+    """Amplitudes where |G N| = 1 can hold for some w of the window (the only place for roots)."""
+    lo, hi = dom
+    cand = lo * (1 + np.logspace(-9, 8, 171)) if lo > 0 else np.logspace(-12, 12, 241)
+    if math.isfinite(hi):
+        cand = np.concatenate([cand, hi * (1 - np.logspace(-9, -0.3, 88))])
+    cand = np.unique(cand[(cand > lo) & (cand < hi)])
+    P = res.grid(np.log(cand), v)
+    if not np.any(P):
+        raise ValueError("N is zero everywhere in its amplitude domain: no limit cycle is possible")
+    M = np.abs(P)
+    band = np.any((M >= 0.5) & (M <= 2.0), axis=1)
+    cross = np.any((M[1:] - 1) * (M[:-1] - 1) < 0, axis=1)
+    varying = np.any(np.abs(np.diff(P, axis=0)) > 1e-9 * np.abs(P[:-1]), axis=1)
+    rows = np.zeros(cand.size, bool)
+    rows[:-1] |= (band[:-1] | cross) & varying
+    rows[1:] |= (band[1:] | cross) & varying
+    idx = np.flatnonzero(rows)
+    if idx.size == 0:
+        return (float(cand[0]), float(cand[-1])), "default: N's amplitude domain (|G N| never reaches 1)"
+    i0, i1 = max(idx[0] - 2, 0), min(idx[-1] + 2, cand.size - 1)
+    return (float(cand[i0]), float(cand[i1])), "default: where |G N| can reach 1 within N's amplitude domain"
+
+
+def _split_mask(P: np.ndarray, axis: int, x: np.ndarray) -> np.ndarray:
+    """Intervals along ``axis`` where G N is not resolved near |G N| = 1."""
+    n = P.shape[axis]
+    P0, P1 = np.take(P, range(n - 1), axis=axis), np.take(P, range(1, n), axis=axis)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        L = np.log(np.abs(P))
+        dph = np.abs(np.angle(P1 / P0))
+        dL = np.abs(np.diff(L, axis=axis))
+    near = np.abs(L) < _NEAR_UNIT
+    rel = np.take(near, range(1, n), axis=axis) | np.take(near, range(n - 1), axis=axis)
+    bad = rel & ((np.nan_to_num(dph, nan=np.pi) > _PHASE_STEP) | (np.nan_to_num(dL, nan=np.inf) > _LOG_MAG_STEP))
+    return np.any(bad, axis=1 - axis) & (np.diff(x) > _MIN_LOG_STEP)
+
+
+def _resolve_grid(res: Residual, a: np.ndarray, v: np.ndarray):
+    """Insert midpoints until G N varies slowly between neighbours wherever |G N| is near 1 (bounded)."""
+    for _ in range(_MAX_REFINE_ROUNDS):
+        P = res.grid(a, v)
+        split_a, split_v = _split_mask(P, 0, a), _split_mask(P, 1, v)
+        if not (split_a.any() or split_v.any()):
+            return a, v, P
+        a = np.sort(np.concatenate([a, (a[:-1] + a[1:])[split_a] / 2]))
+        v = np.sort(np.concatenate([v, (v[:-1] + v[1:])[split_v] / 2]))
+        if a.size > _MAX_GRID or v.size > _MAX_GRID:
+            raise RuntimeError(f"grid refinement exceeded max_grid={_MAX_GRID} points per axis; "
+                               "narrow the omega or amplitude window")
+    raise RuntimeError(f"grid refinement did not settle within max_rounds={_MAX_REFINE_ROUNDS}")
+
+
+def _classify(res, a, v, marginal_tol):
+    det, cond = loeb(res, a, v)
+    return det, cond, np.where(np.abs(cond) < marginal_tol, "marginal", np.where(det > 0, "stable", "unstable"))
+
+
+def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), tol: float = 1e-10,
+                         marginal_tol: float = MARGINAL_TOL) -> LimitCycles:
+    """Predict the limit cycles of the loop of DESIGN.md Fig. 1 by the describing-function method.
+
+    Solves 1 + G(jw) N(A, w) = 0 for all (A, w) in the window, refines each root to
+    |1 + G N| <= tol (1 + |G N|), and classifies it by the Loeb criterion.
+
+    Parameters
+    ----------
+    G : python-control tf, ss or frd (SISO), or callable
+        The linear part; a callable gets an array of frequencies (rad/s) and returns G(j omega).
+    N : DescribingFunction
+        The nonlinear element, amplitude-only or frequency-dependent.
+    omega : (float, float), optional
+        Frequency window in rad/s. Default: two decades beyond the plant's poles and zeros, or the
+        frd's own grid. Required for a callable G.
+    amplitude : (float, float), optional
+        Amplitude window (N's input unit). Default: the part of N's amplitude domain where |G N| can
+        reach 1 for some frequency of the window. Clipped to N's amplitude domain.
+    grid : (int, int)
+        Initial log-spaced grid (amplitudes, frequencies); refined where G N varies fast near |G N| = 1.
+    tol : float
+        Residual tolerance relative to 1 + |G N|.
+    marginal_tol : float
+        Cycles whose normalised Loeb determinant is below this are reported as marginal.
+
+    Returns
+    -------
+    LimitCycles
+        List of :class:`LimitCycle` sorted by frequency, with the windows used and the grid size.
+    """
+    plant = as_plant(G)
+    if not (callable(N) and hasattr(N, "frequency_dependent") and hasattr(N, "amplitude_domain")):
+        raise ValueError(f"N must be a DescribingFunction; got {type(N).__name__}")
+    tol = float(tol)
+    if not (0 < tol < 1e-3):
+        raise ValueError(f"tol must lie in (0, 1e-3); got {tol}")
+    na, nw = _grid_size(grid)
+    res = Residual(plant, N)
+
+    if omega is None:
+        if plant.default_window is None:
+            raise ValueError("omega window is required when G is a callable (no poles/zeros to choose it from)")
+        w_lo, w_hi = plant.default_window
+        w_src = "default: from the plant's poles/zeros" if plant.domain[0] == 0 else "default: the frd's grid"
+    else:
+        w_lo, w_hi = _window("omega", omega)
+        w_src = "given"
+    if w_lo < plant.domain[0] * (1 - 1e-12) or w_hi > plant.domain[1] * (1 + 1e-12):
+        raise ValueError(f"omega window ({w_lo:g}, {w_hi:g}) leaves the plant's frequency range {plant.domain}")
+    v_lo, v_hi = math.log(w_lo), math.log(w_hi)
+    features = np.log(plant.feature_frequencies[(plant.feature_frequencies > w_lo)
+                                                & (plant.feature_frequencies < w_hi)])
+    v = np.unique(np.concatenate([np.linspace(v_lo, v_hi, nw), features]))
+
+    dom = _amplitude_domain(N, v)
+    if amplitude is None:
+        coarse = np.unique(np.concatenate([np.linspace(v_lo, v_hi, 100), features]))
+        (A_lo, A_hi), a_src = _default_amplitude_window(res, coarse, dom)
+    else:
+        A_lo, A_hi = _window("amplitude", amplitude)
+        a_src = "given"
+        if A_lo <= dom[0]:
+            A_lo, a_src = dom[0] * (1 + 1e-9), "given, clipped to N's amplitude domain"
+        if A_hi >= dom[1]:
+            A_hi, a_src = dom[1] * (1 - 1e-9), "given, clipped to N's amplitude domain"
+        if A_lo >= A_hi:
+            raise ValueError(f"amplitude window {tuple(amplitude)} lies outside N's amplitude domain {dom}")
+    a = np.linspace(math.log(A_lo), math.log(A_hi), na)
+
+    a, v, P = _resolve_grid(res, a, v)
+    if not np.any(P):
+        raise ValueError("N is zero everywhere in the amplitude window: no limit cycle is possible")
+    ra, rv = find_roots(res, a, v, P, tol)
+    cycles = _build(res, ra, rv, (a[0], a[-1], v[0], v[-1]), marginal_tol)
+    return LimitCycles(cycles, (A_lo, A_hi), (w_lo, w_hi), {"amplitude": a_src, "omega": w_src},
+                       (a.size, v.size), res.n_points)
+
+
+def _build(res: Residual, ra, rv, bounds, marginal_tol) -> list[LimitCycle]:
+    if ra.size == 0:
+        return []
+    det, cond, label = _classify(res, ra, rv, marginal_tol)
+    # a double root may be reached from several seeds: merge marginal roots closer than 1e-4 (log units)
+    keep = np.ones(ra.size, bool)
+    for i in range(ra.size):
+        for j in range(i):
+            if keep[j] and label[i] == label[j] == "marginal" and max(abs(ra[i] - ra[j]), abs(rv[i] - rv[j])) < 1e-4:
+                keep[i] = False
+    ra, rv, det, cond, label = ra[keep], rv[keep], det[keep], cond[keep], label[keep]
+    A, w = np.exp(ra), np.exp(rv)
+    g = res.plant(w)
+    n = res.N(A, w) if res.frequency_dependent else res.N(A)
+    valid = np.broadcast_to(res.N.validity(A, w if res.frequency_dependent else None), A.shape)
+    err = np.broadcast_to(res.N.error_estimate(A, w if res.frequency_dependent else None), A.shape)
+    a_lo, a_hi, v_lo, v_hi = bounds
+    edge_tol = 1e-9
+    on_edge = ((np.abs(ra - a_lo) <= edge_tol) | (np.abs(ra - a_hi) <= edge_tol)
+               | (np.abs(rv - v_lo) <= edge_tol) | (np.abs(rv - v_hi) <= edge_tol))
+    out = []
+    for k in np.argsort(w):
+        if on_edge[k]:
+            warnings.warn(f"limit cycle at A={A[k]:.6g}, omega={w[k]:.6g} rad/s lies on the edge of the search "
+                          "window; widen the window to confirm it", stacklevel=3)
+        r = 1 + g[k] * n[k]
+        values = (A[k], w[k], det[k], cond[k], abs(r))
+        if not all(math.isfinite(x) for x in values):
+            raise RuntimeError(f"non-finite value in a refined root at A={A[k]}, omega={w[k]}")
+        out.append(LimitCycle(amplitude=float(A[k]), frequency=float(w[k]), stability=str(label[k]),
+                              residual=float(abs(r)), relative_residual=float(abs(r) / (1 + abs(g[k] * n[k]))),
+                              loeb_determinant=float(det[k]), loeb_conditioning=float(cond[k]), G=complex(g[k]),
+                              N=complex(n[k]), on_edge=bool(on_edge[k]), valid=bool(valid[k]),
+                              n_error=float(err[k])))
+    return out

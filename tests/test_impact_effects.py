@@ -1,0 +1,156 @@
+"""Optional effects: the linear-mode engine against the JIT kernel, solve_ivp and closed forms."""
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from dfloop.impact.effects import CoulombFriction, LoadSpring, ViscousDamping, simulate_with_effects
+from dfloop.impact.extract import describing_function_from_trajectory, impact_describing_function
+from dfloop.impact.kernel import ImpactParameters, simulate
+from dfloop.impact.reference import simulate_solve_ivp
+
+M1, M2, H, F = 1.0, 1.0, 0.1, 50.0
+
+
+@pytest.mark.parametrize("eps,w", [(0.8, 35.0), (0.0, 30.0), (0.5, 10.0)])
+def test_engine_without_effects_matches_jit_kernel(eps, w):
+    t_end = 8 * 2 * math.pi / w
+    eng = simulate_with_effects(ImpactParameters(M1, M2, H, eps, F, w), t_end, (), 10 ** 6, 1e-9)
+    jit = simulate(M1, M2, H, eps, F, w, t_end)
+    t = np.linspace(0, t_end, 301)
+    assert np.max(np.abs(eng.evaluate(t)["x1"] - jit.evaluate(t)["x1"])) < 1e-12
+    if eps > 0.6:  # no chatter: the event sequences are identical
+        assert np.max(np.abs(eng.impacts["t"] - jit.impacts["t"])) < 1e-12
+    assert np.allclose(eng.stuck_intervals[:, :2].sum(), jit.stuck_intervals[:, :2].sum(), rtol=1e-9)
+
+
+def test_exact_integrals_of_engine_match_closed_form_integrals():
+    eps, w = 0.5, 10.0
+    tp = 2 * math.pi / w
+    eng = simulate_with_effects(ImpactParameters(M1, M2, H, eps, F, w), 12 * tp, (), 10 ** 6, 1e-9)
+    jit = simulate(M1, M2, H, eps, F, w, 12 * tp)
+    a = describing_function_from_trajectory(eng, 8, 4)
+    b = describing_function_from_trajectory(jit, 8, 4)
+    assert abs(a.N - b.N) < 1e-10 * abs(b.N)
+    assert a.stuck_fraction == pytest.approx(b.stuck_fraction, abs=1e-9)
+
+
+C_DAMP, K_SPRING = 0.8, 40.0
+
+
+@pytest.mark.parametrize("effects,force1", [
+    ((ViscousDamping(C_DAMP),), lambda t, x, v: -C_DAMP * v),
+    ((LoadSpring(K_SPRING),), lambda t, x, v: -K_SPRING * x),
+    ((ViscousDamping(C_DAMP), LoadSpring(K_SPRING)), lambda t, x, v: -K_SPRING * x - C_DAMP * v),
+])
+@pytest.mark.parametrize("eps,w", [(0.8, 35.0), (0.5, 30.0)])
+def test_linear_effects_agree_with_solve_ivp(effects, force1, eps, w):
+    t_end = 1.5
+    tr = simulate(M1, M2, H, eps, F, w, t_end, effects=effects)
+    ref = simulate_solve_ivp(M1, M2, H, eps, F, w, t_end, extra_force1=force1)
+    assert tr.impacts["t"].size == ref["t"].size >= 10
+    assert np.max(np.abs(tr.impacts["t"] - ref["t"])) < 1e-9
+    t = np.linspace(0, t_end, 401)
+    assert np.max(np.abs(tr.evaluate(t)["x1"] - ref["sol"](t)[0])) < 1e-9
+
+
+def test_flights_follow_the_damped_free_oscillation_of_m1():
+    c, k = 0.6, 900.0
+    tr = simulate(M1, M2, H, 0.7, F, 30.0, 1.0, effects=(ViscousDamping(c), LoadSpring(k)))
+    imp = np.flatnonzero(tr.impact_mask)
+    assert imp.size >= 4
+    zeta_w = c / (2 * M1)
+    wd = math.sqrt(k / M1 - zeta_w ** 2)
+    for i in imp[:-1]:
+        t0, t1 = tr.t0[i], tr.t0[i + 1]
+        x0, v0 = tr.evaluate([t0])["x1"][0], tr.impacts["v1_post"][np.flatnonzero(imp == i)[0]]
+        s = np.linspace(0, t1 - t0, 50)[1:-1]
+        closed = np.exp(-zeta_w * s) * (x0 * np.cos(wd * s) + (v0 + zeta_w * x0) / wd * np.sin(wd * s))
+        assert np.max(np.abs(tr.evaluate(t0 + s)["x1"] - closed)) < 1e-12
+
+
+def _friction_reference_m2(Ff, w, t_end):
+    """A single mass with F cos wt and Coulomb friction: solve_ivp per slip phase, closed-form stick phases."""
+    t, x, v = 0.0, 0.0, 0.0
+    xs = []
+    while t < t_end:
+        if v == 0.0:
+            # stuck until |F cos wt| > Ff: scan forward on a fine grid then refine with brentq
+            from scipy.optimize import brentq
+            g = lambda tt: abs(F * math.cos(w * tt)) - Ff  # noqa: E731
+            if g(t) <= 0:
+                grid = t + np.linspace(0, 2 * math.pi / w, 2001)
+                k = np.flatnonzero(np.array([g(tt) for tt in grid]) > 0)
+                t_new = brentq(g, grid[k[0] - 1], grid[k[0]], xtol=1e-15)
+                xs.append((t, t_new, x, 0.0, 0))
+                t = t_new
+            sign = 1.0 if math.cos(w * t) > 0 else -1.0
+        else:
+            sign = 1.0 if v > 0 else -1.0
+        stop = lambda tt, y: y[1]  # noqa: E731
+        stop.terminal = True
+        sol = solve_ivp(lambda tt, y: [y[1], (F * math.cos(w * tt) - Ff * sign) / M2], (t, t_end), [x, v],
+                        events=stop, rtol=1e-12, atol=1e-15, dense_output=True, method="DOP853")
+        xs.append((t, sol.t[-1], sol.sol, sign, 1))
+        t, x, v = sol.t[-1], sol.y[0, -1], 0.0
+        if sol.status == 0:
+            break
+    return xs
+
+
+@pytest.mark.parametrize("Ff", [15.0, 35.0])
+def test_coulomb_friction_on_m2_matches_stick_slip_reference(Ff):
+    w, t_end = 3.0, 6.0
+    tr = simulate(M1, M2, 100.0, 0.5, F, w, t_end, effects=(CoulombFriction(Ff, "m2"),))
+    assert tr.n_impacts == 0
+    ref = _friction_reference_m2(Ff, w, t_end)
+    for t0, t1, sol, _, slipping in ref:
+        tt = np.linspace(t0, t1, 40)
+        x_ref = sol(tt)[0] if slipping else np.full_like(tt, sol)
+        assert np.max(np.abs(tr.evaluate(tt)["x2"] - 50.0 - x_ref)) < 1e-9
+
+
+def test_friction_above_force_never_moves():
+    tr = simulate(M1, M2, H, 0.5, F, 3.0, 5.0, effects=(CoulombFriction(F * 1.01, "m2"),))
+    st = tr.evaluate(np.linspace(0, 5.0, 101))
+    assert np.all(st["x2"] == H / 2) and np.all(st["v2"] == 0.0) and np.all(st["x1"] == 0.0)
+
+
+def test_friction_on_m1_decelerates_linearly_and_stops():
+    Ff = 20.0
+    tr = simulate(M1, M2, H, 0.5, F, 20.0, 1.0, effects=(CoulombFriction(Ff, "m1"),))
+    imp = np.flatnonzero(tr.impact_mask)
+    i = imp[0]
+    t0, t1 = tr.t0[i], tr.t0[imp[1]]
+    v0 = tr.impacts["v1_post"][0]
+    s = np.linspace(0, t1 - t0, 200)[1:-1]
+    v_closed = np.sign(v0) * np.maximum(np.abs(v0) - Ff / M1 * s, 0.0)
+    assert np.max(np.abs(tr.evaluate(t0 + s)["v1"] - v_closed)) < 1e-11
+
+
+def test_dynamic_backlash_df_with_damping_is_periodic_and_bounded():
+    w = 35.0
+    r = impact_describing_function(M1, M2, H, 0.8, F, w, effects=(ViscousDamping(0.5),), transient_periods=30,
+                                   periods=6)
+    assert r.period == 1 and r.periodicity < 1e-8
+    M = M1 + M2
+    # damping on M1 only perturbs the rigid-body answer -1/(M w^2) by a bounded amount
+    assert abs(r.N * M * w * w + 1) < 0.5
+
+
+@pytest.mark.parametrize("make,name", [
+    (lambda: ViscousDamping(0.0), "c"), (lambda: ViscousDamping(np.nan), "c"), (lambda: LoadSpring(-1.0), "k"),
+    (lambda: CoulombFriction(0.0), "force"), (lambda: CoulombFriction(1.0, "m3"), "mass"),
+])
+def test_effect_validation(make, name):
+    with pytest.raises(ValueError, match=name):
+        make()
+
+
+def test_effects_break_similarity_and_two_frictions_rejected():
+    assert not any(e.keeps_similarity for e in (ViscousDamping(1.0), LoadSpring(1.0), CoulombFriction(1.0)))
+    with pytest.raises(ValueError, match="effects"):
+        simulate(M1, M2, H, 0.5, F, 30.0, 1.0, effects=(CoulombFriction(1.0, "m1"), CoulombFriction(1.0, "m2")))
+    with pytest.raises(ValueError, match="effects"):
+        simulate(M1, M2, H, 0.5, F, 30.0, 1.0, effects=("damping",))
