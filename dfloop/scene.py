@@ -157,9 +157,9 @@ def load_scene(path: str | Path) -> Scene:
     unknown = set(plots) - set(_STAGES)
     if unknown:
         raise ValueError(f"analysis.plots: unknown plot(s) {sorted(unknown)}; known: {list(_STAGES)}")
-    plant = build({**data["plant"], "type": data["plant"].get("type", "tf")})
+    plant = _plant(data["plant"])
     if "controller" in data:
-        controller = build({**data["controller"], "type": data["controller"].get("type", "tf")})
+        controller = _plant(data["controller"])
         if callable(plant) and not hasattr(plant, "dt"):
             raise ValueError("a [controller] cannot be combined with a delayed plant; put the delay last")
         plant = controller * plant

@@ -40,7 +40,7 @@ FACTORS = np.array([1 + 1e-6, 1.001, 1.5, 2.0, 3.3, 10.0, 1e3, 1e6])
 
 @pytest.mark.parametrize("el,edge", STATIC)
 def test_static_with_breakpoints_matches_closed_form(el, edge):
-    A = edge * FACTORS
+    A = edge * (FACTORS[:-1] if isinstance(el, df.Quantizer) else FACTORS)  # 4e6 levels: too slow
     num = df.NumericDF(el.output, breakpoints=el.breakpoints)(A)
     assert np.all(rel_err(num, el(A)) < 1e-9)
 
@@ -74,9 +74,11 @@ def test_relay_operators_match_closed_form(a, d):
     assert np.all(rel_err(df.NumericDF(rel)(A), rel(A)) < 1e-9)
 
 
-def test_relay_with_hysteresis_at_exactly_the_switching_level():
+def test_relay_with_hysteresis_at_and_just_above_the_switching_level():
     rel = df.Relay(1.0, hysteresis=0.5)
-    assert rel_err(df.NumericDF(rel)(0.5), -4j / (np.pi * 0.5)) < 1e-12
+    assert abs(df.NumericDF(rel)(0.5)) < 1e-15 and rel(0.5) == 0  # strict crossing: no switching
+    A = 0.5 * (1 + 1e-12)
+    assert rel_err(df.NumericDF(rel)(A), rel(A)) < 1e-9
 
 
 def test_smooth_asymmetric_function_against_bessel():
@@ -106,9 +108,12 @@ def test_non_rate_independent_operator_is_rejected():
         df.NumericDF(Drifting(), hysteretic=True)(1.0)
 
 
-def test_error_estimate_and_sampled_baseline():
-    nd = df.NumericDF(df.Saturation(1.0).output)
-    assert np.all(nd.error_estimate([1.5, 4.0]) < 1e-12)
+def test_error_estimate_bounds_the_error_and_sampled_baseline():
+    sat = df.Saturation(1.0)
+    coarse = df.NumericDF(sat.output, nodes=3, rtol=1e-6)
+    A = np.array([1.5, 4.0])
+    est = coarse.error_estimate(A)
+    assert np.all(np.abs(coarse(A) - sat(A)) <= est) and np.all(est < 1e-5)
     sampled = df.NumericDF(df.Saturation(1.0).output, method="sampled", samples=4096)
     err = rel_err(sampled(2.0), df.Saturation(1.0)(2.0))
     assert 1e-12 < err < 1e-4  # sampling a kink converges only algebraically

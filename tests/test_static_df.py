@@ -153,7 +153,7 @@ def test_relay_special_cases():
 
 def test_relay_zero_below_switching_and_infinite_at_zero_for_ideal():
     assert np.all(df.Relay(1.0, 0.2, 0.5)([0.0, 0.3, 0.69]) == 0)
-    assert np.all(df.Relay(1.0, hysteresis=0.5)([0.0, 0.49]) == 0)
+    assert np.all(df.Relay(1.0, hysteresis=0.5)([0.0, 0.49, 0.5]) == 0)
     assert df.Relay(1.0)(0.0) == np.inf
 
 
@@ -166,11 +166,14 @@ def test_relay_closed_form_against_sampled_operator(a, d):
 
 
 def test_relay_operator_switching_sequence():
-    op = df.Relay(1.0, hysteresis=0.2, dead_zone=0.5).operator()  # on at 0.7, off at 0.3
-    xs = [0.0, 0.69, 0.7, 0.5, 0.31, 0.29, -0.69, -0.7, -0.31, -0.29, 0.75]
-    assert [op(x) for x in xs] == [0, 0, 1, 1, 1, 0, 0, -1, -1, 0, 1]
-    hyst = df.Relay(2.0, hysteresis=0.5).operator()  # up at +0.5, down at -0.5, starts at rest
-    assert [hyst(x) for x in [0.0, 0.4, 0.5, 0.0, -0.5, -0.51, 0.3, 0.5, 0.51]] == [0, 0, 2, 2, 2, -2, -2, -2, 2]
+    op = df.Relay(1.0, hysteresis=0.25, dead_zone=0.5).operator()  # on at 0.75, off at 0.25
+    xs = [0.0, 0.74, 0.75, 0.76, 0.5, 0.26, 0.25, 0.24, -0.75, -0.76, -0.26, -0.24, 0.8]
+    assert [op(x) for x in xs] == [0, 0, 0, 1, 1, 1, 1, 0, 0, -1, -1, 0, 1]
+    hyst = df.Relay(2.0, hysteresis=0.5).operator()  # up above +0.5, down below -0.5, starts at rest
+    xs = [0.0, 0.4, 0.5, 0.51, 0.0, -0.5, -0.51, 0.3, 0.5, 0.51]
+    assert [hyst(x) for x in xs] == [0, 0, 0, 2, 2, 2, -2, -2, -2, 2]
+    ideal = df.Relay(3.0).operator()
+    assert [ideal(x) for x in [0.0, 1e-300, -2.0, 0.0]] == [0, 3, -3, -3]  # x = 0 holds the output
 
 
 # ---------------------------------------------------------------------------------------------- the rest

@@ -33,7 +33,7 @@ def test_relative_accuracy_and_jump_location(method):
     q = np.random.default_rng(1).uniform(-1.0, X_IRREGULAR, 20000)
     tv = tab.evaluate(q)
     rel = np.abs(tv.value - smooth(q)) / np.abs(smooth(q))
-    assert np.all(tv.valid[np.abs(q - X_JUMP) > 1e-6])
+    assert np.all(tv.valid[np.abs(q - X_JUMP) > tab.settings.jump_dx])
     assert rel[tv.valid].max() <= 1e-4
     # the jump is bracketed to jump_dx and never interpolated across
     j = np.flatnonzero(tab.jumps() & tab.regular[:-1] & tab.regular[1:])
@@ -66,7 +66,7 @@ def test_irregular_region_flagged_and_not_refined():
     assert not np.any(tv.valid)
     assert np.all(tv.error > 0)
     edge = np.flatnonzero(tab.regular[:-1] & ~tab.regular[1:])
-    assert edge.size == 1 and tab.x[edge[0]] < X_IRREGULAR <= tab.x[edge[0] + 1] <= X_IRREGULAR + 1e-7
+    assert edge.size == 1 and tab.x[edge[0]] < X_IRREGULAR <= tab.x[edge[0] + 1] <= X_IRREGULAR + tab.settings.edge_dx
 
 
 def test_value_jump_within_one_regime_is_located():
@@ -78,7 +78,7 @@ def test_value_jump_within_one_regime_is_located():
     tab = Table1D.build(sampler, 0.0, 1.0, TableSettings(tol=1e-6))
     j = np.flatnonzero(tab.jumps())
     assert j.size == 1
-    assert tab.x[j[0]] < xj <= tab.x[j[0] + 1] and tab.x[j[0] + 1] - tab.x[j[0]] <= 1e-7
+    assert tab.x[j[0]] < xj <= tab.x[j[0] + 1] and tab.x[j[0] + 1] - tab.x[j[0]] <= tab.settings.jump_dx
     q = np.linspace(0, 1, 1001)
     q = q[np.abs(q - xj) > 1e-6]
     tv = tab.evaluate(q)

@@ -1,5 +1,6 @@
 """Describing-function objects: one protocol, analytic static elements, numeric DFs, compositions."""
 from .base import DescribingFunction, negative_inverse
+from .composition import LinearThenStatic, MassBacklash
 from .numeric import NumericDF
 from .static import (
     Backlash,
@@ -30,4 +31,6 @@ __all__ = [
     "PreloadedSpring",
     "CoulombViscousFriction",
     "NumericDF",
+    "LinearThenStatic",
+    "MassBacklash",
 ]

@@ -16,7 +16,7 @@ from typing import Callable
 
 import numpy as np
 
-from .._checks import amplitude_array, in_closed_interval
+from .._checks import amplitude_array, finite, in_closed_interval
 from .base import DescribingFunction
 
 __all__ = ["NumericDF"]
@@ -29,6 +29,7 @@ _WINDOW = 2 * _DIFF_ORDER + 1
 _SUB_SAMPLES = 32  # detection grid inside a bracket, on each side of the singularity found there
 _MAX_NESTING = 3  # levels of that nested search
 _MAX_LEVELS = 64  # bound on adaptive halvings of a quadrature piece
+_MAX_PIECES = 8192  # bound on pieces under refinement per branch
 
 
 def _median_filter(d: np.ndarray) -> np.ndarray:
@@ -133,35 +134,50 @@ def _locate(evaluate, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray, samples:
 
 
 def _gauss_legendre(evaluate, rows, a, b, xi, w):
-    """Gauss-Legendre integrals of g sin, g cos and |g| over the pieces [a, b] (one per entry of rows)."""
+    """Gauss-Legendre integrals of g sin and g cos over the pieces [a, b] (one per entry of rows), and
+    the rounding floor of those sums: g is perturbed by the input's rounding, eps |x| |dg/dx| with
+    x = A sin t, i.e. eps |tan t| |dg/dt| (estimated from the nodes), plus eps |g|."""
     half, mid = 0.5 * (b - a), 0.5 * (a + b)
     theta = mid[:, None] + half[:, None] * xi
     g = evaluate(rows, theta)
     wg = half[:, None] * w * g
-    return np.sum(wg * np.sin(theta), axis=1), np.sum(wg * np.cos(theta), axis=1), np.sum(np.abs(wg), axis=1)
+    if xi.size > 1:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            slope = np.nan_to_num(np.abs(np.gradient(g, axis=1) / np.gradient(theta, axis=1)), posinf=0.0)
+    else:
+        slope = np.zeros_like(g)
+    floor = np.sum(half[:, None] * w * _EPS * (np.abs(g) + np.abs(np.tan(theta)) * slope), axis=1)
+    return np.sum(wg * np.sin(theta), axis=1), np.sum(wg * np.cos(theta), axis=1), floor
 
 
 def _adaptive_pieces(evaluate, R: int, rows, a, b, nodes: int, rtol: float):
     """Sum over pieces of int g sin and int g cos per row, each piece halved until its two halves agree
-    with the whole to ``rtol`` times the row's int |g| (smooth pieces pass at once). Returns
+    with the whole to ``rtol`` times the row's int |g| sin-and-cos weighted sum, or to the rounding floor
+    of the integrand (smooth pieces pass at once, a missed jump costs one halving per bit). Returns
     (I_sin, I_cos, error bound) per row."""
     xi, w = np.polynomial.legendre.leggauss(nodes)
-    c_sin, c_cos, c_abs = _gauss_legendre(evaluate, rows, a, b, xi, w)
-    tol = rtol * np.bincount(rows, c_abs, minlength=R)[rows] + np.finfo(float).tiny
+    c_sin, c_cos, _ = _gauss_legendre(evaluate, rows, a, b, xi, w)
+    scale = np.bincount(rows, np.abs(c_sin) + np.abs(c_cos), minlength=R)
+    tol = rtol * scale[rows] + np.finfo(float).tiny
     i_sin, i_cos, err = np.zeros(R), np.zeros(R), np.zeros(R)
     for _ in range(_MAX_LEVELS):
         m = 0.5 * (a + b)
-        l_sin, l_cos, _ = _gauss_legendre(evaluate, rows, a, m, xi, w)
-        r_sin, r_cos, _ = _gauss_legendre(evaluate, rows, m, b, xi, w)
+        l_sin, l_cos, l_floor = _gauss_legendre(evaluate, rows, a, m, xi, w)
+        r_sin, r_cos, r_floor = _gauss_legendre(evaluate, rows, m, b, xi, w)
         f_sin, f_cos = l_sin + r_sin, l_cos + r_cos
         diff = np.abs(f_sin - c_sin) + np.abs(f_cos - c_cos)
-        ok = diff <= tol
+        ok = diff <= np.maximum(tol, 16.0 * (l_floor + r_floor))
         np.add.at(i_sin, rows[ok], f_sin[ok])
         np.add.at(i_cos, rows[ok], f_cos[ok])
         np.add.at(err, rows[ok], diff[ok])
         if np.all(ok):
             return i_sin, i_cos, err
         bad = ~ok
+        if np.max(np.bincount(rows[bad], minlength=R)) > _MAX_PIECES // 2:
+            raise RuntimeError(
+                f"adaptive quadrature exceeded its bound of {_MAX_PIECES} pieces per branch "
+                "(noisy output or many unresolved jumps: supply breakpoints or raise rtol)"
+            )
         rows, tol = np.repeat(rows[bad], 2), np.repeat(tol[bad], 2)
         a, b = np.stack([a[bad], m[bad]], 1).ravel(), np.stack([m[bad], b[bad]], 1).ravel()
         c_sin = np.stack([l_sin[bad], r_sin[bad]], 1).ravel()
@@ -192,6 +208,14 @@ def _branch_integrals(evaluate, lo, hi, fixed, nodes: int, samples: int, locate:
     return _adaptive_pieces(evaluate, R, rows, bounds[:, :-1].ravel(), bounds[:, 1:].ravel(), nodes, rtol)
 
 
+def _integer_at_least(name: str, value, minimum: int) -> int:
+    """``value`` as an int >= minimum, raising ValueError naming ``name``."""
+    x = finite(name, value)
+    if x != int(x) or x < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(x)
+
+
 class NumericDF(DescribingFunction):
     """Describing function computed numerically from a static function or a hysteretic operator.
 
@@ -212,9 +236,9 @@ class NumericDF(DescribingFunction):
         Gauss-Legendre nodes per smooth piece (>= 2).
     samples : int
         Cells of the detection grid per branch (>= 16); for ``method="sampled"`` the samples per period.
-    locate : bool
-        Detect and bisect switching instants not given as breakpoints (otherwise only the adaptive
-        halving of pieces resolves them, slowly).
+    locate : bool, optional
+        Detect and bisect switching instants (default: only when no breakpoints are given). Without it,
+        only the adaptive halving of pieces resolves unlisted jumps, one halving per bit.
     rtol : float
         Each quadrature piece is halved until its halves agree with it to ``rtol`` times int |y|.
     method : {"pieces", "sampled"}
@@ -246,7 +270,7 @@ class NumericDF(DescribingFunction):
         breakpoints=None,
         nodes: int = 16,
         samples: int = 128,
-        locate: bool = True,
+        locate: bool | None = None,
         rtol: float = 1e-14,
         method: str = "pieces",
         input_name: str = "A",
@@ -262,14 +286,13 @@ class NumericDF(DescribingFunction):
         if breakpoints is not None and self.hysteretic:
             raise ValueError("breakpoints apply to static functions only (hysteretic=True given)")
         self.breakpoints = breakpoints
-        if int(nodes) != nodes or nodes < 2:
-            raise ValueError(f"nodes must be an integer >= 2, got {nodes!r}")
-        if int(samples) != samples or samples < 4 * _DIFF_ORDER // 2 + 4:
-            raise ValueError(f"samples must be an integer >= 16, got {samples!r}")
+        nodes = _integer_at_least("nodes", nodes, 2)
+        samples = _integer_at_least("samples", samples, 16)
         if method not in ("pieces", "sampled"):
             raise ValueError(f"method must be 'pieces' or 'sampled', got {method!r}")
         self.rtol = in_closed_interval("rtol", rtol, 1e-16, 1e-2)
-        self.nodes, self.samples, self.locate, self.method = int(nodes), int(samples), bool(locate), method
+        self.locate = breakpoints is None if locate is None else bool(locate)
+        self.nodes, self.samples, self.method = int(nodes), int(samples), method
         self.input_name, self.input_unit = input_name, input_unit
 
     # ------------------------------------------------------------------------------------ evaluation
@@ -335,12 +358,17 @@ class NumericDF(DescribingFunction):
             theta = 2.0 * np.pi * np.arange(n) / n
             y = np.array([op(A * np.sin(t)) for t in theta])
             return complex(2.0j * np.mean(y * np.exp(-1j * theta)) / A), np.nan
+        starts = [op]  # states at the start of the rising and the falling branch, then one period on
+        for lo in (-0.5 * np.pi, 0.5 * np.pi):
+            nxt = copy.deepcopy(starts[-1])
+            for t in np.linspace(lo, lo + np.pi, n + 1):
+                nxt(A * np.sin(t))
+            starts.append(nxt)
+        self._check_periodic(starts[0], starts[2], A)
         total, err = 0.0 + 0.0j, 0.0
-        start = op
-        for lo in (-0.5 * np.pi, 0.5 * np.pi):  # rising branch, then falling branch
-            hi = lo + np.pi
+        for lo, state in zip((-0.5 * np.pi, 0.5 * np.pi), starts):
 
-            def evaluate(rows, theta, state=start):
+            def evaluate(rows, theta, state=state):
                 vals = np.empty(theta.shape)
                 for i, row in enumerate(theta):
                     if np.all(np.diff(row) >= 0):  # monotone along the branch: feed one copy in order
@@ -351,16 +379,11 @@ class NumericDF(DescribingFunction):
                 return vals
 
             i_sin, i_cos, e = _branch_integrals(
-                evaluate, np.array([lo]), np.array([hi]), np.empty((1, 0)), self.nodes, n, self.locate,
-                self.rtol,
+                evaluate, np.array([lo]), np.array([lo + np.pi]), np.empty((1, 0)), self.nodes, n,
+                self.locate, self.rtol,
             )
             total += complex(i_sin[0], i_cos[0])
             err += e[0]
-            nxt = copy.deepcopy(start)
-            for t in np.linspace(lo, hi, n + 1):
-                nxt(A * np.sin(t))
-            start = nxt
-        self._check_periodic(op, start, A)
         return total / (np.pi * A), err / (np.pi * A)
 
     def _check_periodic(self, begin, end, A: float) -> None:

@@ -16,7 +16,7 @@ from abc import abstractmethod
 
 import numpy as np
 
-from .._checks import finite, nonnegative, positive
+from .._checks import finite, in_closed_interval, nonnegative, positive
 from .base import DescribingFunction
 
 __all__ = [
@@ -262,11 +262,14 @@ class RelayOperator:
 
     Crossings are strict: from 0 it switches to +M when x > on and to -M when x < -on; from +M it
     leaves when x < off (to -M if also x < -on, else to 0); from -M symmetrically when x > -off.
-    Starts at rest, output 0. With on = off = 0 (ideal relay) the output is M sign(x).
+    Starts at rest, output 0. With on = off = 0 (ideal relay) the output is M sign(x) for x != 0
+    (x = 0 holds the last output).
     """
 
     def __init__(self, M: float, on: float, off: float):
-        self.M, self.on, self.off = M, on, off
+        self.M = positive("M", M)
+        self.on = nonnegative("on", on)
+        self.off = in_closed_interval("off", off, -self.on, self.on)
         self.state = 0
 
     def __call__(self, x: float) -> float:

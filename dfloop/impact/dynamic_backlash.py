@@ -13,6 +13,7 @@ on disk (:mod:`dfloop.impact.cache`).
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Callable
 
@@ -23,17 +24,17 @@ from ..describing.base import DescribingFunction
 from . import cache as _cache
 from .table import Samples, Table1D, Table2D, TableSettings, TableValues, settings_dict, stderr_progress
 
-__all__ = ["DynamicBacklash"]
+__all__ = ["DynamicBacklash", "prepare_many"]
 
 BETA_NO_IMPACT = 0.25
 _U_START = math.log(BETA_NO_IMPACT) + 1e-9     # first table point, just above the no-impact limit
 _OMEGA_REF = 1.0                               # frequency of the similarity-table simulations (rad/s)
-_REGIME_BASE = 1000                            # regime label = (period * BASE + impacts per cycle) * BASE + runs
+_REGIME_BASE = 1000                            # label = (period * BASE + impacts per cycle) * BASE + sticking
 
 
-def _regime_label(period, impacts, runs):
+def _regime_label(period, impacts, sticking):
     return (np.asarray(period, dtype=np.int64) * _REGIME_BASE + np.asarray(impacts, dtype=np.int64)) * _REGIME_BASE \
-        + np.asarray(runs, dtype=np.int64)
+        + np.asarray(sticking, dtype=np.int64)
 
 
 class DynamicBacklash(DescribingFunction):
@@ -58,6 +59,8 @@ class DynamicBacklash(DescribingFunction):
         Forcing periods discarded, then used for the fundamental, per simulated sample.
     base_dx, min_dx : float
         Initial spacing and smallest refined interval of the table in ln beta (and ln w for 2-D tables).
+    edge_dx : float
+        Width in ln beta to which edges of irregular regions and bifurcations without a jump are located.
     beta_max : float
         Largest beta the table may reach; requests beyond raise ValueError.
     cache : bool
@@ -78,7 +81,7 @@ class DynamicBacklash(DescribingFunction):
 
     def __init__(self, m1: float, m2: float, h: float, restitution: float, effects=(), *, tol: float = 1e-4,
                  method: str = "cubic", transient_periods: int = 100, periods: int = 20,
-                 base_dx: float = 0.05, min_dx: float = 2e-4, beta_max: float = 1e4, cache: bool = True,
+                 base_dx: float = 0.1, min_dx: float = 2e-4, edge_dx: float = 1e-2, beta_max: float = 1e4, cache: bool = True,
                  progress: bool | Callable[[int, str], None] = False):
         self.m1 = _checks.positive("m1", m1)
         self.m2 = _checks.positive("m2", m2)
@@ -92,7 +95,8 @@ class DynamicBacklash(DescribingFunction):
             raise ValueError(f"beta_max must exceed 1/4, got {self.beta_max}")
         self._settings = TableSettings(tol=_checks.positive("tol", tol), method=method,
                                        base_dx=_checks.positive("base_dx", base_dx),
-                                       min_dx=_checks.positive("min_dx", min_dx))
+                                       min_dx=_checks.positive("min_dx", min_dx),
+                                       edge_dx=_checks.positive("edge_dx", edge_dx))
         self._y_settings = TableSettings(tol=tol, method=method, base_dx=0.25, min_dx=max(min_dx, 1e-3))
         self._use_cache = bool(cache)
         self._progress = progress
@@ -142,10 +146,12 @@ class DynamicBacklash(DescribingFunction):
     def _samples(self, force: np.ndarray, omega: np.ndarray) -> Samples:
         r = self._extract(force, omega)
         period = np.asarray(r.period, dtype=np.int64)
-        per_cycle = np.rint(np.asarray(r.impacts_per_period) * np.maximum(period, 1)).astype(np.int64)
         regular = period > 0
-        label = _regime_label(period, np.where(regular, per_cycle, 0),
-                              np.where(regular, 10 * r.max_run_A + r.max_run_B, 0))
+        # regime: the period and, for motions without sticking, the impacts per cycle; the number of
+        # chattering impacts before a stuck phase changes continuously-valued motion and is no regime
+        stuck = np.asarray(r.stuck_fraction) > 0
+        per_cycle = np.rint(np.asarray(r.impacts_per_period) * np.maximum(period, 1)).astype(np.int64)
+        label = _regime_label(period, np.where(regular & ~stuck, per_cycle, 0), np.where(regular & stuck, 1, 0))
         value = np.asarray(r.N, dtype=complex) * self.m2 * omega ** 2
         extra = {"period": period, "periodicity": np.asarray(r.periodicity, dtype=float),
                  "n_A": np.asarray(r.max_run_A, dtype=float), "n_B": np.asarray(r.max_run_B, dtype=float),
@@ -338,3 +344,18 @@ class DynamicBacklash(DescribingFunction):
         eff = f", effects={list(self.effects)!r}" if self.effects else ""
         return (f"DynamicBacklash(m1={self.m1:g}, m2={self.m2:g}, h={self.h:g}, restitution={self.restitution:g}"
                 f"{eff}, table={self._table!r})")
+
+
+def prepare_many(elements, F, omega, *, workers: int = 2) -> list:
+    """Build (or load) the tables of several :class:`DynamicBacklash` objects over one (F, w) window.
+
+    The objects are prepared concurrently in ``workers`` threads (each also samples in parallel), which
+    keeps both cores busy while a single table refines only a few intervals. Returns the elements.
+    """
+    elements = list(elements)
+    workers = int(workers)
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        list(pool.map(lambda e: e.prepare(F, omega), elements))
+    return elements

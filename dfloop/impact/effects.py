@@ -378,14 +378,21 @@ def simulate_with_effects(p, t_end: float, effects: tuple, max_events: int, chat
         cons = model.constraints(contact, ground)
         dt = min(model.dt, t_end - t)
         Edt = E if dt == model.dt else expm(A * dt)
-        terms = _taylor(A, z)
+        z_next = Edt @ z
+        rows = np.array([r for r, _ in cons])
+        fa, fb = rows @ z, rows @ z_next
+        da, db = rows @ (A @ z), rows @ (A @ z_next)
+        # cheap screen: a constraint needs the exact search only if it ends violated, turns, or starts on 0
+        suspect = [j for j in range(len(cons)) if fb[j] < 0.0 or da[j] * db[j] < 0.0 or j in leaving]
         hits = []
-        for j, (r, kind) in enumerate(cons):
-            s = _first_violation(terms, A, r, j in leaving, dt)
-            if s is not None:
-                hits.append((s, j, kind))
+        if suspect:
+            terms = _taylor(A, z)
+            for j in suspect:
+                s = _first_violation(terms, A, cons[j][0], j in leaving, dt)
+                if s is not None:
+                    hits.append((s, j, cons[j][1]))
         if not hits:
-            z = Edt @ z
+            z = z_next
             t += dt
             leaving = set()
             continue

@@ -80,37 +80,40 @@ def x2_peak_excursion(F, omega, m2: float):
 
 @dataclass(frozen=True)
 class MeasuredLimits:
-    """Limits read off the simulated model, as beta values (multiply out with :func:`omega_of`).
+    """Limits read off the simulated model, as beta values (convert with :meth:`omegas`).
 
-    beta_no_impact : smallest beta at which the masses collide (simulation; eq. 11 says 1/4).
-    beta_jumps : betas of the jumps between regular regimes, located by bisection (eq. 12 says ~1).
-    beta_jump : the jump with the largest change of N among ``beta_jumps`` (nan if none).
-    beta_regular_limit : largest beta of the regular (periodic) band that starts at the no-impact limit
-        (the observed lower limit of regular motion; eq. 10 gives its approximation).
+    beta_no_impact : smallest beta at which a motion from rest collides (eq. 11 says exactly 1/4).
+    beta_regular_end : end of the regular band that starts at the no-impact limit (the paper's w_J,
+        eq. 12, beta ~ 1: below it in beta, one alternate collision on each side).
+    beta_irregular_end : largest beta with irregular motion (the observed lower limit of the model's
+        regular range, the paper's w_c of eq. 10); nan if no irregular motion up to the table's end.
+    beta_jumps, jump_sizes : jumps in N between two regular regimes, located by bisection, and |dD|.
     """
 
     beta_no_impact: float
+    beta_regular_end: float
+    beta_irregular_end: float
     beta_jumps: np.ndarray
-    beta_jump: float
-    beta_regular_limit: float
+    jump_sizes: np.ndarray
 
     def omegas(self, F, m2: float, h: float) -> dict:
-        """The same limits as frequencies (rad/s) for force amplitude F."""
-        conv = lambda b: float(omega_of(b, F, m2, h)) if np.isfinite(b) and b > 0 else math.nan
-        return {"omega_L": conv(self.beta_no_impact), "omega_J": conv(self.beta_jump),
-                "omega_c": conv(self.beta_regular_limit)}
+        """The same limits as frequencies (rad/s) for force amplitude F (N)."""
+        conv = lambda b: float(omega_of(b, F, m2, h)) if np.isfinite(b) else math.nan
+        return {"omega_L": conv(self.beta_no_impact), "omega_J": conv(self.beta_regular_end),
+                "omega_c": conv(self.beta_irregular_end)}
 
     def __repr__(self) -> str:
-        return (f"MeasuredLimits(beta_no_impact={self.beta_no_impact:.6g}, beta_jump={self.beta_jump:.6g}, "
-                f"beta_regular_limit={self.beta_regular_limit:.6g}, jumps={np.round(self.beta_jumps, 4).tolist()})")
+        return (f"MeasuredLimits(beta_no_impact={self.beta_no_impact:.7g}, beta_regular_end="
+                f"{self.beta_regular_end:.4g}, beta_irregular_end={self.beta_irregular_end:.4g}, "
+                f"jumps={np.round(self.beta_jumps, 4).tolist()})")
 
 
-def measured_limits(backlash, beta_max: float = 100.0, rel_tol: float = 1e-6) -> MeasuredLimits:
-    """Measure the limit betas of a similarity-law :class:`DynamicBacklash` from its table and kernel.
+def measured_limits(backlash, beta_max: float = 100.0, rel_tol: float = 1e-9) -> MeasuredLimits:
+    """Measure the limit betas of a similarity-law :class:`DynamicBacklash` from its kernel and table.
 
-    The no-impact limit is bisected on whether a simulation from rest collides within its first
-    forcing periods (to relative width ``rel_tol``); the jumps and the regular band come from the
-    table over 1/4 < beta <= ``beta_max`` (built on demand).
+    The no-impact limit is bisected on whether a simulation from rest collides within its first two
+    forcing periods (to relative width ``rel_tol``); the other limits come from the table over
+    1/4 < beta <= ``beta_max`` (built on demand, or read from the cache).
     """
     beta_max = positive("beta_max", beta_max)
     rel_tol = positive("rel_tol", rel_tol)
@@ -130,11 +133,12 @@ def measured_limits(backlash, beta_max: float = 100.0, rel_tol: float = 1e-6) ->
     table = backlash.similarity_table(beta_max)
     beta = np.exp(table.x)
     jump = table.jumps()
-    both_regular = table.regular[:-1] & table.regular[1:]
-    regular_jumps = np.flatnonzero(jump & both_regular)
-    beta_jumps = np.sqrt(beta[regular_jumps] * beta[regular_jumps + 1])
-    size = np.abs(table.value[regular_jumps + 1] - table.value[regular_jumps])
-    beta_jump = float(beta_jumps[np.argmax(size)]) if size.size else math.nan
+    start = int(np.argmax(table.regular))          # first regular sample (grazing at beta -> 1/4+ is not)
+    breaks = np.flatnonzero(jump[start:]) + start
+    beta_regular_end = float(beta[breaks[0]]) if breaks.size else float(beta[-1])
     irregular = np.flatnonzero(~table.regular)
-    beta_regular_limit = float(beta[irregular[0] - 1]) if irregular.size and irregular[0] > 0 else float(beta[-1])
-    return MeasuredLimits(0.5 * (lo + hi), beta_jumps, beta_jump, beta_regular_limit)
+    beta_irregular_end = float(beta[irregular[-1]]) if irregular.size else math.nan
+    sharp = np.flatnonzero(jump & table.regular[:-1] & table.regular[1:])
+    sizes = np.abs(table.value[sharp + 1] - table.value[sharp])
+    return MeasuredLimits(0.5 * (lo + hi), beta_regular_end, beta_irregular_end,
+                          np.sqrt(beta[sharp] * beta[sharp + 1]), sizes)

@@ -53,7 +53,10 @@ class TableSettings:
     abs_floor : absolute floor of the error scale (keeps refinement bounded near zeros of the value).
     base_dx : spacing of the initial grid in x.
     min_dx : narrowest interval the refinement creates; intervals failing there keep their measured error.
-    jump_dx : width to which jumps are bracketed by bisection.
+    jump_dx : width to which jumps in value between regular samples are bracketed by bisection (other
+        regime changes, e.g. edges of irregular regions, are bracketed to edge_dx).
+    edge_dx : width to which edges of irregular regions and regime changes without a jump in value are
+        bracketed (the band flagged invalid around them).
     jump_rel : a failing interval at min_dx whose end values differ by more than jump_rel * scale is a jump.
     method : interpolation inside smooth segments: 'linear', 'pchip' or 'cubic' (not-a-knot spline).
     max_samples : bound on the number of samples; exceeding it raises RuntimeError.
@@ -63,13 +66,14 @@ class TableSettings:
     abs_floor: float = 1e-9
     base_dx: float = 0.1
     min_dx: float = 1e-4
-    jump_dx: float = 1e-7
+    jump_dx: float = 1e-6
+    edge_dx: float = 1e-3
     jump_rel: float = 1e-2
     method: str = "cubic"
     max_samples: int = 50_000
 
     def __post_init__(self):
-        for name in ("tol", "base_dx", "min_dx", "jump_dx", "jump_rel"):
+        for name in ("tol", "base_dx", "min_dx", "jump_dx", "edge_dx", "jump_rel"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
@@ -258,7 +262,12 @@ class Table1D:
                 jump = self.jumps()
                 smooth = ~jump & self.regular[:-1] & self.regular[1:]
             check = np.flatnonzero(smooth & ~self.checked)
-            bisect = np.flatnonzero(jump & (width > st.jump_dx))
+            # value jumps between regular samples are bracketed to jump_dx; edges of irregular regions and
+            # regime changes with a continuous value (bifurcations) only to edge_dx
+            dv = np.abs(np.diff(self.value))
+            scale = self._scale(np.minimum(np.abs(self.value[:-1]), np.abs(self.value[1:])))
+            sharp = self.regular[:-1] & self.regular[1:] & (dv > st.jump_rel * scale)
+            bisect = np.flatnonzero(jump & (width > np.where(sharp, st.jump_dx, st.edge_dx)))
             if check.size == 0 and bisect.size == 0:
                 break
             idx = np.concatenate([check, bisect])

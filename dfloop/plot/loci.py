@@ -1,0 +1,72 @@
+"""Nyquist-plane loci of -1/N for describing functions (the paper's Fig. 3 for frequency-dependent N)."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..describing.base import DescribingFunction, negative_inverse
+
+__all__ = ["plot_loci", "default_amplitudes"]
+
+
+def default_amplitudes(N: DescribingFunction, n: int = 300) -> np.ndarray:
+    """Log-spaced amplitudes spanning an amplitude-only element's domain (lo, hi).
+
+    (lo (1 + 1e-6), 1e3 lo) when lo > 0 and hi = inf; up to hi (1 - 1e-6) when hi is finite;
+    (1e-3 hi, hi) when lo = 0; (1e-3, 1e3) when the domain is (0, inf) (pass amplitudes then).
+    """
+    lo, hi = (float(v) for v in N.amplitude_domain())
+    if lo > 0:
+        top = hi * (1 - 1e-6) if np.isfinite(hi) else 1e3 * lo
+        return np.geomspace(lo * (1 + 1e-6), top, n)
+    if np.isfinite(hi):
+        return np.geomspace(1e-3 * hi, hi * (1 - 1e-6), n)
+    return np.geomspace(1e-3, 1e3, n)
+
+
+def plot_loci(N: DescribingFunction, amplitudes=None, omega=None, ax=None, **kw):
+    """Draw -1/N in the complex plane and return the axes.
+
+    Amplitude-only elements: one curve over ``amplitudes`` (default :func:`default_amplitudes`).
+    Frequency-dependent elements: one curve per amplitude over ``omega`` (rad/s), both required, as in
+    the paper's Fig. 3. Points where N = 0 (outside the domain, -1/N infinite) are left out.
+
+    Parameters
+    ----------
+    N : DescribingFunction
+    amplitudes : array_like, optional
+        Input amplitudes, in ``N.input_unit``.
+    omega : array_like, optional
+        Frequencies (rad/s); required for frequency-dependent N.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw into (default: a new figure).
+    **kw
+        Passed to ``ax.plot`` for every curve.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        _, ax = plt.subplots()
+    if N.frequency_dependent:
+        if amplitudes is None or omega is None:
+            raise ValueError("amplitudes and omega are required for a frequency-dependent N")
+        w = np.asarray(omega, dtype=float).ravel()
+        for A in np.atleast_1d(np.asarray(amplitudes, dtype=float)):
+            z = negative_inverse(N, A, w)
+            keep = np.isfinite(z)
+            label = f"{N.input_name} = {A:g} {N.input_unit}".rstrip()
+            ax.plot(z.real[keep], z.imag[keep], label=label, **kw)
+        ax.legend()
+    else:
+        A = default_amplitudes(N) if amplitudes is None else np.asarray(amplitudes, dtype=float).ravel()
+        z = negative_inverse(N, A)
+        keep = np.isfinite(z)
+        ax.plot(z.real[keep], z.imag[keep], label=f"-1/N({N.input_name})", **kw)
+    ax.set_xlabel("Re{-1/N}")
+    ax.set_ylabel("Im{-1/N}")
+    ax.axhline(0.0, color="0.8", lw=0.5)
+    ax.axvline(0.0, color="0.8", lw=0.5)
+    return ax

@@ -1,0 +1,65 @@
+"""Disk cache: round trip, key and checksum checks, atomic writes, directory selection."""
+import numpy as np
+import pytest
+
+from dfloop.impact import cache
+
+
+@pytest.fixture
+def arrays():
+    return {"x": np.linspace(0, 1, 11), "value": np.exp(1j * np.arange(11.0)), "flag": np.arange(11) % 2 == 0}
+
+
+def test_round_trip(tmp_path, arrays):
+    key = cache.cache_key({"a": 1.0, "b": [1, 2]})
+    p = cache.save_table(tmp_path / "sub" / "t.npz", arrays, key, {"a": 1.0}, {"tol": 1e-4})
+    f = cache.load_table(p, key)
+    for k, v in arrays.items():
+        np.testing.assert_array_equal(f.arrays[k], v)
+        assert f.arrays[k].dtype == v.dtype
+    assert f.meta["params"] == {"a": 1.0} and f.meta["settings"] == {"tol": 1e-4}
+    assert f.meta["code_version"] == cache.code_version()
+    assert not list((tmp_path / "sub").glob("*.tmp"))
+
+
+def test_key_depends_on_every_parameter_and_code(monkeypatch):
+    k = cache.cache_key({"a": 1.0, "b": 2.0})
+    assert k == cache.cache_key({"b": 2.0, "a": 1.0})
+    assert k != cache.cache_key({"a": 1.0, "b": 2.0000000001})
+    monkeypatch.setattr(cache, "code_version", lambda: "0.0+other")
+    assert k != cache.cache_key({"a": 1.0, "b": 2.0})
+
+
+def test_wrong_key_missing_and_corrupted_files_are_misses(tmp_path, arrays):
+    key = cache.cache_key({"a": 1})
+    p = cache.save_table(tmp_path / "t.npz", arrays, key, {}, {})
+    assert cache.load_table(p, cache.cache_key({"a": 2})) is None
+    assert cache.load_table(tmp_path / "missing.npz", key) is None
+    good = p.read_bytes()
+    for pos in (len(good) // 3, len(good) // 2, len(good) - 30):
+        bad = bytearray(good)
+        bad[pos] ^= 0x5A
+        p.write_bytes(bytes(bad))
+        assert cache.load_table(p, key) is None
+    p.write_bytes(good[: len(good) // 2])             # truncated
+    assert cache.load_table(p, key) is None
+    p.write_bytes(b"not a zip file")
+    assert cache.load_table(p, key) is None
+
+
+def test_tampered_array_with_valid_zip_is_rejected(tmp_path, arrays):
+    key = cache.cache_key({"a": 1})
+    p = cache.save_table(tmp_path / "t.npz", arrays, key, {}, {})
+    with np.load(p) as z:
+        payload = {k: z[k] for k in z.files}
+    payload["a.x"] = payload["a.x"] + 1e-15         # well-formed file, wrong content
+    np.savez(p, **payload)
+    assert cache.load_table(p, key) is None
+
+
+def test_cache_dir_from_environment(monkeypatch, tmp_path):
+    monkeypatch.setenv("DFLOOP_CACHE_DIR", str(tmp_path / "c"))
+    assert cache.cache_dir() == tmp_path / "c"
+    monkeypatch.delenv("DFLOOP_CACHE_DIR")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert cache.cache_dir() == tmp_path / "xdg" / "dfloop"

@@ -1,0 +1,169 @@
+"""DynamicBacklash: table against direct simulation, similarity law, no-impact limit, cache, bad input."""
+import math
+
+import numpy as np
+import pytest
+
+from dfloop.impact import cache
+from dfloop.impact.dynamic_backlash import DynamicBacklash, prepare_many
+from dfloop.impact.extract import impact_describing_function
+
+M1, M2, H, EPS = 1.0, 1.0, 0.1, 0.5
+KW = dict(transient_periods=100, periods=20)
+
+
+@pytest.fixture(autouse=True)
+def tmp_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("DFLOOP_CACHE_DIR", str(tmp_path / "cache"))
+    return tmp_path / "cache"
+
+
+def direct(F, w, eps=EPS, m1=M1, m2=M2, h=H, **kw):
+    return impact_describing_function(m1, m2, h, eps, F, w, **(kw or KW))
+
+
+def test_table_matches_direct_simulation_off_grid():
+    db = DynamicBacklash(M1, M2, H, EPS, **KW)
+    F = 50.0
+    # beta in (0.27, 0.5): the period-1 regime right below the no-impact limit (w in 31.6 .. 43 rad/s)
+    w = np.random.default_rng(4).uniform(math.sqrt(F / (M2 * H * 0.5)), math.sqrt(F / (M2 * H * 0.27)), 12)
+    n = db(F, w)
+    valid = db.validity(F, w)
+    err = db.error_estimate(F, w)
+    # invalid points lie only in the narrow brackets (edge_dx in ln beta) around regime changes
+    assert np.count_nonzero(valid) >= 9
+    u = np.log(F / (M2 * H * w[~valid] ** 2))
+    t = db.table
+    i = np.searchsorted(t.x, u) - 1
+    assert np.all(t.jumps()[i]) and np.all(t.x[i + 1] - t.x[i] <= t.settings.edge_dx)
+    for wi, ni, ei in zip(w[valid], n[valid], err[valid]):
+        ref = direct(F, wi)
+        assert ref.period >= 1
+        # -1/N accurate to 1e-4 relative, and the error estimate covers the actual interpolation error
+        assert abs(1 / ni - 1 / ref.N) <= 1e-4 * abs(1 / ref.N)
+        assert abs(ni - ref.N) <= max(ei, 1e-12 * abs(ref.N))
+
+
+def test_similarity_law_one_table_serves_every_force():
+    db = DynamicBacklash(M1, M2, H, EPS, **KW)
+    beta = 0.4
+    for F in (10.0, 37.0):
+        w = math.sqrt(F / (M2 * H * beta))
+        ref = direct(F, w)
+        assert abs(db(F, w) - ref.N) <= 1e-4 * abs(ref.N)
+    # -1/N is proportional to F at fixed beta (the paper's remark on Fig. 6)
+    F1, F2 = 10.0, 40.0
+    w1, w2 = math.sqrt(F1 / (M2 * H * beta)), math.sqrt(F2 / (M2 * H * beta))
+    r = db.negative_inverse(F2, w2) / db.negative_inverse(F1, w1)
+    assert abs(r - 4.0) <= 1e-12 * 4.0
+
+
+def test_mass_and_clearance_scaling_reuse_the_table():
+    a = DynamicBacklash(1.0, 1.0, 0.1, EPS, **KW)
+    b = DynamicBacklash(2.0, 2.0, 0.05, EPS, **KW)       # same m1/m2: the cached 1-D table is shared
+    F, w = 20.0, 25.0                                     # M2 h = 0.1 in both: the same beta = 0.32
+    na = a(F, w)
+    nb = b(F, w)
+    assert a.n_simulations > 0 and b.n_simulations == 0
+    assert nb == pytest.approx(na / 2.0, rel=1e-14)      # N = D(beta) / (M2 w^2)
+    ref = direct(F, w, m1=2.0, m2=2.0, h=0.05)
+    assert abs(nb - ref.N) <= 1e-4 * abs(ref.N)
+
+
+def test_zero_exactly_above_no_impact_limit():
+    db = DynamicBacklash(M1, M2, H, EPS, **KW)
+    F = np.array([10.0, 50.0])
+    wL = 2 * np.sqrt(F / (H * M2))
+    w = np.concatenate([wL, wL * 1.5, wL * 10])
+    FF = np.tile(F, 3)
+    assert np.all(db(FF, w) == 0)
+    assert np.all(db.validity(FF, w))
+    assert np.all(db.error_estimate(FF, w) == 0)
+    assert db.n_simulations == 0                  # nothing simulated for w >= w_L
+    lo, hi = db.amplitude_domain(np.array([20.0]))
+    assert lo[0] == pytest.approx(M2 * H * 400 / 4)
+    # just below w_L the masses collide: N != 0, matching the simulation
+    w_in = wL[1] * 0.99
+    assert abs(db(50.0, w_in) - direct(50.0, w_in).N) <= 1e-4 * abs(direct(50.0, w_in).N)
+
+
+def test_irregular_region_flagged():
+    db = DynamicBacklash(M1, M2, H, EPS, **KW)
+    F, w = 50.0, 25.0          # paper Fig. 12: eps = 0.5 at 25 rad/s (beta = 0.8) is irregular
+    assert direct(F, w).period == 0
+    assert not db.validity(F, w)
+
+
+def test_second_build_is_served_from_cache(tmp_cache):
+    F, w = [10.0, 50.0], [20.0, 100.0]
+    a = DynamicBacklash(M1, M2, H, EPS, **KW).prepare(F, w)
+    assert a.n_simulations > 0
+    assert a.cache_path.parent == tmp_cache and a.cache_path.is_file()
+    b = DynamicBacklash(M1, M2, H, EPS, **KW).prepare(F, w)
+    assert b.n_simulations == 0
+    q = np.linspace(20.0, 60.0, 97)
+    np.testing.assert_array_equal(a(30.0, q), b(30.0, q))
+    np.testing.assert_array_equal(a.error_estimate(30.0, q), b.error_estimate(30.0, q))
+    # a different parameter is a different key
+    c = DynamicBacklash(M1, M2, H, 0.6, **KW).prepare(30.0, 25.0)
+    assert c.n_simulations > 0
+
+
+def test_corrupted_or_stale_cache_is_rebuilt(tmp_cache, monkeypatch):
+    F, w = 50.0, [32.0, 40.0]
+    a = DynamicBacklash(M1, M2, H, EPS, **KW).prepare(F, w)
+    path = a.cache_path
+    data = bytearray(path.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    path.write_bytes(bytes(data))
+    b = DynamicBacklash(M1, M2, H, EPS, **KW).prepare(F, w)
+    assert b.n_simulations > 0                          # corrupted: rebuilt, not trusted
+    np.testing.assert_allclose(b(F, w), a(F, w), rtol=1e-12)
+    monkeypatch.setattr(cache, "code_version", lambda: "other-code")
+    c = DynamicBacklash(M1, M2, H, EPS, **KW).prepare(F, w)
+    assert c.n_simulations > 0                          # stale (other code version): rebuilt
+
+
+def test_save_and_load_with_provenance(tmp_path):
+    a = DynamicBacklash(M1, M2, H, EPS, cache=False, **KW).prepare(50.0, [33.0, 40.0])
+    path = a.save(tmp_path / "t.npz")
+    f = cache.load_table(path)
+    assert f.meta["params"]["m1"] == M1 and f.meta["params"]["restitution"] == EPS
+    assert f.meta["code_version"] == cache.code_version() and "date" in f.meta
+    assert f.meta["settings"]["settings"]["tol"] == 1e-4
+    b = DynamicBacklash(M1, M2, H, EPS, cache=False, **KW)
+    assert b.load(path)
+    assert b.n_simulations == 0
+    np.testing.assert_array_equal(a(50.0, 35.0), b(50.0, 35.0))
+    other = DynamicBacklash(M1, M2, H, 0.7, cache=False, **KW)
+    assert not other.load(path)                         # built for other parameters: refused
+
+
+def test_prepare_many_uses_threads_and_matches_single():
+    els = prepare_many([DynamicBacklash(M1, M2, H, e, **KW) for e in (0.3, 0.5)], 50.0, [33.0, 40.0])
+    for e, el in zip((0.3, 0.5), els):
+        ref = direct(50.0, 34.0, eps=e).N
+        assert abs(el(50.0, 34.0) - ref) <= 1e-4 * abs(ref)
+
+
+@pytest.mark.parametrize("kw, name", [(dict(m1=0.0), "m1"), (dict(m2=-1.0), "m2"), (dict(h=0.0), "h"),
+                                      (dict(restitution=1.5), "restitution"), (dict(m1=float("nan")), "m1"),
+                                      (dict(restitution=float("nan")), "restitution"), (dict(tol=0.0), "tol")])
+def test_bad_parameters(kw, name):
+    args = dict(m1=M1, m2=M2, h=H, restitution=EPS)
+    args.update(kw)
+    with pytest.raises(ValueError, match=name):
+        DynamicBacklash(**args)
+
+
+def test_bad_inputs_and_window():
+    db = DynamicBacklash(M1, M2, H, EPS, beta_max=2.0, **KW)
+    with pytest.raises(ValueError, match="F"):
+        db(-1.0, 10.0)
+    with pytest.raises(ValueError, match="omega"):
+        db(10.0, 0.0)
+    with pytest.raises(ValueError, match="omega"):
+        db(10.0)
+    assert np.isnan(db(np.nan, 30.0))
+    with pytest.raises(ValueError, match="beta_max"):
+        db(50.0, 1.0)                                   # beta = 500 > beta_max: raises, no extrapolation

@@ -1,0 +1,60 @@
+"""plot_loci draws the expected curves with the expected data."""
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+import dfloop as df  # noqa: E402
+from dfloop.plot.loci import default_amplitudes, plot_loci  # noqa: E402
+
+
+def data_lines(ax):
+    """Lines other than the two axis guides (axhline/axvline)."""
+    return [ln for ln in ax.get_lines() if len(ln.get_xdata()) > 2]
+
+
+def test_amplitude_only_single_curve_over_domain():
+    b = df.Backlash(0.1)
+    ax = plot_loci(b)
+    lines = data_lines(ax)
+    assert len(lines) == 1
+    A = default_amplitudes(b)
+    assert A[0] > 0.05 and np.isclose(A[-1], 50.0)
+    z = -1 / b(A)
+    np.testing.assert_allclose(lines[0].get_xdata(), z.real)
+    np.testing.assert_allclose(lines[0].get_ydata(), z.imag)
+    plt.close(ax.figure)
+
+
+def test_given_amplitudes_and_existing_axes_and_kwargs():
+    fig, ax = plt.subplots()
+    A = np.array([0.5, 1.0, 2.0, 4.0])
+    out = plot_loci(df.Relay(1.0, hysteresis=0.2), amplitudes=A, ax=ax, color="red")
+    assert out is ax
+    (line,) = data_lines(ax)
+    z = -1 / df.Relay(1.0, hysteresis=0.2)(A)
+    np.testing.assert_allclose(line.get_xdata() + 1j * line.get_ydata(), z)
+    assert line.get_color() == "red"
+    plt.close(fig)
+
+
+def test_frequency_dependent_family_like_fig3_leaves_out_n_zero():
+    mb = df.MassBacklash(1.0, 1.0, 0.1)
+    F = [10.0, 20.0, 30.0, 40.0, 50.0]
+    w = np.linspace(0.5, 40.0, 200)  # w_L = 10 ... 22.4 rad/s: the tail has N = 0
+    ax = plot_loci(mb, amplitudes=F, omega=w)
+    lines = data_lines(ax)
+    assert len(lines) == 5
+    for Fi, line in zip(F, lines):
+        keep = w < mb.limit_frequency(Fi)
+        z = -1 / mb(Fi, w[keep])
+        np.testing.assert_allclose(line.get_xdata() + 1j * line.get_ydata(), z, rtol=1e-14)
+        assert line.get_label() == f"F = {Fi:g} N"
+    plt.close(ax.figure)
+
+
+def test_frequency_dependent_requires_omega():
+    with pytest.raises(ValueError, match="omega"):
+        plot_loci(df.MassBacklash(1.0, 1.0, 0.1), amplitudes=[10.0])
