@@ -167,3 +167,41 @@ def test_bad_inputs_and_window():
     assert np.isnan(db(np.nan, 30.0))
     with pytest.raises(ValueError, match="beta_max"):
         db(50.0, 1.0)                                   # beta = 500 > beta_max: raises, no extrapolation
+
+
+class _Marker:
+    """Stands for an effect that breaks the similarity law while the physics stays the paper's (test only)."""
+
+    keeps_similarity = False
+
+    def __repr__(self):
+        return "_Marker()"
+
+
+def test_two_dimensional_table_matches_direct_simulation(monkeypatch):
+    # The effects engine is slow; the 2-D machinery (coordinates, scaling, refinement in w) is checked
+    # on the paper's physics routed through the 2-D path, against direct simulation at off-grid points.
+    from dfloop.impact import extract
+
+    def paper_physics(self, force, omega):
+        return extract.impact_describing_function_batch(self.m1, self.m2, self.h, self.restitution, force, omega,
+                                                        transient_periods=self.transient_periods,
+                                                        periods=self.periods)
+
+    monkeypatch.setattr(DynamicBacklash, "_extract", paper_physics)
+    db = DynamicBacklash(M1, M2, H, EPS, effects=(_Marker(),), **KW)
+    assert not db.similarity
+    F = np.array([40.0, 50.0, 44.0, 47.0])
+    w = np.array([34.0, 38.0, 36.5, 35.2])
+    db.prepare(F, w)
+    assert type(db.table).__name__ == "Table2D"
+    n, valid, err = db(F, w), db.validity(F, w), db.error_estimate(F, w)
+    for Fi, wi, ni, vi, ei in zip(F, w, n, valid, err):
+        ref = direct(Fi, wi).N
+        if vi:
+            assert abs(ni - ref) <= max(1e-4 * abs(ref), ei)
+    assert np.count_nonzero(valid) >= 3
+    # the 2-D table is cached under its own key, with masses and clearance in it
+    again = DynamicBacklash(M1, M2, H, EPS, effects=(_Marker(),), **KW).prepare(F, w)
+    assert again.n_simulations == 0
+    assert DynamicBacklash(M1, M2, 2 * H, EPS, effects=(_Marker(),), **KW).cache_path != db.cache_path

@@ -51,6 +51,16 @@ def test_static_switching_points_located_without_breakpoints(el, edge):
     assert np.all(rel_err(df.NumericDF(el.output)(A), el(A)) < 1e-9)
 
 
+def test_static_element_is_taken_as_its_output_with_its_breakpoints():
+    q = df.Quantizer(0.25)
+    nd = df.NumericDF(q)
+    assert not nd.hysteretic and not nd.locate
+    A = np.array([0.3, 7.0, 60.0])  # 480 levels at the top: only breakpoints resolve them
+    assert np.all(rel_err(nd(A), q(A)) < 1e-9)
+    via_operator = df.NumericDF(df.Saturation(1.0), hysteretic=True)
+    assert via_operator.hysteretic and rel_err(via_operator(2.0), df.Saturation(1.0)(2.0)) < 1e-9
+
+
 def test_quantizer_located_without_breakpoints_while_levels_are_a_few_cells_apart():
     q = df.Quantizer(0.25)
     A = np.array([0.2, 0.4, 0.9, 1.3])

@@ -225,12 +225,12 @@ def test_frequency_dependent_dfs_match_equivalent_amplitude_only_loops():
     np.testing.assert_allclose([c.frequency for c in fd], [c.frequency for c in eq], rtol=1e-9)
     np.testing.assert_allclose([c.amplitude for c in fd], [c.amplitude for c in eq], rtol=1e-9)
     assert [c.stability for c in fd] == [c.stability for c in eq]
-    # mass then backlash: with X = F / (m w^2) it is backlash on the plant G G_m
+    # mass then backlash: with X = |G_m| F = F / (m w^2) it is backlash on the plant G G_m
     m, h = 2.0, 0.1
     Gp = ct.tf([1, 0.5], [1, 1])
     N = _MassThenBacklash(m, h)
     fd = df.predict_limit_cycles(Gp, N, omega=(0.05, 20), amplitude=(1e-4, 1e3))
-    eq = df.predict_limit_cycles(Gp * ct.tf([-1], [m, 0, 0]), df.Backlash(h=h), omega=(0.05, 20),
+    eq = df.predict_limit_cycles(Gp * ct.tf([1], [m, 0, 0]), df.Backlash(h=h), omega=(0.05, 20),
                                  amplitude=(h / 2 * (1 + 1e-12), 1e5))
     assert len(fd) == len(eq) >= 1
     w = np.array([c.frequency for c in fd])

@@ -9,7 +9,6 @@ frequency dependent, and zero wherever |G_lin(jw)| F lies in the static element'
 """
 from __future__ import annotations
 
-from typing import Callable
 
 import control as ct
 import numpy as np

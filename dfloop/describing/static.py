@@ -125,6 +125,11 @@ class PlayOperator:
             self.center = x + half
         return self.k * self.center
 
+    def __deepcopy__(self, memo):
+        new = object.__new__(PlayOperator)
+        new.__dict__.update(self.__dict__)  # floats only: a shallow copy is a deep copy
+        return new
+
     def __repr__(self) -> str:
         return f"PlayOperator(h={self.h!r}, k={self.k!r}, center={self.center!r})"
 
@@ -282,6 +287,11 @@ class RelayOperator:
             self.state = 1 if x > self.on else (-1 if x < -self.on else 0)
         return self.M * self.state
 
+    def __deepcopy__(self, memo):
+        new = object.__new__(RelayOperator)
+        new.__dict__.update(self.__dict__)  # numbers only: a shallow copy is a deep copy
+        return new
+
     def __repr__(self) -> str:
         return f"RelayOperator(M={self.M!r}, on={self.on!r}, off={self.off!r}, state={self.state})"
 
@@ -336,7 +346,7 @@ class Relay(DescribingFunction):
             re = (2.0 * self.M / (np.pi * A)) * (
                 np.sqrt(gap_on * (1.0 + c_on)) + np.sqrt(gap_off * (1.0 + c_off))
             )
-            im = -(4.0 * self.M / np.pi) * self.hysteresis / (A * A)
+            im = -(4.0 * self.M / np.pi) * (self.hysteresis / A) / A  # no 0/0 when A^2 underflows
             n = re + 1j * im
             if on == 0.0:
                 return np.where(A == 0.0, complex(np.inf, 0.0), n)

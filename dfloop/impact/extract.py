@@ -3,7 +3,9 @@
 Convention (DESIGN.md section 2): the force is Re(F e^{j w t}) = F cos(w t) and x1's fundamental is
 Re(X1 e^{j w t}); N = X1 / F (m/N) is the ratio of phasors. The fundamental is taken over an integer number
 of forcing periods after a transient, by exact integration of the piecewise-analytic x1(t) (no sampling),
-after removing the least-squares mean and linear drift over the window (also exact).
+after removing the linear drift (x1(t_end) - x1(t_start)) / window, which is exact for a periodic motion
+with drift. A least-squares line is not used: it correlates with the sine part of a periodic x1 and
+biases N by about 0.6 / periods^2 relative.
 
 Similarity law (paper's model only, no optional effects): with x = h xi and tau = w t the motion depends on
 beta = F / (M2 h w^2), M1/M2 and eps only, so N(F, w) = h Xi1(beta) / F where Xi1 is the fundamental of xi1
@@ -162,14 +164,16 @@ def describing_function_from_trajectory(traj: Trajectory, transient_periods: int
     inside = traj.t0[(traj.t0 > t_a) & (traj.t0 < t_b)]
     cuts = np.union1d(bounds, inside)
     starts, ends = cuts[:-1], cuts[1:]
-    t_mid = 0.5 * (t_a + t_b)
-    four, m0, m1 = traj.piece_integrals(starts, ends, t_mid)
+    four = traj.piece_integrals(starts, ends)
     length = t_b - t_a
-    slope = m1.sum() / (length ** 3 / 12.0)  # least-squares drift; the mean does not touch the fundamental
+    # drift: exact for periodic motion plus a constant drift (a least-squares line would bias the fundamental
+    # of a periodic x1 by O(1/periods^2)); the mean does not touch the fundamental
+    ends_x1 = traj.evaluate(np.array([t_a, t_b]))["x1"]
+    slope = (ends_x1[1] - ends_x1[0]) / length
     block = max(period, 1)
     which = np.minimum((0.5 * (starts + ends) - t_a) / (block * tp), used // block - 1).astype(np.int64)
     block_four = np.bincount(which, weights=four.real) + 1j * np.bincount(which, weights=four.imag)
-    # int over a block of (t - t_mid) e^{-j w t} dt = j (block length) / w  (integer periods, w t_a = 0 mod 2pi)
+    # int over a block of (t - t_block) e^{-j w t} dt = j (block length) / w (integer periods from t_a)
     drift_four = slope * 1j * block * tp / w * np.exp(-1j * w * t_a)
     block_X = 2.0 / (block * tp) * (block_four - drift_four)
     X1 = complex(np.mean(block_X))

@@ -156,11 +156,10 @@ class Trajectory:
         u = np.where(stuck, 0.0, self.u[k] + B * w * dshp)
         return {"x1": x1, "v1": v1, "x2": x1 + gap, "v2": v1 + u, "gap": gap}
 
-    def piece_integrals(self, starts: np.ndarray, ends: np.ndarray, t_ref: float):
-        """Exact integrals of x1 over pieces [starts, ends] that each lie inside one segment.
+    def piece_integrals(self, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+        """Exact integrals of x1(t) e^{-j w t} dt over pieces [starts, ends] that each lie inside one segment.
 
-        Returns (int x1 e^{-j w t} dt, int x1 dt, int x1 (t - t_ref) dt), one entry per piece, from the
-        closed form x1 = p0 + p1 (t - t0) + q cos(w t) of every segment (q = 0 in free flight).
+        Uses the closed form x1 = p0 + p1 (t - t0) + q cos(w t) of every segment (q = 0 in free flight).
         """
         starts = np.asarray(starts, dtype=float)
         ends = np.asarray(ends, dtype=float)
@@ -170,14 +169,10 @@ class Trajectory:
         Bc = p.force / ((p.m1 + p.m2) * w * w)
         stuck = self.mode[k] != FREE
         phi0 = self.phase0[k]
-        c0, s0 = np.cos(phi0), np.sin(phi0)
         q = np.where(stuck, -Bc, 0.0)
-        p0 = self.x1[k] - q * c0
-        p1 = self.v1[k] + q * w * s0
-        sa = starts - self.t0[k]
-        sb = ends - self.t0[k]
-        tau0 = self.t0[k] - t_ref
-        return _linear_cos_integrals(p0, p1, q, phi0, w, sa, sb, tau0)
+        p0 = self.x1[k] - q * np.cos(phi0)
+        p1 = self.v1[k] + q * w * np.sin(phi0)
+        return _fourier_integrals(p0, p1, q, phi0, w, starts - self.t0[k], ends - self.t0[k])
 
     def __repr__(self) -> str:
         p = self.params
@@ -186,12 +181,9 @@ class Trajectory:
                 f"impacts={self.n_impacts}, stuck_phases={int(np.count_nonzero(self.mode != FREE))})")
 
 
-def _linear_cos_integrals(p0, p1, q, phi0, w, sa, sb, tau0):
-    """Integrals over local time s in [sa, sb] of x = p0 + p1 s + q cos(phi0 + w s) (see piece_integrals).
-
-    tau0 is the segment start relative to the reference time of the moment integral.
-    """
-    def fourier(s):  # antiderivative of x e^{-j(phi0 + w s)} without the common factor e^{-j phi0}
+def _fourier_integrals(p0, p1, q, phi0, w, sa, sb):
+    """Integral over local time s in [sa, sb] of (p0 + p1 s + q cos(phi0 + w s)) e^{-j(phi0 + w s)}."""
+    def antiderivative(s):  # without the common factor e^{-j phi0}
         e = np.exp(-1j * w * s)
         a0 = (1.0 - e) / (1j * w)
         a1 = 1j * s * e / w - (1.0 - e) / w ** 2
@@ -199,17 +191,7 @@ def _linear_cos_integrals(p0, p1, q, phi0, w, sa, sb, tau0):
         ac = np.exp(1j * phi0) * 0.5 * s + np.exp(-1j * phi0) * (1.0 - e * e) / (4j * w)
         return p0 * a0 + p1 * a1 + q * ac
 
-    def mean(s):  # antiderivatives of x and of x (tau0 + s)
-        sn, cs = np.sin(phi0 + w * s), np.cos(phi0 + w * s)
-        m0 = p0 * s + p1 * s ** 2 / 2 + q * sn / w
-        m1 = (p0 * tau0 * s + (p0 + p1 * tau0) * s ** 2 / 2 + p1 * s ** 3 / 3
-              + q * (tau0 * sn / w + s * sn / w + cs / w ** 2))
-        return m0, m1
-
-    four = np.exp(-1j * phi0) * (fourier(sb) - fourier(sa))
-    m0b, m1b = mean(sb)
-    m0a, m1a = mean(sa)
-    return four, m0b - m0a, m1b - m1a
+    return np.exp(-1j * phi0) * (antiderivative(sb) - antiderivative(sa))
 
 
 def _sin_minus_x(th: np.ndarray) -> np.ndarray:

@@ -15,9 +15,9 @@ __all__ = ["predict_limit_cycles"]
 
 _MAX_REFINE_ROUNDS = 30
 _MAX_GRID = 50_000  # points per axis
+_MAX_GRID_POINTS = 4_000_000
 _MIN_LOG_STEP = 1e-6  # grid intervals narrower than this (in ln A or ln w) are not split further
 _PHASE_STEP = np.pi / 6  # max change of arg(G N) between neighbours where |G N| is near 1
-_LOG_MAG_STEP = 0.3  # max change of ln|G N| between neighbours where |G N| is near 1
 _NEAR_UNIT = math.log(20.0)  # "near 1": 1/20 <= |G N| <= 20
 
 
@@ -83,16 +83,17 @@ def _split_mask(P: np.ndarray, axis: int, x: np.ndarray) -> np.ndarray:
     P0, P1 = np.take(P, range(n - 1), axis=axis), np.take(P, range(1, n), axis=axis)
     with np.errstate(divide="ignore", invalid="ignore"):
         L = np.log(np.abs(P))
-        dph = np.abs(np.angle(P1 / P0))
-        dL = np.abs(np.diff(L, axis=axis))
+        dph = np.where((P0 == 0) | (P1 == 0), 0.0, np.abs(np.angle(P1 / P0)))
     near = np.abs(L) < _NEAR_UNIT
-    rel = np.take(near, range(1, n), axis=axis) | np.take(near, range(n - 1), axis=axis)
-    bad = rel & ((np.nan_to_num(dph, nan=np.pi) > _PHASE_STEP) | (np.nan_to_num(dL, nan=np.inf) > _LOG_MAG_STEP))
+    # the phase of G N must not rotate fast between neighbours where |G N| is near 1 (a full turn of
+    # R = 1 + G N between two samples would be invisible to the winding count); 0 (N's dead band) is skipped
+    bad = (np.take(near, range(n - 1), axis=axis) | np.take(near, range(1, n), axis=axis)) & (
+        dph > _PHASE_STEP)
     return np.any(bad, axis=1 - axis) & (np.diff(x) > _MIN_LOG_STEP)
 
 
 def _resolve_grid(res: Residual, a: np.ndarray, v: np.ndarray):
-    """Insert midpoints until G N varies slowly between neighbours wherever |G N| is near 1 (bounded)."""
+    """Insert midpoints until arg(G N) turns slowly between neighbours wherever |G N| is near 1 (bounded)."""
     for _ in range(_MAX_REFINE_ROUNDS):
         P = res.grid(a, v)
         split_a, split_v = _split_mask(P, 0, a), _split_mask(P, 1, v)
@@ -100,9 +101,9 @@ def _resolve_grid(res: Residual, a: np.ndarray, v: np.ndarray):
             return a, v, P
         a = np.sort(np.concatenate([a, (a[:-1] + a[1:])[split_a] / 2]))
         v = np.sort(np.concatenate([v, (v[:-1] + v[1:])[split_v] / 2]))
-        if a.size > _MAX_GRID or v.size > _MAX_GRID:
-            raise RuntimeError(f"grid refinement exceeded max_grid={_MAX_GRID} points per axis; "
-                               "narrow the omega or amplitude window")
+        if a.size > _MAX_GRID or v.size > _MAX_GRID or a.size * v.size > _MAX_GRID_POINTS:
+            raise RuntimeError(f"grid refinement exceeded max_grid={_MAX_GRID} points per axis or "
+                               f"{_MAX_GRID_POINTS} in all; narrow the omega or amplitude window")
     raise RuntimeError(f"grid refinement did not settle within max_rounds={_MAX_REFINE_ROUNDS}")
 
 
