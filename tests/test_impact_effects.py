@@ -28,10 +28,11 @@ def test_engine_without_effects_matches_jit_kernel(eps, w):
 def test_exact_integrals_of_engine_match_closed_form_integrals():
     eps, w = 0.5, 10.0
     tp = 2 * math.pi / w
-    eng = simulate_with_effects(ImpactParameters(M1, M2, H, eps, F, w), 12 * tp, (), 10 ** 6, 1e-9)
-    jit = simulate(M1, M2, H, eps, F, w, 12 * tp)
-    a = describing_function_from_trajectory(eng, 8, 4)
-    b = describing_function_from_trajectory(jit, 8, 4)
+    eng = simulate_with_effects(ImpactParameters(M1, M2, H, eps, F, w), 6 * tp, (), 10 ** 6, 1e-9)
+    jit = simulate(M1, M2, H, eps, F, w, 6 * tp)
+    a = describing_function_from_trajectory(eng, 3, 3)
+    b = describing_function_from_trajectory(jit, 3, 3)
+    assert a.stuck_fraction > 0.1
     assert abs(a.N - b.N) < 1e-10 * abs(b.N)
 
 

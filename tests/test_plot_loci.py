@@ -58,3 +58,14 @@ def test_frequency_dependent_family_like_fig3_leaves_out_n_zero():
 def test_frequency_dependent_requires_omega():
     with pytest.raises(ValueError, match="omega"):
         plot_loci(df.MassBacklash(1.0, 1.0, 0.1), amplitudes=[10.0])
+
+
+def test_default_amplitudes_span_each_kind_of_domain():
+    soft = df.CubicStiffness(2.0, -0.6)  # domain (0, hi): N = 0 at hi
+    A = default_amplitudes(soft, n=50)
+    hi = soft.amplitude_domain()[1]
+    assert np.isclose(A[0], 1e-3 * hi) and A[-1] < hi and np.all(soft(A) != 0)
+    A = default_amplitudes(df.Saturation(2.0), n=50)  # domain (0, inf): a fixed span
+    assert np.isclose(A[0], 1e-3) and np.isclose(A[-1], 1e3)
+    A = default_amplitudes(df.DeadZone(2.0), n=50)  # domain (delta, inf): just above the edge
+    assert 2.0 < A[0] < 2.0 * (1 + 1e-5) and np.all(df.DeadZone(2.0)(A) != 0)

@@ -191,6 +191,25 @@ def _poly(terms, s):
     return out
 
 
+def _propagate(A, z0, s, step):
+    """exp(A s) z0 for an array of s >= 0: exact steps exp(A step) to the chunk starts, Taylor inside."""
+    chunk = np.floor(s / step).astype(np.int64)
+    e_step = expm(A * step)
+    starts = [z0]
+    for _ in range(int(chunk.max(initial=0))):
+        starts.append(e_step @ starts[-1])
+    starts = np.array(starts)
+    powers = [np.eye(7)]
+    for k in range(1, TAYLOR_TERMS):
+        powers.append(powers[-1] @ A / k)
+    terms = np.einsum("kij,nj->nki", np.array(powers), starts)   # (chunk, k, 7)
+    r = (s - chunk * step)[:, None]
+    out = terms[chunk, -1]
+    for k in range(TAYLOR_TERMS - 2, -1, -1):
+        out = out * r + terms[chunk, k]
+    return out
+
+
 def _refine(fun, lo, hi, flo):
     """Root of a scalar function with a sign change on [lo, hi] (bisection with secant steps)."""
     fhi = fun(hi)
@@ -267,6 +286,7 @@ class EffectsTrajectory:
     post: np.ndarray     # (n, 2) v1, v2 after it (Newton's law)
     matrices: tuple
     mode_key: np.ndarray
+    step: float
 
     @property
     def phase0(self) -> np.ndarray:
@@ -303,10 +323,9 @@ class EffectsTrajectory:
             raise ValueError(f"t must lie in [0, t_end = {self.t_end}]")
         k = np.searchsorted(self.t0, t, side="right") - 1
         z = np.empty((t.size, 7))
-        for seg in np.unique(k):  # batched matrix exponentials, one batch per segment
+        for seg in np.unique(k):
             m = k == seg
-            s = t[m] - self.t0[seg]
-            z[m] = expm(self.matrices[self.mode_key[seg]][None, :, :] * s[:, None, None]) @ self.z0[seg]
+            z[m] = _propagate(self.matrices[self.mode_key[seg]], self.z0[seg], t[m] - self.t0[seg], self.step)
         return z
 
     def evaluate(self, t) -> dict:
@@ -440,7 +459,7 @@ def simulate_with_effects(p, t_end: float, effects: tuple, max_events: int, chat
     return EffectsTrajectory(params=p, t_end=t_end, effects=effects, t0=np.array(rec["t0"]),
                              z0=np.array(rec["z0"]), mode=np.array(rec["mode"]), ground=np.array(rec["ground"]),
                              cause=np.array(rec["cause"]), pre=np.array(rec["pre"]), post=np.array(rec["post"]),
-                             matrices=tuple(mats), mode_key=np.array(rec["key"]))
+                             matrices=tuple(mats), mode_key=np.array(rec["key"]), step=model.dt)
 
 
 def _consistent(model, z, contact, ground):

@@ -92,8 +92,32 @@ def _split_mask(P: np.ndarray, axis: int, x: np.ndarray) -> np.ndarray:
     return np.any(bad, axis=1 - axis) & (np.diff(x) > _MIN_LOG_STEP)
 
 
+def _resolve_axis(f, x: np.ndarray) -> np.ndarray:
+    """Insert midpoints until arg f turns by at most pi/6 from each point to the next midpoint and on
+    to the next point (the midpoint test guards against whole turns between samples; bounded)."""
+    for _ in range(_MAX_REFINE_ROUNDS):
+        mid = (x[:-1] + x[1:]) / 2
+        fx, fm = f(x), f(mid)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1 = np.abs(np.angle(fm / fx[:-1]))
+            t2 = np.abs(np.angle(fx[1:] / fm))
+        zero = (fx[:-1] == 0) | (fx[1:] == 0) | (fm == 0)
+        split = ~zero & ((t1 > _PHASE_STEP) | (t2 > _PHASE_STEP)) & (np.diff(x) > _MIN_LOG_STEP)
+        if not split.any():
+            return x
+        x = np.sort(np.concatenate([x, mid[split]]))
+        if x.size > _MAX_GRID:
+            raise RuntimeError(f"grid refinement exceeded max_grid={_MAX_GRID} points per axis; "
+                               "narrow the omega or amplitude window")
+    raise RuntimeError(f"grid refinement did not settle within max_rounds={_MAX_REFINE_ROUNDS}")
+
+
 def _resolve_grid(res: Residual, a: np.ndarray, v: np.ndarray):
-    """Insert midpoints until arg(G N) turns slowly between neighbours wherever |G N| is near 1 (bounded)."""
+    """Refine the grid: first each factor on its own axis (G along w; N along A when amplitude-only),
+    then G N on the tensor grid where |G N| is near 1 (bounded)."""
+    v = _resolve_axis(lambda x: res.plant(np.exp(x)), v)
+    if not res.frequency_dependent:
+        a = _resolve_axis(lambda x: res.N(np.exp(x)), a)
     for _ in range(_MAX_REFINE_ROUNDS):
         P = res.grid(a, v)
         split_a, split_v = _split_mask(P, 0, a), _split_mask(P, 1, v)
