@@ -21,6 +21,7 @@ by one mechanism, :func:`build`, so any DF object or effect exported by dfloop c
 """
 from __future__ import annotations
 
+import inspect
 import sys
 import time
 from dataclasses import dataclass, field
@@ -48,7 +49,7 @@ def _registry() -> dict[str, Any]:
     names: dict[str, Any] = {}
     for name in dir(dfloop):
         obj = getattr(dfloop, name)
-        if isinstance(obj, type) and issubclass(obj, DescribingFunction) and obj is not DescribingFunction:
+        if isinstance(obj, type) and issubclass(obj, DescribingFunction) and not inspect.isabstract(obj):
             names[name] = obj
     try:
         from dfloop.impact import effects as effects_module
@@ -56,7 +57,9 @@ def _registry() -> dict[str, Any]:
         effects_module = None
     if effects_module is not None:
         for name in getattr(effects_module, "__all__", []):
-            names[name] = getattr(effects_module, name)
+            obj = getattr(effects_module, name)
+            if isinstance(obj, type) and hasattr(obj, "keeps_similarity"):
+                names[name] = obj
     return names
 
 

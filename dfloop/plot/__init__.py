@@ -1,2 +1,7 @@
-"""dfloop.plot"""
-__all__: list[str] = []
+"""Plots: -1/N loci, Nyquist plots with predicted cycles, residual maps, impact time responses and maps.
+
+Every function takes ``ax=None`` (a new figure when None) and returns the axes.
+"""
+from .loci import plot_loci
+
+__all__ = ["plot_loci"]
