@@ -34,6 +34,13 @@ def upward_crossings(t: np.ndarray, x: np.ndarray, level: float = 0.0) -> np.nda
     return t[k] - d[k] * (t[k + 1] - t[k]) / (d[k + 1] - d[k])
 
 
+def _span(t: np.ndarray, x: np.ndarray, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
+    """Samples of x on [t0, t1], with the end values interpolated linearly at t0 and t1 exactly."""
+    inner = (t > t0) & (t < t1)
+    ts = np.concatenate([[t0], t[inner], [t1]])
+    return ts, np.interp(ts, t, x)
+
+
 @dataclass(frozen=True)
 class SteadyState:
     """Amplitude and frequency of the fundamental over the last whole periods of a signal.
@@ -70,12 +77,7 @@ def steady_state(t: np.ndarray, x: np.ndarray, periods: int = 10) -> SteadyState
     use = crossings[-(periods + 1):]
     n = use.size - 1
     omega = 2 * np.pi * n / (use[-1] - use[0])
-    amps = []
-    for t0, t1 in zip(use[:-1], use[1:]):
-        sel = (t >= t0) & (t <= t1)
-        if np.count_nonzero(sel) >= 3:
-            amps.append(abs(fundamental(t[sel], x[sel], 2 * np.pi / (t1 - t0))))
-    sel = (t >= use[0]) & (t <= use[-1])
-    amplitude = abs(fundamental(t[sel], x[sel], omega))
+    amps = [abs(fundamental(*_span(t, x, t0, t1), 2 * np.pi / (t1 - t0))) for t0, t1 in zip(use[:-1], use[1:])]
+    amplitude = abs(fundamental(*_span(t, x, use[0], use[-1]), omega))
     spread = float(np.std(amps) / np.mean(amps)) if amps and np.mean(amps) > 0 else 0.0
     return SteadyState(float(amplitude), float(omega), spread, n, True)

@@ -130,7 +130,7 @@ def test_save_and_load_with_provenance(tmp_path):
     f = cache.load_table(path)
     assert f.meta["params"]["m1"] == M1 and f.meta["params"]["restitution"] == EPS
     assert f.meta["code_version"] == cache.code_version() and "date" in f.meta
-    assert f.meta["settings"]["settings"]["tol"] == 1e-4
+    assert f.meta["settings"]["settings"]["tol"] == 1e-5
     b = DynamicBacklash(M1, M2, H, EPS, cache=False, **KW)
     assert b.load(path)
     assert b.n_simulations == 0
@@ -140,10 +140,11 @@ def test_save_and_load_with_provenance(tmp_path):
 
 
 def test_prepare_many_uses_threads_and_matches_single():
-    els = prepare_many([DynamicBacklash(M1, M2, H, e, **KW) for e in (0.3, 0.5)], 50.0, [33.0, 40.0])
-    for e, el in zip((0.3, 0.5), els):
-        ref = direct(50.0, 34.0, eps=e).N
-        assert abs(el(50.0, 34.0) - ref) <= 1e-4 * abs(ref)
+    els = prepare_many([DynamicBacklash(M1, M2, H, e, **KW) for e in (0.3, 0.7)], 50.0, [33.0, 40.0])
+    for e, el in zip((0.3, 0.7), els):
+        for w in (34.0, 36.0):
+            ref = direct(50.0, w, eps=e).N
+            assert abs(el(50.0, w) - ref) <= 1e-4 * abs(ref)
 
 
 @pytest.mark.parametrize("kw, name", [(dict(m1=0.0), "m1"), (dict(m2=-1.0), "m2"), (dict(h=0.0), "h"),
@@ -205,3 +206,17 @@ def test_two_dimensional_table_matches_direct_simulation(monkeypatch):
     again = DynamicBacklash(M1, M2, H, EPS, effects=(_Marker(),), **KW).prepare(F, w)
     assert again.n_simulations == 0
     assert DynamicBacklash(M1, M2, 2 * H, EPS, effects=(_Marker(),), **KW).cache_path != db.cache_path
+
+
+def test_effects_make_the_table_two_dimensional_and_enter_the_key():
+    from dfloop.impact.effects import LoadSpring, ViscousDamping
+
+    plain = DynamicBacklash(M1, M2, H, EPS)
+    a = DynamicBacklash(M1, M2, H, EPS, effects=(ViscousDamping(0.5),))
+    b = DynamicBacklash(M1, M2, H, EPS, effects=(ViscousDamping(0.6),))
+    c = DynamicBacklash(M1, M2, H, EPS, effects=(LoadSpring(10.0),))
+    assert plain.similarity and not a.similarity
+    assert len({plain.cache_path, a.cache_path, b.cache_path, c.cache_path}) == 4
+    assert a.parameters()["h"] == H and "mass_ratio" not in a.parameters()
+    with pytest.raises(ValueError, match="2-D"):
+        a.similarity_table(1.0)

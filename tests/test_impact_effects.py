@@ -6,7 +6,7 @@ import pytest
 from scipy.integrate import solve_ivp, trapezoid
 
 from dfloop.impact.effects import CoulombFriction, LoadSpring, ViscousDamping, simulate_with_effects
-from dfloop.impact.extract import describing_function_from_trajectory, impact_describing_function
+from dfloop.impact.extract import describing_function_from_trajectory
 from dfloop.impact.kernel import ImpactParameters, simulate
 from dfloop.impact.reference import simulate_solve_ivp
 

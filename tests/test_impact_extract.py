@@ -6,7 +6,7 @@ import pytest
 from scipy.integrate import trapezoid
 
 from dfloop.impact.extract import (describing_function_from_trajectory, impact_describing_function,
-                                   impact_describing_function_batch, lower_limit_frequency, no_impact_frequency)
+                                   impact_describing_function_batch)
 from dfloop.impact.kernel import simulate
 
 M1, M2, H, F = 1.0, 1.0, 0.1, 50.0
@@ -43,7 +43,7 @@ def test_similarity_law_dimensional_equals_rescaled(eps, w):
 
 @pytest.mark.parametrize("factor", [1.0, 1.3, 10.0])
 def test_no_impacts_at_or_above_wL_gives_exactly_zero(factor):
-    w = factor * no_impact_frequency(1.0, 1.0, 1.0)  # beta = 1/4 / factor^2
+    w = factor * 2.0 * math.sqrt(1.0 / (1.0 * 1.0))  # w_L of eq. (11): beta = 1/4 / factor^2
     r = impact_describing_function(1.5, 1.0, 1.0, 0.5, 1.0, w, transient_periods=10, periods=10)
     assert r.N == 0 and r.n_impacts == 0 and r.periodicity == 0.0
 
@@ -96,7 +96,7 @@ def test_irregular_motion_is_flagged_as_average():
 def test_below_wc_flag_and_sticking_makes_it_periodic():
     """Below w_c (eq. 10) the paper reports irregular motion; with sticking resolved it is periodic here."""
     eps, w = 0.2, 15.0
-    assert w < lower_limit_frequency(F, M2, H, eps)
+    assert w < ((2 * F / (M2 * H)) ** 2 * (1 - eps) ** 5) ** 0.25  # w_c of eq. (10)
     r = impact_describing_function(M1, M2, H, eps, F, w)
     assert r.below_wc and "below w_c" in repr(r)
     assert r.period == 1 and r.stuck_fraction > 0.1 and r.periodicity < 1e-10

@@ -250,3 +250,40 @@ def test_table_repr_and_result_fields():
     assert c.G == pytest.approx(-1 / c.N, rel=1e-9)
     assert c.period == pytest.approx(2 * np.pi / c.frequency)
     assert [c.frequency for c in cycles] == sorted(c.frequency for c in cycles)
+
+
+class _Polynomial(DescribingFunction):
+    """N = 1 - z with z = (x + i y)^k - eps^k, x = ln(A/A0), y = ln(w/w0): with G = -1 the residual is
+    z, holomorphic in x + i y, so its k roots x + i y = eps exp(2 pi i m / k) all have degree +1."""
+
+    frequency_dependent = True
+
+    def __init__(self, k, eps, A0=1.0, w0=1.0, invalid_above=np.inf):
+        self.k, self.eps, self.A0, self.w0, self.invalid_above = k, eps, A0, w0, invalid_above
+
+    def _evaluate(self, A, omega):
+        z = (np.log(A / self.A0) + 1j * np.log(omega / self.w0)) ** self.k - self.eps ** self.k
+        return 1 - z
+
+    def validity(self, A, omega=None):
+        return np.asarray(A) < self.invalid_above
+
+
+@pytest.mark.parametrize("k", [2, 3])
+def test_clustered_roots_of_equal_degree_in_one_cell_are_all_found(k):
+    eps = 1e-3
+    cycles = df.predict_limit_cycles(lambda w: -np.ones_like(w), _Polynomial(k, eps), omega=(0.5, 2),
+                                     amplitude=(0.5, 2), grid=(5, 5))
+    z = eps * np.exp(2j * np.pi * np.arange(k) / k)
+    assert len(cycles) == k
+    found = np.array([np.log(c.amplitude) + 1j * np.log(c.frequency) for c in cycles])
+    np.testing.assert_allclose(found[np.argsort(np.angle(found))], z[np.argsort(np.angle(z))], atol=1e-9)
+    assert all(c.stability == "stable" for c in cycles)
+
+
+def test_validity_of_N_is_reported_per_cycle():
+    cycles = df.predict_limit_cycles(lambda w: -np.ones_like(w), _Polynomial(2, 0.1, invalid_above=1.0),
+                                     omega=(0.5, 2), amplitude=(0.5, 2))
+    assert len(cycles) == 2
+    assert [c.valid for c in sorted(cycles, key=lambda c: c.amplitude)] == [True, False]
+    assert "N not valid" in repr(cycles)

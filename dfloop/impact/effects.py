@@ -389,7 +389,7 @@ def simulate_with_effects(p, t_end: float, effects: tuple, max_events: int, chat
         Edt = E if dt == model.dt else expm(A * dt)
         z_next = Edt @ z
         rows = np.array([r for r, _ in cons])
-        fa, fb = rows @ z, rows @ z_next
+        fb = rows @ z_next
         da, db = rows @ (A @ z), rows @ (A @ z_next)
         # cheap screen: a constraint needs the exact search only if it ends violated, turns, or starts on 0
         suspect = [j for j in range(len(cons)) if fb[j] < 0.0 or da[j] * db[j] < 0.0 or j in leaving]

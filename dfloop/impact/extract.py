@@ -25,7 +25,7 @@ from ._core import IMPACT_A, IMPACT_B
 from .kernel import DEFAULT_CHATTER_TOL, DEFAULT_MAX_EVENTS, Trajectory, simulate
 
 __all__ = ["ImpactDF", "ImpactDFBatch", "describing_function_from_trajectory", "impact_describing_function",
-           "impact_describing_function_batch", "lower_limit_frequency", "no_impact_frequency"]
+           "impact_describing_function_batch"]
 
 DEFAULT_TRANSIENT_PERIODS = 200
 DEFAULT_PERIODS = 40
@@ -33,13 +33,8 @@ MAX_DETECTED_PERIOD = 12
 PERIODICITY_TOL = 1e-6  # relative mismatch of the stroboscopic state that still counts as periodic
 
 
-def no_impact_frequency(force: float, m2: float, h: float) -> float:
-    """Eq. (11): w_L = 2 sqrt(F / (h M2)) (rad/s); above it the masses never touch (beta <= 1/4)."""
-    return 2.0 * math.sqrt(force / (h * m2))
-
-
-def lower_limit_frequency(force: float, m2: float, h: float, restitution: float) -> float:
-    """Eq. (10): w_c ~ [(2 F / (M2 h))^2 (1 - eps)^5]^(1/4) (rad/s); below it the motion is irregular."""
+def _lower_limit_frequency(force: float, m2: float, h: float, restitution: float) -> float:
+    """Eq. (10): w_c ~ [(2 F / (M2 h))^2 (1 - eps)^5]^(1/4) (rad/s); the paper's irregular-motion limit."""
     return ((2.0 * force / (m2 * h)) ** 2 * (1.0 - restitution) ** 5) ** 0.25
 
 
@@ -143,7 +138,7 @@ def describing_function_from_trajectory(traj: Trajectory, transient_periods: int
     traj : Trajectory
         A run whose ``t_end`` covers at least transient_periods + periods forcing periods.
     transient_periods, periods : int
-        Forcing periods discarded, then used (>= 1).
+        Forcing periods discarded, then used (>= 1; detecting a period p needs periods >= 3 p).
     """
     transient_periods = int(_checks.nonnegative("transient_periods", transient_periods))
     periods = int(_checks.positive("periods", periods))
@@ -155,9 +150,7 @@ def describing_function_from_trajectory(traj: Trajectory, transient_periods: int
         raise ValueError(f"periods: the trajectory ends at {traj.t_end:g} s, before the window end "
                          f"{t_a + periods * tp:g} s")
     period = _detect_period(traj, t_a, periods)
-    used = periods if period <= 1 else period * (periods // period)
-    if used == 0:
-        used, period = periods, 0
+    used = periods if period <= 1 else period * (periods // period)  # period <= periods // 3
     t_b = min(t_a + used * tp, traj.t_end)
     bounds = t_a + tp * np.arange(used + 1)
     bounds[-1] = t_b
@@ -190,7 +183,7 @@ def describing_function_from_trajectory(traj: Trajectory, transient_periods: int
                     max_run_A=int(runs_a.max(initial=0)), max_run_B=int(runs_b.max(initial=0)),
                     runs_A=runs_a, runs_B=runs_b, stuck_fraction=float(overlap[stuck].sum() / length),
                     periods_used=used, n_impacts=int(sides.size), beta=p.beta,
-                    below_wc=bool(w < lower_limit_frequency(p.force, p.m2, p.h, p.restitution)))
+                    below_wc=bool(w < _lower_limit_frequency(p.force, p.m2, p.h, p.restitution)))
 
 
 def impact_describing_function(m1: float, m2: float, h: float, restitution: float, force: float, omega: float,

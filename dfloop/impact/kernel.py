@@ -20,7 +20,7 @@ import numpy as np
 
 from .. import _checks
 from . import _core
-from ._core import (FREE, GAP, IMPACT_A, IMPACT_B, PHI0, STUCK_A, STUCK_B, T0, U, U_POST, U_PRE, V1, V1_POST,
+from ._core import (FREE, GAP, IMPACT_A, IMPACT_B, PHI0, STUCK_B, T0, U, U_POST, U_PRE, V1, V1_POST,
                     V1_PRE, X1)
 
 __all__ = ["ImpactParameters", "Trajectory", "simulate", "EventLimitError"]

@@ -78,18 +78,16 @@ def _default_amplitude_window(res: Residual, v: np.ndarray, dom: tuple[float, fl
 
 
 def _split_mask(P: np.ndarray, axis: int, x: np.ndarray) -> np.ndarray:
-    """Intervals along ``axis`` where G N is not resolved near |G N| = 1."""
-    n = P.shape[axis]
-    P0, P1 = np.take(P, range(n - 1), axis=axis), np.take(P, range(1, n), axis=axis)
+    """Intervals along ``axis`` where arg(G N) turns fast while |G N| is near 1."""
+    Pt = P if axis == 0 else P.T
+    P0, P1 = Pt[:-1], Pt[1:]
     with np.errstate(divide="ignore", invalid="ignore"):
-        L = np.log(np.abs(P))
-        dph = np.where((P0 == 0) | (P1 == 0), 0.0, np.abs(np.angle(P1 / P0)))
-    near = np.abs(L) < _NEAR_UNIT
-    # the phase of G N must not rotate fast between neighbours where |G N| is near 1 (a full turn of
-    # R = 1 + G N between two samples would be invisible to the winding count); 0 (N's dead band) is skipped
-    bad = (np.take(near, range(n - 1), axis=axis) | np.take(near, range(1, n), axis=axis)) & (
-        dph > _PHASE_STEP)
-    return np.any(bad, axis=1 - axis) & (np.diff(x) > _MIN_LOG_STEP)
+        near = np.abs(np.log(np.abs(Pt))) < _NEAR_UNIT
+        dph = np.where((P0 == 0) | (P1 == 0), 0.0, np.abs(np.angle(P1 * P0.conj())))
+    # a full turn of R = 1 + G N between two samples would be invisible to the winding count;
+    # entries where N = 0 (dead band) are skipped
+    bad = (near[:-1] | near[1:]) & (dph > _PHASE_STEP)
+    return np.any(bad, axis=1) & (np.diff(x) > _MIN_LOG_STEP)
 
 
 def _resolve_axis(f, x: np.ndarray) -> np.ndarray:
@@ -113,11 +111,13 @@ def _resolve_axis(f, x: np.ndarray) -> np.ndarray:
 
 
 def _resolve_grid(res: Residual, a: np.ndarray, v: np.ndarray):
-    """Refine the grid: first each factor on its own axis (G along w; N along A when amplitude-only),
-    then G N on the tensor grid where |G N| is near 1 (bounded)."""
+    """Refine the grid: first each factor on its own axis (G along w; N along A when amplitude-only,
+    which then also resolves arg(G N) = arg G + arg N), else G N on the tensor grid where |G N| is
+    near 1 (bounded)."""
     v = _resolve_axis(lambda x: res.plant(np.exp(x)), v)
     if not res.frequency_dependent:
         a = _resolve_axis(lambda x: res.N(np.exp(x)), a)
+        return a, v, res.grid(a, v)
     for _ in range(_MAX_REFINE_ROUNDS):
         P = res.grid(a, v)
         split_a, split_v = _split_mask(P, 0, a), _split_mask(P, 1, v)

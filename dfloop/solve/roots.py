@@ -5,13 +5,14 @@ around grid cells (the local topological degree: scale-free, no absolute cutoff)
 cell edge being followed by adaptive bisection so no phase step exceeds pi/2. Each root is then refined
 by a Levenberg-Marquardt iteration on (Re R, Im R), clipped to a box inside the window. Cells whose
 winding is not +-1, or whose refinement fails, are quadrisected (bounded depth). Tangent-like pairs of
-roots, which cancel in a cell's winding, are found from local minima of |R| / (1 + |G N|).
+roots, which cancel in a cell's winding, are found from local minima of |R|^2 / (1 + |G N|^2).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..describing.base import DescribingFunction
+from ._kernels import edge_steps, nonzero_windings, tangent_seeds
 from .plant import Plant
 
 __all__ = ["Residual", "Box", "find_roots"]
@@ -21,8 +22,9 @@ _MAX_EDGE_DEPTH = 50  # bisection levels along an edge (2**-50 of its length)
 _MAX_SEGMENTS = 4_000_000  # live edge segments at one level
 _FD_STEP = 1e-6  # central-difference step in log coordinates
 _MAX_LM_ITER = 100
+_POLISH = 1e-4  # refinement continues (while it improves) down to this fraction of the tolerance
 _MAX_ISOLATE_DEPTH = 30
-_TANGENT_THRESHOLD = 0.3  # local minima of |R| / (1 + |GN|) below this are searched for hidden roots
+_TANGENT_THRESHOLD = 0.1  # local minima of |R|^2 / (1 + |GN|^2) below this are searched for hidden roots
 _MAX_TANGENT_SEEDS = 5000
 
 
@@ -126,7 +128,7 @@ def edge_phases(res: Residual, a0, v0, a1, v1, P0, P1) -> tuple[np.ndarray, list
         if depth == _MAX_EDGE_DEPTH and split.any():
             suspects.extend(zip(((a0 + a1) / 2)[split], ((v0 + v1) / 2)[split]))
             split[:] = False
-        np.add.at(total, seg[~split], d[~split])
+        total += np.bincount(seg[~split], weights=d[~split], minlength=total.size)
         if not split.any():
             break
         if 2 * np.count_nonzero(split) > _MAX_SEGMENTS:
@@ -140,20 +142,24 @@ def edge_phases(res: Residual, a0, v0, a1, v1, P0, P1) -> tuple[np.ndarray, list
     return total, suspects
 
 
-def grid_windings(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, list]:
-    """Winding number of R around every cell of the tensor grid (counter-clockwise in (a, v))."""
-    na, nv = P.shape
-    A0, V0 = np.meshgrid(a[:-1], v, indexing="ij")
-    A1 = np.broadcast_to(a[1:, None], A0.shape)
-    ph_a, s1 = edge_phases(res, A0.ravel(), V0.ravel(), A1.ravel(), V0.ravel(), P[:-1].ravel(), P[1:].ravel())
-    B0, W0 = np.meshgrid(a, v[:-1], indexing="ij")
-    W1 = np.broadcast_to(v[None, 1:], W0.shape)
-    ph_v, s2 = edge_phases(res, B0.ravel(), W0.ravel(), B0.ravel(), W1.ravel(), P[:, :-1].ravel(),
-                           P[:, 1:].ravel())
-    ph_a = ph_a.reshape(na - 1, nv)
-    ph_v = ph_v.reshape(na, nv - 1)
-    turn = ph_a[:, :-1] + ph_v[1:, :] - ph_a[:, 1:] - ph_v[:-1, :]
-    return np.rint(turn / (2 * np.pi)).astype(int), s1 + s2
+def grid_windings(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray):
+    """Cells of the tensor grid with non-zero winding of R (counter-clockwise in (a, v)).
+
+    Phase steps between neighbouring nodes come from arg R at the nodes; only edges whose step exceeds
+    pi/2 (or touch a zero of R) are followed by adaptive bisection. Returns cell indices (i, j), their
+    windings, and suspected roots on edges.
+    """
+    R = 1.0 + P
+    ph_a, ph_v, ai, aj, vi, vj = edge_steps(np.angle(R), R, _SPLIT_PHASE)
+    suspects = []
+    if ai.size:
+        ph_a[ai, aj], s1 = edge_phases(res, a[ai], v[aj], a[ai + 1], v[aj], P[ai, aj], P[ai + 1, aj])
+        suspects += s1
+    if vi.size:
+        ph_v[vi, vj], s2 = edge_phases(res, a[vi], v[vj], a[vi], v[vj + 1], P[vi, vj], P[vi, vj + 1])
+        suspects += s2
+    ii, jj, wind = nonzero_windings(ph_a, ph_v)
+    return ii, jj, wind, suspects
 
 
 def box_windings(res: Residual, box: Box) -> tuple[np.ndarray, list]:
@@ -168,31 +174,40 @@ def box_windings(res: Residual, box: Box) -> tuple[np.ndarray, list]:
     return np.rint(turn / (2 * np.pi)).astype(int), suspects
 
 
+def _with_slopes(res: Residual, a: np.ndarray, v: np.ndarray):
+    """P at (a, v) and forward-difference slopes dR/da, dR/dv there, in one evaluation."""
+    k, h = a.size, _FD_STEP
+    p = res.terms(np.concatenate([a, a + h, a]), np.concatenate([v, v, v + h]))
+    return p[:k], (p[k:2 * k] - p[:k]) / h, (p[2 * k:] - p[:k]) / h
+
+
 def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Levenberg-Marquardt on (Re R, Im R) from (a, v), each point clipped to its box.
 
-    Returns the final (a, v) and a mask of points with |R| <= tol (1 + |G N|). Bounded by 100 iterations.
+    Every trial point is evaluated together with its finite-difference neighbours, so an accepted step
+    costs one call. Returns the final (a, v) and a mask of points with |R| <= tol (1 + |G N|).
+    Bounded by 100 iterations.
     """
     a, v = np.array(a, float), np.array(v, float)
-    P = res.terms(a, v)
+    P, ra, rv = _with_slopes(res, a, v)
     rel = np.abs(1 + P) / (1 + np.abs(P))
     lam = np.full(a.size, 1e-12)
-    done = rel <= tol
+    polish = tol * _POLISH  # keep going past tol while it pays: flat residuals need it for position
+    done = rel <= polish
     failed = np.zeros(a.size, bool)
     for _ in range(_MAX_LM_ITER):
         act = np.flatnonzero(~done & ~failed)
         if act.size == 0:
             break
-        ra, rv = res.jacobian(a[act], v[act])
-        r = 1 + P[act]
+        r, ja, jv = 1 + P[act], ra[act], rv[act]
         # real 2x2 normal equations of J = [[Re ra, Re rv], [Im ra, Im rv]]
-        jaa = np.abs(ra) ** 2
-        jvv = np.abs(rv) ** 2
-        jav = (ra.conj() * rv).real
-        ga = (ra.conj() * r).real
-        gv = (rv.conj() * r).real
-        l = lam[act] * (jaa + jvv)
-        m11, m22 = jaa + l, jvv + l
+        jaa = np.abs(ja) ** 2
+        jvv = np.abs(jv) ** 2
+        jav = (ja.conj() * jv).real
+        ga = (ja.conj() * r).real
+        gv = (jv.conj() * r).real
+        damp = lam[act] * (jaa + jvv)
+        m11, m22 = jaa + damp, jvv + damp
         det = m11 * m22 - jav ** 2
         with np.errstate(divide="ignore", invalid="ignore"):
             da = -(m22 * ga - jav * gv) / det
@@ -201,16 +216,21 @@ def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.nd
         da, dv = np.where(ok_step, da, 0.0), np.where(ok_step, dv, 0.0)
         at = np.clip(a[act] + da, box.a_lo[act], box.a_hi[act])
         vt = np.clip(v[act] + dv, box.v_lo[act], box.v_hi[act])
-        Pt = res.terms(at, vt)
+        Pt, rat, rvt = _with_slopes(res, at, vt)
         relt = np.abs(1 + Pt) / (1 + np.abs(Pt))
         better = (relt < rel[act]) & ok_step
+        pinned = ((at == box.a_lo[act]) | (at == box.a_hi[act]) | (vt == box.v_lo[act]) | (vt == box.v_hi[act]))
+        # converging to a non-zero minimum, or pressed against the box towards a root outside it
+        stalled = better & ((relt > (1 - 1e-3) * rel[act]) | (pinned & (relt > 0.5 * rel[act])))
         acc, rej = act[better], act[~better]
+        failed[act[stalled]] = True
         a[acc], v[acc], P[acc], rel[acc] = at[better], vt[better], Pt[better], relt[better]
+        ra[acc], rv[acc] = rat[better], rvt[better]
         lam[acc] = np.maximum(lam[acc] / 10, 1e-15)
         lam[rej] *= 100
-        done = rel <= tol
-        failed |= lam > 1e8
-    return a, v, done
+        done = rel <= polish
+        failed |= (lam > 1e8) & ~done
+    return a, v, rel <= tol
 
 
 def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float, float] | None = None):
@@ -244,29 +264,27 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
     return found_a, found_v
 
 
-def _local_minima(m: np.ndarray) -> np.ndarray:
-    """Mask of grid nodes not larger than any of their 8 neighbours."""
-    pad = np.pad(m, 1, constant_values=np.inf)
-    c = pad[1:-1, 1:-1]
-    mask = np.ones(m.shape, bool)
-    for di in (-1, 0, 1):
-        for dj in (-1, 0, 1):
-            if di or dj:
-                mask &= c <= pad[1 + di:pad.shape[0] - 1 + di, 1 + dj:pad.shape[1] - 1 + dj]
-    return mask
+def merge(res: Residual, a: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Merge refined points that are the same root; sorted by v.
 
-
-def merge(a: np.ndarray, v: np.ndarray, dist: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
-    """Merge points closer than ``dist`` (log coordinates, both axes); sorted by v."""
+    Two points are the same root when closer (max norm, log coordinates) than 1e-6 plus four times
+    their position uncertainties |R| / s_min(J), s_min the smaller singular value of the Jacobian.
+    """
     order = np.lexsort((a, v))
     a, v = a[order], v[order]
-    keep_a, keep_v = [], []
-    for x, y in zip(a, v):
-        if any(abs(x - ka) <= dist and abs(y - kv) <= dist for ka, kv in zip(keep_a[-8:], keep_v[-8:])):
+    P, ra, rv = _with_slopes(res, a, v)
+    jaa, jvv, jav = np.abs(ra) ** 2, np.abs(rv) ** 2, (ra.conj() * rv).real
+    half_tr, det = (jaa + jvv) / 2, jaa * jvv - jav ** 2
+    s_min = np.sqrt(np.maximum(half_tr - np.sqrt(np.maximum(half_tr ** 2 - det, 0)), 0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        radius = 1e-6 + 4 * np.where(s_min > 0, np.abs(1 + P) / s_min, np.inf)
+    radius = np.minimum(radius, 1e-2)
+    keep: list[int] = []
+    for k in range(a.size):
+        if any(max(abs(a[k] - a[m]), abs(v[k] - v[m])) <= radius[k] + radius[m] for m in keep):
             continue
-        keep_a.append(x)
-        keep_v.append(y)
-    return np.asarray(keep_a), np.asarray(keep_v)
+        keep.append(k)
+    return a[keep], v[keep]
 
 
 def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: float):
@@ -275,10 +293,9 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
     Returns arrays (a, v) of refined roots (|R| <= tol (1 + |GN|)), merged and sorted by frequency.
     """
     window = Box(a[0], a[-1], v[0], v[-1])
-    wind, suspects = grid_windings(res, a, v, P)
-    ii, jj = np.nonzero(wind)
+    ii, jj, wind, suspects = grid_windings(res, a, v, P)
     cells = Box(a[ii], a[ii + 1], v[jj], v[jj + 1])
-    single = np.abs(wind[ii, jj]) == 1
+    single = np.abs(wind) == 1
     roots_a, roots_v = [], []
     sb = cells.take(single)
     ra, rv, ok = refine(res, (sb.a_lo + sb.a_hi) / 2, (sb.v_lo + sb.v_hi) / 2, sb.grown(0.5, window), tol)
@@ -301,15 +318,13 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
         roots_a.extend(xa[ok])
         roots_v.extend(xv[ok])
     # tangent-like pairs cancel in a cell's winding: search from local minima of the relative residual
-    m = np.abs(1 + P) / (1 + np.abs(P))
-    seeds = _local_minima(m) & (m < _TANGENT_THRESHOLD)
-    si, sj = np.nonzero(seeds)
+    si, sj, sm = tangent_seeds(P, ii, jj, _TANGENT_THRESHOLD)
     if si.size > _MAX_TANGENT_SEEDS:
-        best = np.argsort(m[si, sj])[:_MAX_TANGENT_SEEDS]
+        best = np.argsort(sm)[:_MAX_TANGENT_SEEDS]
         si, sj = si[best], sj[best]
     if si.size:
-        lo_i, hi_i = np.maximum(si - 1, 0), np.minimum(si + 1, a.size - 1)
-        lo_j, hi_j = np.maximum(sj - 1, 0), np.minimum(sj + 1, v.size - 1)
+        lo_i, hi_i = np.maximum(si - 2, 0), np.minimum(si + 2, a.size - 1)
+        lo_j, hi_j = np.maximum(sj - 2, 0), np.minimum(sj + 2, v.size - 1)
         sbox = Box(a[lo_i], a[hi_i], v[lo_j], v[hi_j])
         ta, tv, ok = refine(res, a[si], v[sj], sbox, tol)
         known_a, known_v = np.asarray(roots_a), np.asarray(roots_v)
@@ -322,4 +337,4 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
             roots_v.extend(fv + [tv[k]])
     if not roots_a:
         return np.empty(0), np.empty(0)
-    return merge(np.asarray(roots_a), np.asarray(roots_v))
+    return merge(res, np.asarray(roots_a), np.asarray(roots_v))

@@ -1,0 +1,138 @@
+"""Nyquist plot of G(jw) with the -1/N locus and the predicted cycles; residual map over (A, w)."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..describing.base import negative_inverse
+from ..solve.plant import as_plant
+from ..solve.predict import predict_limit_cycles
+
+__all__ = ["plot_nyquist", "plot_residual_map"]
+
+_STYLE = {"stable": dict(marker="o", facecolor="C3", edgecolor="C3"),
+          "unstable": dict(marker="o", facecolor="none", edgecolor="C3"),
+          "marginal": dict(marker="D", facecolor="none", edgecolor="C1")}
+
+
+def _cycles_and_windows(G, N, cycles, omega, amplitude):
+    if cycles is None:
+        cycles = predict_limit_cycles(G, N, omega=omega, amplitude=amplitude)
+    w_win = omega or getattr(cycles, "omega_window", None)
+    a_win = amplitude or getattr(cycles, "amplitude_window", None)
+    if w_win is None or a_win is None:
+        raise ValueError("give omega and amplitude windows, or cycles returned by predict_limit_cycles")
+    return cycles, tuple(map(float, w_win)), tuple(map(float, a_win))
+
+
+def _view_limits(ax, points: np.ndarray, cycles) -> None:
+    """Frame the part of the plane where the cycles are (the -1/N locus may run off to infinity)."""
+    pts = points[np.isfinite(points)]
+    if cycles:
+        ref = max(abs(c.G) for c in cycles)
+    else:
+        ref = float(np.median(np.abs(pts))) if pts.size else 1.0
+    near = pts[np.abs(pts) <= 3 * ref]
+    if near.size == 0:
+        return
+    lo_x, hi_x, lo_y, hi_y = near.real.min(), near.real.max(), near.imag.min(), near.imag.max()
+    pad = 0.08 * max(hi_x - lo_x, hi_y - lo_y, ref * 1e-3)
+    ax.set_xlim(lo_x - pad, hi_x + pad)
+    ax.set_ylim(lo_y - pad, hi_y + pad)
+
+
+def plot_nyquist(G, N, cycles=None, ax=None, *, omega=None, amplitude=None, n_loci: int = 5):
+    """Plot G(jw), the -1/N locus and the predicted limit cycles on the Nyquist plane.
+
+    Parameters
+    ----------
+    G, N : plant and describing function, as for :func:`~dfloop.predict_limit_cycles`.
+    cycles : LimitCycles, optional
+        Result of ``predict_limit_cycles``; computed here when omitted. Stable cycles are drawn
+        filled, unstable hollow, marginal as diamonds, each labelled with amplitude and frequency.
+    ax : matplotlib Axes, optional
+    omega, amplitude : (lo, hi), optional
+        Windows to draw (default: those of ``cycles``).
+    n_loci : int
+        For a frequency-dependent N, the -1/N(A, w) locus is drawn at this many frequencies of the
+        window plus at each cycle's frequency (a family of curves).
+
+    Returns
+    -------
+    matplotlib Axes
+    """
+    import matplotlib.pyplot as plt
+
+    cycles, (w_lo, w_hi), (a_lo, a_hi) = _cycles_and_windows(G, N, cycles, omega, amplitude)
+    if ax is None:
+        ax = plt.figure().add_subplot()
+    plant = as_plant(G)
+    w = np.unique(np.concatenate([np.geomspace(w_lo, w_hi, 2000),
+                                  plant.feature_frequencies[(plant.feature_frequencies >= w_lo)
+                                                            & (plant.feature_frequencies <= w_hi)]]))
+    g = plant(w)
+    ax.plot(g.real, g.imag, color="C0", label="G(jω)")
+    A = np.geomspace(a_lo, a_hi, 1000)
+    points = [g]
+    if N.frequency_dependent:
+        freqs = np.unique(np.concatenate([np.geomspace(w_lo, w_hi, n_loci), [c.frequency for c in cycles]]))
+        for k, wf in enumerate(freqs):
+            loc = negative_inverse(N, A, wf)
+            ax.plot(loc.real, loc.imag, color="C2", alpha=0.4 + 0.6 * k / max(len(freqs) - 1, 1), lw=1,
+                    label=f"-1/N(A, ω={wf:.3g})")
+            points.append(loc)
+    else:
+        loc = negative_inverse(N, A)
+        ax.plot(loc.real, loc.imag, color="C2", label="-1/N(A)")
+        points.append(loc)
+    for c in cycles:
+        ax.scatter([c.G.real], [c.G.imag], s=60, zorder=3, linewidths=1.5, **_STYLE[c.stability])
+        ax.annotate(f"A={c.amplitude:.3g}, ω={c.frequency:.3g}\n{c.stability}", (c.G.real, c.G.imag),
+                    textcoords="offset points", xytext=(6, 6), fontsize=8)
+    _view_limits(ax, np.concatenate(points), cycles)
+    ax.axhline(0, color="0.8", lw=0.5)
+    ax.axvline(0, color="0.8", lw=0.5)
+    ax.set_xlabel("Re")
+    ax.set_ylabel("Im")
+    ax.legend(fontsize=8)
+    return ax
+
+
+def plot_residual_map(G, N, cycles=None, ax=None, *, omega=None, amplitude=None, shape=(200, 200)):
+    """Map of log10 |1 + G N| / (1 + |G N|) over (A, w), with the zero lines of Re and Im of 1 + G N.
+
+    A limit cycle sits where the two zero lines cross; the crossing angle shows how well conditioned
+    (and, by its orientation, how stable) it is. Without explicit windows the map spans a decade
+    around the cycles (within the search windows). Returns the matplotlib Axes.
+    """
+    import matplotlib.pyplot as plt
+
+    given_w, given_a = omega, amplitude
+    cycles, (w_lo, w_hi), (a_lo, a_hi) = _cycles_and_windows(G, N, cycles, omega, amplitude)
+    if cycles:  # zoom to a decade around the cycles unless windows were given
+        if given_a is None:
+            amps = [c.amplitude for c in cycles]
+            a_lo, a_hi = max(a_lo, min(amps) / 10), min(a_hi, max(amps) * 10)
+        if given_w is None:
+            freqs = [c.frequency for c in cycles]
+            w_lo, w_hi = max(w_lo, min(freqs) / 10), min(w_hi, max(freqs) * 10)
+    if ax is None:
+        ax = plt.figure().add_subplot()
+    A = np.geomspace(a_lo, a_hi, int(shape[0]))
+    w = np.geomspace(w_lo, w_hi, int(shape[1]))
+    g = as_plant(G)(w)
+    n = N(A[:, None], w[None, :]) if N.frequency_dependent else N(A)[:, None]
+    P = n * g[None, :]
+    R = 1 + P
+    rel = np.log10(np.maximum(np.abs(R) / (1 + np.abs(P)), 1e-16))
+    mesh = ax.pcolormesh(w, A, rel, shading="auto", cmap="viridis")
+    ax.contour(w, A, R.real, levels=[0], colors="w", linewidths=1)
+    ax.contour(w, A, R.imag, levels=[0], colors="C3", linewidths=1, linestyles="--")
+    for c in cycles:
+        ax.scatter([c.frequency], [c.amplitude], s=60, zorder=3, linewidths=1.5, **_STYLE[c.stability])
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("ω [rad/s]")
+    ax.set_ylabel(f"amplitude {N.input_name}" + (f" [{N.input_unit}]" if N.input_unit else ""))
+    ax.set_title("1 + GN = 0 where Re = 0 (white) meets Im = 0 (red dashed)", fontsize=9)
+    ax.figure.colorbar(mesh, ax=ax, label="log10 |1+GN| / (1+|GN|)")
+    return ax

@@ -1,0 +1,91 @@
+"""plot_nyquist / plot_residual_map: the drawn data are the plant response, the -1/N locus and the cycles."""
+import control as ct
+import matplotlib
+import matplotlib.collections
+
+matplotlib.use("Agg")
+import matplotlib.colors as mcolors  # noqa: E402
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+import dfloop as df  # noqa: E402
+from dfloop.describing.base import DescribingFunction  # noqa: E402
+from dfloop.plot.nyquist import plot_nyquist, plot_residual_map  # noqa: E402
+
+G = ct.tf([1.5], [1, 2, 1, 0])
+N = df.Backlash(h=0.2)
+
+
+@pytest.fixture(autouse=True)
+def _close():
+    yield
+    plt.close("all")
+
+
+def test_nyquist_draws_plant_locus_and_cycles_by_stability():
+    cycles = df.predict_limit_cycles(G, N)
+    ax = plot_nyquist(G, N, cycles)
+    g_line, n_line = ax.lines[0], ax.lines[1]
+    w_pick = np.geomspace(*cycles.omega_window, 2000)[100]
+    x, y = g_line.get_data()
+    gp = df.as_plant(G)(np.array([w_pick]))[0]
+    assert np.min(np.abs(x + 1j * y - gp)) < 1e-12
+    xs, ys = n_line.get_data()
+    A = np.geomspace(*cycles.amplitude_window, 1000)
+    np.testing.assert_allclose(xs + 1j * ys, -1 / N(A))
+    markers = ax.collections
+    assert len(markers) == len(cycles) == 2
+    for c, m in zip(cycles, markers):
+        np.testing.assert_allclose(m.get_offsets()[0], [c.G.real, c.G.imag])
+        face = m.get_facecolor()
+        assert (face.size > 0 and face[0][3] > 0) == c.stable  # filled iff stable
+    texts = [t.get_text() for t in ax.texts]
+    assert any(f"A={c.amplitude:.3g}" in t and c.stability in t for c in cycles for t in texts)
+
+
+class _DelayedSaturation(DescribingFunction):
+    frequency_dependent = True
+
+    def _evaluate(self, A, omega):
+        return df.Saturation(1.0)(A) * np.exp(-0.3j * omega)
+
+
+def test_frequency_dependent_locus_family_and_marginal_marker():
+    Nf = _DelayedSaturation()
+    cycles = df.predict_limit_cycles(ct.tf([2], [1, 2, 2, 1]), Nf, omega=(0.1, 10), amplitude=(1, 50))
+    ax = plot_nyquist(ct.tf([2], [1, 2, 2, 1]), Nf, cycles, n_loci=4)
+    assert len(ax.lines) - 1 - 2 == 4 + len(cycles)  # G, the loci, two axis lines
+    fig, ax2 = plt.subplots()
+    touching = df.predict_limit_cycles(lambda w: -2 + 1j * (w - 1) ** 2, df.Relay(M=1.0), omega=(0.5, 2))
+    assert plot_nyquist(lambda w: -2 + 1j * (w - 1) ** 2, df.Relay(M=1.0), touching, ax=ax2) is ax2
+    assert ax2.collections[0].get_paths()[0] is not None
+    assert mcolors.to_hex(ax2.collections[0].get_edgecolor()[0]) == mcolors.to_hex("C1")
+
+
+def test_residual_map_shows_the_relative_residual_and_zero_lines():
+    cycles = df.predict_limit_cycles(G, N)
+    ax = plot_residual_map(G, N, cycles, shape=(40, 50), amplitude=(0.15, 3.0), omega=(0.05, 5.0))
+    mesh = ax.collections[0]
+    A = np.geomspace(0.15, 3.0, 40)
+    w = np.geomspace(0.05, 5.0, 50)
+    P = N(A)[:, None] * df.as_plant(G)(w)[None, :]
+    expected = np.log10(np.maximum(np.abs(1 + P) / (1 + np.abs(P)), 1e-16))
+    np.testing.assert_allclose(np.asarray(mesh.get_array()).reshape(40, 50), expected)
+    assert ax.get_xscale() == "log" and ax.get_yscale() == "log"
+    pts = np.array([m.get_offsets()[0] for m in ax.collections
+                    if isinstance(m, matplotlib.collections.PathCollection)])
+    np.testing.assert_allclose(sorted(pts[:, 0]), sorted(c.frequency for c in cycles))
+    # default view: a decade around the cycles, inside the search windows
+    ax = plot_residual_map(G, N, cycles, shape=(10, 10))
+    edges = ax.collections[0].get_coordinates()[:, 0, 1]  # cell edges midway between the sampled A
+    centres = (edges[:-1] + edges[1:]) / 2
+    lo, hi = centres[0], centres[-1]
+    amps = [c.amplitude for c in cycles]
+    assert lo == pytest.approx(max(min(amps) / 10, cycles.amplitude_window[0]))
+    assert hi == pytest.approx(min(max(amps) * 10, cycles.amplitude_window[1]))
+
+
+def test_plot_needs_windows_without_cycles_result():
+    with pytest.raises(ValueError, match="windows"):
+        plot_nyquist(G, N, cycles=[])
