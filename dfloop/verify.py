@@ -2,7 +2,8 @@
 
 Reference 0, element input x = -c, element output y, plant output c = G y. The plant is a state-space
 realisation updated exactly over each step for a zero-order-held y (matrix exponential); the element is
-its stateful ``operator()``, called sample by sample.
+its stateful ``operator()``, called once per step with the input extrapolated to the middle of the step
+(so the hold adds no half-step delay: the loop error is second order in the step for smooth elements).
 """
 from __future__ import annotations
 
@@ -72,9 +73,13 @@ def simulate_loop(G, N, amplitude: float, frequency: float, *, periods: float = 
     limit = _DIVERGED * A0
     diverged = False
     k = 0
+    x_prev = -float(C @ np.linalg.solve(Phi, s))  # harmonic-balance state one step back (approx.)
     for k in range(steps):
         x = -float(C @ s)
-        y = op(x)
+        # the held output acts over [t_k, t_k+1]: drive the element with x extrapolated to mid-step
+        # (midpoint rule, second order in dt, instead of the half-step delay of a plain sample-and-hold)
+        y = op(1.5 * x - 0.5 * x_prev)
+        x_prev = x
         xs[k], ys[k] = x, y
         if abs(x) > limit:
             diverged = True

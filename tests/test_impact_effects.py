@@ -171,3 +171,33 @@ def test_effects_break_similarity_and_two_frictions_rejected():
         simulate(M1, M2, H, 0.5, F, 30.0, 1.0, effects=(CoulombFriction(1.0, "m1"), CoulombFriction(1.0, "m2")))
     with pytest.raises(ValueError, match="effects"):
         simulate(M1, M2, H, 0.5, F, 30.0, 1.0, effects=("damping",))
+
+
+def test_random_effect_combinations_run_without_penetration():
+    """Random masses, eps, beta and effect sets (incl. stick-slip of the pair in contact): bounded, no overlap."""
+    rng = np.random.default_rng(3)
+    for _ in range(16):
+        m1 = 10 ** rng.uniform(-0.5, 0.5)
+        eps = rng.choice([0.0, rng.uniform(0, 1), 1.0])
+        beta = 10 ** rng.uniform(-0.5, 1.5)
+        effects = []
+        if rng.random() < 0.5:
+            effects.append(ViscousDamping(10 ** rng.uniform(-2, 0)))
+        if rng.random() < 0.5:
+            effects.append(LoadSpring(10 ** rng.uniform(-1, 0.5)))
+        if rng.random() < 0.6:
+            effects.append(CoulombFriction(beta * 10 ** rng.uniform(-2, 0), str(rng.choice(["m1", "m2"]))))
+        tr = simulate(m1, 1.0, 1.0, eps, beta, 1.0, 3 * 2 * math.pi, effects=tuple(effects), max_events=20_000)
+        ends = tr.segment_ends
+        t = np.minimum((tr.t0[:, None] + (ends - tr.t0)[:, None] * np.linspace(0, 1, 9)).ravel(), tr.t_end)
+        g = tr.evaluate(t)["gap"]
+        assert g.min() >= -1e-12 and g.max() <= 1 + 1e-12
+
+
+def test_pair_in_contact_slips_together_under_friction():
+    """eps = 0, friction on M2: the pair stops on the ground in contact, then the force drags both along."""
+    m1, beta, ff = 0.4973237958578009, 10.102918201731354, 5.084509767004841
+    tr = simulate(m1, 1.0, 1.0, 0.0, beta, 1.0, 2.5, effects=(CoulombFriction(ff, "m2"),))
+    st = tr.evaluate(np.array([2.2, 2.4]))
+    assert np.all(st["gap"] == 0.0)                    # still in contact on side A
+    assert np.all(st["v1"] == st["v2"]) and st["v1"][1] < 0.0  # sliding together backwards

@@ -34,7 +34,6 @@ SLIP_POS, SLIP_NEG, GROUNDED = 1, -1, 0
 START, IMPACT_A, IMPACT_B, SEPARATION, GROUND_EVENT = 0, 1, 2, 3, 4
 STEPS_PER_SCALE = 32
 TAYLOR_TERMS = 30
-MAX_MODE_FIXES = 4
 
 
 @dataclass(frozen=True)
@@ -85,8 +84,9 @@ def _unit(i: int) -> np.ndarray:
 class _Model:
     """Mode matrices and event rows for one parameter set and effect set."""
 
-    def __init__(self, p, effects):
+    def __init__(self, p, effects, v_stick: float):
         self.p = p
+        self.v_stick = v_stick  # relative speed below which a wall contact may stick
         self.c = sum(e.c for e in effects if isinstance(e, ViscousDamping))
         self.k = sum(e.k for e in effects if isinstance(e, LoadSpring))
         frictions = [e for e in effects if isinstance(e, CoulombFriction)]
@@ -107,7 +107,11 @@ class _Model:
         self.dt = min(scales) / STEPS_PER_SCALE
 
     def mode(self, contact, ground):
-        """(A, P row, R row) for a contact mode and a ground mode of the friction mass."""
+        """(A, P row, R row, exp(A dt)) for a contact mode and a ground mode of the friction mass.
+
+        P row: contact force on M2 from M1 (N) as a row over z (None when free); R row: ground reaction on the
+        friction mass (None unless it is stuck to the ground).
+        """
         key = (contact, ground)
         if key in self._cache:
             return self._cache[key]
@@ -290,18 +294,22 @@ class EffectsTrajectory:
 
     @property
     def phase0(self) -> np.ndarray:
+        """Forcing phase w t0 mod 2 pi at every segment start."""
         return np.arctan2(self.z0[:, S], self.z0[:, C]) % (2.0 * math.pi)
 
     @property
     def impact_mask(self) -> np.ndarray:
+        """Boolean mask over segments that start with an impact."""
         return (self.cause == IMPACT_A) | (self.cause == IMPACT_B)
 
     @property
     def n_impacts(self) -> int:
+        """Number of impacts."""
         return int(np.count_nonzero(self.impact_mask))
 
     @property
     def impacts(self) -> dict:
+        """Impact times (s), sides (0 = A, 1 = B), and pre/post velocities v1, v2 (m/s)."""
         m = self.impact_mask
         return {"t": self.t0[m], "side": (self.cause[m] == IMPACT_B).astype(np.int8),
                 "v1_pre": self.pre[m, 0], "v2_pre": self.pre[m, 1],
@@ -309,15 +317,18 @@ class EffectsTrajectory:
 
     @property
     def segment_ends(self) -> np.ndarray:
+        """End time of every segment (s)."""
         return np.append(self.t0[1:], self.t_end)
 
     @property
     def stuck_intervals(self) -> np.ndarray:
+        """(n, 3) array of [start, end, side] of the phases stuck together (side 0 = A, 1 = B)."""
         ends = self.segment_ends
         m = self.mode != FREE
         return np.column_stack([self.t0[m], ends[m], (self.mode[m] == STUCK_B).astype(float)])
 
     def _states(self, t):
+        """State vectors z at times t (validated), one row per time."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         if np.any(~np.isfinite(t)) or np.any(t < 0.0) or np.any(t > self.t_end):
             raise ValueError(f"t must lie in [0, t_end = {self.t_end}]")
@@ -362,13 +373,11 @@ class EffectsTrajectory:
 
 def simulate_with_effects(p, t_end: float, effects: tuple, max_events: int, chatter_tol: float):
     """Event-driven simulation with optional effects (called by :func:`dfloop.impact.kernel.simulate`)."""
-    model = _Model(p, effects)
     v_stick = chatter_tol * max(p.h * p.omega, p.force / (p.m2 * p.omega))
+    model = _Model(p, effects, v_stick)
     z = np.array([0.0, 0.0, 0.5 * p.h, 0.0, 1.0, 0.0, 1.0])
     t = 0.0
-    contact = FREE
-    ground = GROUNDED if model.friction is not None else None
-    contact, ground = _consistent(model, z, contact, ground)
+    contact, ground = _choose_mode(model, z)
     keys, mats = {}, []
 
     def key_of(contact, ground):
@@ -423,35 +432,25 @@ def simulate_with_effects(p, t_end: float, effects: tuple, max_events: int, chat
             v2 = (z[V1] * (1 + eps) * p.m1 + z[V2] * (p.m2 - eps * p.m1)) / M
             post = (v1, v2)
             z[V1], z[V2] = v1, v2
+            if abs(v2 - v1) <= v_stick:  # converged chatter: plastic settle (momentum kept)
+                z[V1] = z[V2] = (p.m1 * v1 + p.m2 * v2) / M
             cause = IMPACT_A if side == 0 else IMPACT_B
-            contact = STUCK_A if (side == 0 and abs(v2 - v1) <= v_stick) else FREE
-            if side == 1 and abs(v2 - v1) <= v_stick:
-                contact = STUCK_B
-            if contact != FREE:
-                vc = (p.m1 * v1 + p.m2 * v2) / M   # plastic settle of the converged chatter
-                z[V1] = z[V2] = vc
-            if ground is not None:
-                v = z[V1 if model.fmass == 0 else V2]
-                ground = SLIP_POS if v > 0 else (SLIP_NEG if v < 0 else GROUNDED)
         elif kind == "separate":
             cause = SEPARATION
-            contact = FREE
         elif kind == "stop":
             cause = GROUND_EVENT
             z[V1 if model.fmass == 0 else V2] = 0.0
             if contact != FREE:
                 z[V1] = z[V2] = 0.0
-            ground = GROUNDED
         else:  # slip
             cause = GROUND_EVENT
-            ground = SLIP_POS if (R @ z) < 0 else SLIP_NEG
-        contact, ground = _consistent(model, z, contact, ground)
+        contact, ground = _choose_mode(model, z)
         leaving = set(j for j, (r, _) in enumerate(model.constraints(contact, ground))
                       if abs(r @ z) <= 1e-12 * (np.abs(r) @ np.abs(z) + 1e-300))
         rec["t0"].append(t)
         rec["z0"].append(z.copy())
         rec["mode"].append(contact)
-        rec["ground"].append(ground)
+        rec["ground"].append(0 if ground is None else ground)
         rec["cause"].append(cause)
         rec["pre"].append(pre)
         rec["post"].append(post)
@@ -462,20 +461,42 @@ def simulate_with_effects(p, t_end: float, effects: tuple, max_events: int, chat
                              matrices=tuple(mats), mode_key=np.array(rec["key"]), step=model.dt)
 
 
-def _consistent(model, z, contact, ground):
-    """Adjust (contact, ground) until the contact force and the ground reaction are admissible at z."""
-    for _ in range(MAX_MODE_FIXES):
-        changed = False
-        A, P, R, _ = model.mode(contact, ground)
-        if contact != FREE:
-            sign = 1.0 if contact == STUCK_A else -1.0
-            val, rate = sign * (P @ z), sign * (P @ (A @ z))
-            if val < 0.0 or (val == 0.0 and rate < 0.0):
-                contact, changed = FREE, True
-        if ground == GROUNDED and not changed:
-            rz = R @ z
-            if abs(rz) > model.friction.force:
-                ground, changed = (SLIP_POS if rz < 0 else SLIP_NEG), True
-        if not changed:
-            return contact, ground
-    raise RuntimeError(f"no consistent contact/friction mode after {MAX_MODE_FIXES} adjustments")
+def _admissible(model, z, contact, ground) -> bool:
+    """All constraints of the mode hold at z, ties broken by the first non-negligible time derivative."""
+    A = model.mode(contact, ground)[0]
+    derivs, sizes = [z], [np.abs(z)]   # sizes bound the terms summed in each derivative (rounding scale)
+    for _ in range(3):
+        derivs.append(A @ derivs[-1])
+        sizes.append(np.abs(A) @ sizes[-1])
+    for r, _ in model.constraints(contact, ground):
+        for d, size in zip(derivs, sizes):
+            val = r @ d
+            tol = 1e-12 * (np.abs(r) @ size)
+            if val > tol:
+                break
+            if val < -tol:
+                return False
+    return True
+
+
+def _choose_mode(model, z):
+    """The first admissible (contact, ground) mode at z among those the state allows.
+
+    Contact is a candidate when the gap sits on a wall with no relative velocity (stuck preferred over free);
+    a friction mass at rest may stay on the ground (preferred) or slip either way.
+    """
+    gap = z[X2] - z[X1]
+    h = model.p.h
+    contacts = [FREE]
+    if abs(z[V2] - z[V1]) <= model.v_stick and min(abs(gap), abs(gap - h)) <= 1e-12 * h:
+        contacts = [STUCK_A if abs(gap) < 0.5 * h else STUCK_B, FREE]
+    if model.friction is None:
+        grounds = [None]
+    else:
+        v = z[V1 if model.fmass == 0 else V2]
+        grounds = [GROUNDED, SLIP_POS, SLIP_NEG] if v == 0.0 else [SLIP_POS if v > 0 else SLIP_NEG]
+    for contact in contacts:
+        for ground in grounds:
+            if _admissible(model, z, contact, ground):
+                return contact, ground
+    raise RuntimeError(f"no admissible contact/friction mode at state {z[:4]}")

@@ -21,6 +21,11 @@ def _wrap(d):
 
 
 @njit(cache=True)
+def _is_zero(theta, R, i, j):
+    return theta[i, j] == 0.0 and R[i, j].real == 0.0 and R[i, j].imag == 0.0
+
+
+@njit(cache=True)
 def edge_steps(theta, R, split):
     """Wrapped steps of theta = arg R along both grid directions, and the edges that need bisection.
 
@@ -30,24 +35,25 @@ def edge_steps(theta, R, split):
     na, nv = R.shape
     ph_a = np.empty((na - 1, nv))
     ph_v = np.empty((na, nv - 1))
+    for i in range(na - 1):
+        for j in range(nv):
+            ph_a[i, j] = _wrap(theta[i + 1, j] - theta[i, j])
+    for i in range(na):
+        for j in range(nv - 1):
+            ph_v[i, j] = _wrap(theta[i, j + 1] - theta[i, j])
     ba_i, ba_j = [0], [0]
     bv_i, bv_j = [0], [0]
     ba_i.pop(), ba_j.pop(), bv_i.pop(), bv_j.pop()
-    for i in range(na):
+    for i in range(na - 1):
         for j in range(nv):
-            z0 = R[i, j] == 0
-            if i + 1 < na:
-                d = _wrap(theta[i + 1, j] - theta[i, j])
-                ph_a[i, j] = d
-                if abs(d) > split or z0 or R[i + 1, j] == 0:
-                    ba_i.append(i)
-                    ba_j.append(j)
-            if j + 1 < nv:
-                d = _wrap(theta[i, j + 1] - theta[i, j])
-                ph_v[i, j] = d
-                if abs(d) > split or z0 or R[i, j + 1] == 0:
-                    bv_i.append(i)
-                    bv_j.append(j)
+            if abs(ph_a[i, j]) > split or _is_zero(theta, R, i, j) or _is_zero(theta, R, i + 1, j):
+                ba_i.append(i)
+                ba_j.append(j)
+    for i in range(na):
+        for j in range(nv - 1):
+            if abs(ph_v[i, j]) > split or _is_zero(theta, R, i, j) or _is_zero(theta, R, i, j + 1):
+                bv_i.append(i)
+                bv_j.append(j)
     return (ph_a, ph_v, np.array(ba_i, dtype=np.int64), np.array(ba_j, dtype=np.int64),
             np.array(bv_i, dtype=np.int64), np.array(bv_j, dtype=np.int64))
 

@@ -13,6 +13,7 @@ import numpy as np
 __all__ = ["Plant", "as_plant"]
 
 _DECADES_BEYOND_FEATURES = 2.0  # default window: two decades beyond the slowest / fastest pole or zero
+_LIGHT_DAMPING = 0.2  # poles/zeros with damping ratio below this get a dense cluster of grid frequencies
 
 
 @dataclass
@@ -26,7 +27,8 @@ class Plant:
     default_window : (float, float) or None
         Frequency window (rad/s) proposed from the plant (poles, zeros, frd grid); None for callables.
     feature_frequencies : ndarray
-        Frequencies (rad/s) the solver's grid must resolve (clustered around lightly damped poles/zeros).
+        Frequencies (rad/s) the solver's grid must resolve (clustered around lightly damped poles/zeros;
+        an frd's own grid).
     domain : (float, float)
         Frequencies where G can be evaluated at all (an frd's grid range; (0, inf) otherwise).
     lti : object or None
@@ -70,17 +72,19 @@ def _feature_grid(roots: np.ndarray) -> tuple[np.ndarray, tuple[float, float] | 
         return np.empty(0), (1e-2, 1e2)
     lo = mag.min() * 10.0 ** -_DECADES_BEYOND_FEATURES
     hi = mag.max() * 10.0 ** _DECADES_BEYOND_FEATURES
-    # around |p|, within a few bandwidths |Re p|: tan-spaced offsets cover the resonance peak densely
+    # lightly damped poles/zeros (|Re p| < 0.2 |p|): tan-spaced points within a few bandwidths |Re p|
+    # around |p| resolve the resonance however narrow; a log grid resolves the others
+    light = np.abs(r.real) < _LIGHT_DAMPING * mag
     offsets = np.tan(np.linspace(-1.45, 1.45, 41))
-    width = np.maximum(np.abs(r.real), 1e-12 * mag)
-    pts = (mag[:, None] + width[:, None] * offsets[None, :]).ravel()
+    width = np.maximum(np.abs(r.real[light]), 1e-12 * mag[light])
+    pts = (mag[light, None] + width[:, None] * offsets[None, :]).ravel()
     return np.unique(pts[pts > 0]), (float(lo), float(hi))
 
 
 def _from_tf(sys) -> Plant:
     import control as ct
 
-    tf = ct.tf(sys)
+    tf = sys if isinstance(sys, ct.TransferFunction) else ct.tf(sys)
     num = np.asarray(tf.num[0][0], dtype=float)
     den = np.asarray(tf.den[0][0], dtype=float)
 

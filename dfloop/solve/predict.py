@@ -17,7 +17,7 @@ _MAX_REFINE_ROUNDS = 30
 _MAX_GRID = 50_000  # points per axis
 _MAX_GRID_POINTS = 4_000_000
 _MIN_LOG_STEP = 1e-6  # grid intervals narrower than this (in ln A or ln w) are not split further
-_PHASE_STEP = np.pi / 6  # max change of arg(G N) between neighbours where |G N| is near 1
+_PHASE_STEP = np.pi / 3  # max turn of arg G, arg N (per half interval) or arg(G N) between neighbours
 _NEAR_UNIT = math.log(20.0)  # "near 1": 1/20 <= |G N| <= 20
 
 
@@ -231,12 +231,13 @@ def _build(res: Residual, ra, rv, bounds, marginal_tol) -> list[LimitCycle]:
     n = res.N(A, w) if res.frequency_dependent else res.N(A)
     valid = np.broadcast_to(res.N.validity(A, w if res.frequency_dependent else None), A.shape)
     err = np.broadcast_to(res.N.error_estimate(A, w if res.frequency_dependent else None), A.shape)
+    err = np.where(np.isnan(err), np.inf, err)  # an element without an estimate: unknown, not NaN
     a_lo, a_hi, v_lo, v_hi = bounds
     edge_tol = 1e-9
     on_edge = ((np.abs(ra - a_lo) <= edge_tol) | (np.abs(ra - a_hi) <= edge_tol)
                | (np.abs(rv - v_lo) <= edge_tol) | (np.abs(rv - v_hi) <= edge_tol))
     out = []
-    for k in np.argsort(w):
+    for k in np.lexsort((A, np.round(rv, 10))):  # by frequency; equal ones (to 1e-10) by amplitude
         if on_edge[k]:
             warnings.warn(f"limit cycle at A={A[k]:.6g}, omega={w[k]:.6g} rad/s lies on the edge of the search "
                           "window; widen the window to confirm it", stacklevel=3)

@@ -34,7 +34,7 @@ class LimitCycle:
     valid : bool
         N's own ``validity`` at the answer (False e.g. in chaotic regions of a tabulated DF).
     n_error : float
-        N's ``error_estimate`` at the answer (0 for closed forms).
+        N's ``error_estimate`` at the answer (0 for closed forms; inf where N gives no estimate).
     """
 
     amplitude: float

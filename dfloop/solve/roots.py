@@ -246,6 +246,7 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
         if single.any():
             sb = kids.take(single)
             a, v, ok = refine(res, (sb.a_lo + sb.a_hi) / 2, (sb.v_lo + sb.v_hi) / 2, sb.grown(0.5, window), tol)
+            ok &= sb.grown(1e-9, window).contains(a, v)
             found_a.extend(a[ok])
             found_v.extend(v[ok])
             single[single] = ok  # failed refinements are subdivided further
@@ -272,6 +273,8 @@ def merge(res: Residual, a: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.n
     """
     order = np.lexsort((a, v))
     a, v = a[order], v[order]
+    if a.size < 2:
+        return a, v
     P, ra, rv = _with_slopes(res, a, v)
     jaa, jvv, jav = np.abs(ra) ** 2, np.abs(rv) ** 2, (ra.conj() * rv).real
     half_tr, det = (jaa + jvv) / 2, jaa * jvv - jav ** 2
@@ -287,6 +290,22 @@ def merge(res: Residual, a: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.n
     return a[keep], v[keep]
 
 
+def _linear_guess(P: np.ndarray, i: np.ndarray, j: np.ndarray, cells: Box) -> tuple[np.ndarray, np.ndarray]:
+    """Root of the linear model of R fitted to each cell's four corners (clipped to the cell)."""
+    r00, r10, r01, r11 = 1 + P[i, j], 1 + P[i + 1, j], 1 + P[i, j + 1], 1 + P[i + 1, j + 1]
+    ha, hv = cells.a_hi - cells.a_lo, cells.v_hi - cells.v_lo
+    ja = (r10 - r00 + r11 - r01) / (2 * ha)
+    jv = (r01 - r00 + r11 - r10) / (2 * hv)
+    rc = (r00 + r10 + r01 + r11) / 4
+    det = ja.real * jv.imag - jv.real * ja.imag
+    with np.errstate(divide="ignore", invalid="ignore"):
+        da = -(jv.imag * rc.real - jv.real * rc.imag) / det
+        dv = -(-ja.imag * rc.real + ja.real * rc.imag) / det
+    da, dv = np.where(np.isfinite(da), da, 0.0), np.where(np.isfinite(dv), dv, 0.0)
+    return (np.clip((cells.a_lo + cells.a_hi) / 2 + da, cells.a_lo, cells.a_hi),
+            np.clip((cells.v_lo + cells.v_hi) / 2 + dv, cells.v_lo, cells.v_hi))
+
+
 def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: float):
     """All roots of R in the window spanned by the grid (a, v) with loop products P = G N on it.
 
@@ -298,7 +317,9 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
     single = np.abs(wind) == 1
     roots_a, roots_v = [], []
     sb = cells.take(single)
-    ra, rv, ok = refine(res, (sb.a_lo + sb.a_hi) / 2, (sb.v_lo + sb.v_hi) / 2, sb.grown(0.5, window), tol)
+    a0, v0 = _linear_guess(P, ii[single], jj[single], sb)
+    ra, rv, ok = refine(res, a0, v0, sb.grown(0.5, window), tol)
+    ok &= sb.grown(1e-9, window).contains(ra, rv)  # a neighbour's root does not account for this cell's
     roots_a.extend(ra[ok])
     roots_v.extend(rv[ok])
     hard = cells.take(~single)
