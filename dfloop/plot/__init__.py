@@ -3,5 +3,6 @@
 Every function takes ``ax=None`` (a new figure when None) and returns the axes.
 """
 from .loci import plot_loci
+from .nyquist import plot_nyquist, plot_residual_map
 
-__all__ = ["plot_loci"]
+__all__ = ["plot_loci", "plot_nyquist", "plot_residual_map"]

@@ -71,7 +71,9 @@ def plot_nyquist(G, N, cycles=None, ax=None, *, omega=None, amplitude=None, n_lo
                                                             & (plant.feature_frequencies <= w_hi)]]))
     g = plant(w)
     ax.plot(g.real, g.imag, color="C0", label="G(jω)")
-    A = np.geomspace(a_lo, a_hi, 1000)
+    # log-spaced over the window, plus points crowding the lower edge where -1/N may run off to infinity
+    A = np.unique(np.concatenate([np.geomspace(a_lo, a_hi, 1000),
+                                  a_lo + (min(a_hi, 10 * a_lo) - a_lo) * np.geomspace(1e-9, 1.0, 400)]))
     points = [g]
     if N.frequency_dependent:
         freqs = np.unique(np.concatenate([np.geomspace(w_lo, w_hi, n_loci), [c.frequency for c in cycles]]))
