@@ -23,6 +23,7 @@ import numpy as np
 from .. import _checks
 from ._core import IMPACT_A, IMPACT_B
 from .kernel import DEFAULT_CHATTER_TOL, DEFAULT_MAX_EVENTS, Trajectory, simulate
+from .limits import lower_limit_frequency
 
 __all__ = ["ImpactDF", "ImpactDFBatch", "describing_function_from_trajectory", "impact_describing_function",
            "impact_describing_function_batch"]
@@ -31,11 +32,6 @@ DEFAULT_TRANSIENT_PERIODS = 200
 DEFAULT_PERIODS = 40
 MAX_DETECTED_PERIOD = 12
 PERIODICITY_TOL = 1e-6  # relative mismatch of the stroboscopic state that still counts as periodic
-
-
-def _lower_limit_frequency(force: float, m2: float, h: float, restitution: float) -> float:
-    """Eq. (10): w_c ~ [(2 F / (M2 h))^2 (1 - eps)^5]^(1/4) (rad/s); the paper's irregular-motion limit."""
-    return ((2.0 * force / (m2 * h)) ** 2 * (1.0 - restitution) ** 5) ** 0.25
 
 
 @dataclass(frozen=True, repr=False)
@@ -183,7 +179,7 @@ def describing_function_from_trajectory(traj: Trajectory, transient_periods: int
                     max_run_A=int(runs_a.max(initial=0)), max_run_B=int(runs_b.max(initial=0)),
                     runs_A=runs_a, runs_B=runs_b, stuck_fraction=float(overlap[stuck].sum() / length),
                     periods_used=used, n_impacts=int(sides.size), beta=p.beta,
-                    below_wc=bool(w < _lower_limit_frequency(p.force, p.m2, p.h, p.restitution)))
+                    below_wc=bool(w < lower_limit_frequency(p.force, p.m2, p.h, p.restitution)))
 
 
 def impact_describing_function(m1: float, m2: float, h: float, restitution: float, force: float, omega: float,
