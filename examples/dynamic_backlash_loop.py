@@ -27,6 +27,7 @@ from dfloop.solve import predict_limit_cycles
 M1, M2, H, EPS = 1.0, 1.0, 0.1, 0.5
 W0, BETA0 = 31.5, 0.32                   # design point: inside the period-1 band 1/4 < beta < 0.375
 TAU = 1.0 / (3.0 * W0)                   # roll-off at three times the cycle frequency
+F_MAX = 60.0                             # largest force amplitude searched (N)
 
 
 def design(nl: DynamicBacklash) -> ct.TransferFunction:
@@ -106,9 +107,13 @@ def main() -> None:
     G = design(nl)
     print("controller seen by the element: G(s) =", G)
     t0 = time.perf_counter()
-    # window inside the period-1 band (no regime jumps in N across it, see docs/readme_tables.md)
-    cycles = predict_limit_cycles(G, nl, omega=(30.5, 32.5), amplitude=(27.0, 35.0))
-    print(f"prediction took {time.perf_counter() - t0:.2f} s; {len(cycles)} cycle(s)")
+    # a natural window: forces 5..60 N, frequencies from 5 rad/s up to the no-impact limit w_L of the
+    # largest force; it contains the N = 0 region (w > w_L(F)) and every regime jump of the table
+    omega = (5.0, 2.0 * math.sqrt(F_MAX / (H * M2)))
+    cycles = predict_limit_cycles(G, nl, omega=omega, amplitude=(5.0, F_MAX))
+    print(f"prediction took {time.perf_counter() - t0:.2f} s; {len(cycles)} cycle(s), "
+          f"{len(cycles.jump_crossings)} jump crossing(s)")
+    print(cycles)
     for c in cycles:
         print(" ", c, f"valid={c.valid}, N error estimate={c.n_error:.2e}")
     t0 = time.perf_counter()

@@ -7,8 +7,8 @@ import warnings
 import numpy as np
 
 from .plant import as_plant
-from .result import LimitCycle, LimitCycles
-from .roots import Residual, find_roots
+from .result import JumpCrossing, LimitCycle, LimitCycles
+from .roots import _JUMP_BOX, Residual, dominant_steps, find_roots
 from .stability import MARGINAL_TOL, loeb
 
 __all__ = ["predict_limit_cycles"]
@@ -78,15 +78,19 @@ def _default_amplitude_window(res: Residual, v: np.ndarray, dom: tuple[float, fl
 
 
 def _split_mask(P: np.ndarray, axis: int, x: np.ndarray) -> np.ndarray:
-    """Intervals along ``axis`` where arg(G N) turns fast while |G N| is near 1."""
+    """Intervals along ``axis`` where arg(G N) turns fast while |G N| is near 1 (jumps of N excepted)."""
     Pt = P if axis == 0 else P.T
     P0, P1 = Pt[:-1], Pt[1:]
     with np.errstate(divide="ignore", invalid="ignore"):
         near = np.abs(np.log(np.abs(Pt))) < _NEAR_UNIT
         dph = np.where((P0 == 0) | (P1 == 0), 0.0, np.abs(np.angle(P1 * P0.conj())))
     # a full turn of R = 1 + G N between two samples would be invisible to the winding count;
-    # entries where N = 0 (dead band) are skipped
+    # entries where N = 0 (dead band) are skipped, and so are jumps of N, which no refinement resolves
+    # (the winding machinery of roots.py handles them at a bounded resolution)
     bad = (near[:-1] | near[1:]) & (dph > _PHASE_STEP)
+    cols = np.flatnonzero(bad.any(axis=0))
+    if cols.size:
+        bad[:, cols] &= ~dominant_steps(Pt[:, cols])
     return np.any(bad, axis=1) & (np.diff(x) > _MIN_LOG_STEP)
 
 
@@ -165,7 +169,18 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     Returns
     -------
     LimitCycles
-        List of :class:`LimitCycle` sorted by frequency, with the windows used and the grid size.
+        List of :class:`LimitCycle` sorted by frequency, with the windows used and the grid size, and
+        ``jump_crossings``: places where G(jw) passes through the gap of a jump of -1/N (a winding of
+        1 + G N that comes from a discontinuity of N, not from a root; a warning names them). Roots
+        where ``N.validity`` is False are kept with ``valid=False``.
+
+    Notes
+    -----
+    Discontinuities of N (regime jumps of a tabulated DF, N = 0 beyond a limit frequency) are resolved
+    to a bounded size only: grid steps of G N that dominate their neighbours are not refined, edge
+    bisection stops at 1e-9 (relative), and a winding box that shrinks to 1e-7 (relative) next to a
+    discontinuity without a refinable root is a jump crossing. Roots are accepted only at
+    |1 + G N| <= tol (1 + |G N|), which a jump cannot fake.
     """
     plant = as_plant(G)
     if not (callable(N) and hasattr(N, "frequency_dependent") and hasattr(N, "amplitude_domain")):
@@ -209,10 +224,34 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     a, v, P = _resolve_grid(res, a, v)
     if not np.any(P):
         raise ValueError("N is zero everywhere in the amplitude window: no limit cycle is possible")
-    ra, rv = find_roots(res, a, v, P, tol)
+    ra, rv, jumps = find_roots(res, a, v, P, tol)
     cycles = _build(res, ra, rv, (a[0], a[-1], v[0], v[-1]), marginal_tol)
+    crossings = _jump_crossings(res, jumps)
+    if crossings:
+        where = "; ".join(f"A={c.amplitude:.4g}, omega={c.frequency:.4g} rad/s" for c in crossings[:5])
+        warnings.warn(f"{len(crossings)} jump crossing(s): G(jw) passes through the gap of a jump of -1/N at "
+                      f"{where}{' ...' if len(crossings) > 5 else ''}; no limit cycle of the DF equation there "
+                      "(see .jump_crossings)", stacklevel=2)
     return LimitCycles(cycles, (A_lo, A_hi), (w_lo, w_hi), {"amplitude": a_src, "omega": w_src},
-                       (a.size, v.size), res.n_points)
+                       (a.size, v.size), res.n_points, crossings)
+
+
+def _jump_crossings(res: Residual, jumps: np.ndarray) -> list[JumpCrossing]:
+    """JumpCrossing objects from rows (a, v, winding) of :func:`find_roots`; N on each side of the jump
+    is read at the corners (+-_JUMP_BOX / 2 in log units) with the smallest and largest arg(1 + G N)."""
+    out = []
+    h = _JUMP_BOX / 2
+    for a, v, wind in jumps:
+        ca, cv = a + np.array([-h, h, h, -h]), v + np.array([-h, -h, h, h])
+        A, w = np.exp(ca), np.exp(cv)
+        n = res.N(A, w) if res.frequency_dependent else res.N(A)
+        g = res.plant(w)
+        ph = np.angle((1 + g * n) / (1 + g[0] * n[0]))
+        lo, hi = int(np.argmin(ph)), int(np.argmax(ph))
+        out.append(JumpCrossing(amplitude=float(np.exp(a)), frequency=float(np.exp(v)), resolution=_JUMP_BOX,
+                                winding=int(wind), G=complex(res.plant(np.array([np.exp(v)]))[0]),
+                                N_sides=(complex(n[lo]), complex(n[hi]))))
+    return out
 
 
 def _build(res: Residual, ra, rv, bounds, marginal_tol) -> list[LimitCycle]:

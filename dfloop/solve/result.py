@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["LimitCycle", "LimitCycles"]
+__all__ = ["LimitCycle", "LimitCycles", "JumpCrossing"]
 
 
 @dataclass(frozen=True)
@@ -32,7 +32,8 @@ class LimitCycle:
     on_edge : bool
         True when the root lies on the boundary of the search window (a warning was issued).
     valid : bool
-        N's own ``validity`` at the answer (False e.g. in chaotic regions of a tabulated DF).
+        N's own ``validity`` at the answer. False e.g. in the chaotic regions of a tabulated DF, where N
+        is an average over irregular motion: the cycle solves the equation for that average only.
     n_error : float
         N's ``error_estimate`` at the answer (0 for closed forms; inf where N gives no estimate).
     """
@@ -67,9 +68,44 @@ class LimitCycle:
         return 2 * math.pi / self.frequency
 
     def __str__(self) -> str:
-        flags = ("" if self.valid else " [N not valid here]") + (" [on window edge]" if self.on_edge else "")
+        flags = ("" if self.valid else " [N not valid here: an average over irregular motion]")
+        flags += " [on window edge]" if self.on_edge else ""
         return (f"LimitCycle(A={self.amplitude:.6g}, omega={self.frequency:.6g} rad/s, {self.stability}, "
                 f"|1+GN|={self.residual:.1e}{flags})")
+
+
+@dataclass(frozen=True)
+class JumpCrossing:
+    """A place where G(jw) passes through the gap of a jump of -1/N: 1 + G N winds around a box that
+    contains a discontinuity of N but no root. Not a limit cycle of the DF equation; the loop may
+    oscillate near it in a way the describing function cannot describe (the "jumping phenomenon").
+
+    Attributes
+    ----------
+    amplitude, frequency : float
+        Centre of the box (amplitude in N's input unit, frequency in rad/s).
+    resolution : float
+        Relative size of the box (its side in ln A and ln w).
+    winding : int
+        Winding number of 1 + G N around the box (counter-clockwise in (ln A, ln w)).
+    G : complex
+        G(jw) there.
+    N_sides : (complex, complex)
+        The values of N on the two sides of the jump (at the box corners with the smallest and largest
+        arg(1 + G N)).
+    """
+
+    amplitude: float
+    frequency: float
+    resolution: float
+    winding: int
+    G: complex
+    N_sides: tuple
+
+    def __str__(self) -> str:
+        lo, hi = self.N_sides
+        return (f"JumpCrossing(A={self.amplitude:.6g}, omega={self.frequency:.6g} rad/s, N jumps "
+                f"{lo:.4g} -> {hi:.4g}, winding {self.winding:+d})")
 
 
 class LimitCycles(list):
@@ -85,10 +121,14 @@ class LimitCycles(list):
         Final (amplitudes, frequencies) grid size after adaptive refinement.
     n_evaluations : int
         Number of (A, w) points at which 1 + G N was evaluated.
+    jump_crossings : list of JumpCrossing
+        Where the winding of 1 + G N comes from a discontinuity of N, not a root (sorted by frequency).
     """
 
-    def __init__(self, cycles, amplitude_window, omega_window, window_source, grid_shape, n_evaluations):
+    def __init__(self, cycles, amplitude_window, omega_window, window_source, grid_shape, n_evaluations,
+                 jump_crossings=()):
         super().__init__(cycles)
+        self.jump_crossings = list(jump_crossings)
         self.amplitude_window = amplitude_window
         self.omega_window = omega_window
         self.window_source = window_source
@@ -99,14 +139,19 @@ class LimitCycles(list):
         head = (f"{len(self)} limit cycle(s); amplitude window [{self.amplitude_window[0]:.4g}, "
                 f"{self.amplitude_window[1]:.4g}] ({self.window_source['amplitude']}), omega window "
                 f"[{self.omega_window[0]:.4g}, {self.omega_window[1]:.4g}] rad/s ({self.window_source['omega']})")
+        if self.jump_crossings:
+            head += f"; {len(self.jump_crossings)} jump crossing(s) of N (no cycle there)"
+        jumps = (["jump crossings (G passes through the gap of a jump of -1/N; not limit cycles):"]
+                 + [f"  {j}" for j in self.jump_crossings]) if self.jump_crossings else []
         if not self:
-            return head
+            return "\n".join([head] + jumps)
         rows = [f"{'#':>3} {'amplitude':>12} {'omega [rad/s]':>14} {'stability':>10} {'|1+GN|':>9} "
                 f"{'Loeb det':>10} {'Re G':>11} {'Im G':>11}  notes"]
         for i, c in enumerate(self):
-            notes = ", ".join(n for n, on in (("on edge", c.on_edge), ("N not valid", not c.valid)) if on)
+            notes = ", ".join(n for n, on in (("on edge", c.on_edge),
+                                               ("N not valid: average over irregular motion", not c.valid)) if on)
             rows.append(f"{i:>3} {c.amplitude:>12.6g} {c.frequency:>14.6g} {c.stability:>10} {c.residual:>9.1e} "
                         f"{c.loeb_determinant:>10.3g} {c.G.real:>11.4g} {c.G.imag:>11.4g}  {notes}")
-        return head + "\n" + "\n".join(rows)
+        return "\n".join([head] + rows + jumps)
 
     __str__ = __repr__

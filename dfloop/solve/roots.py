@@ -6,6 +6,13 @@ cell edge being followed by adaptive bisection so no phase step exceeds pi/2. Ea
 by a Levenberg-Marquardt iteration on (Re R, Im R), clipped to a box inside the window. Cells whose
 winding is not +-1, or whose refinement fails, are quadrisected (bounded depth). Tangent-like pairs of
 roots, which cancel in a cell's winding, are found from local minima of |R|^2 / (1 + |G N|^2).
+
+N may jump (regime changes of a tabulated DF, N = 0 beyond a limit frequency). A segment shorter than
+``_JUMP_LENGTH`` across which R still changes by more than ``_JUMP_SIZE`` (1 + |G N|) is a discontinuity:
+it is not bisected further and its phase step is taken along the chord from R- to R+ (the straight
+homotopy from N- to N+). A box that still winds when it is smaller than ``_JUMP_BOX`` and touches a
+discontinuity holds no root of the continuous equation: it is a *jump crossing*, where G(jw) passes
+through the gap of a -1/N jump, and is reported as such instead of being refined further.
 """
 from __future__ import annotations
 
@@ -15,7 +22,7 @@ from ..describing.base import DescribingFunction
 from ._kernels import edge_steps, nonzero_windings, tangent_seeds
 from .plant import Plant
 
-__all__ = ["Residual", "Box", "find_roots"]
+__all__ = ["Residual", "Box", "find_roots", "dominant_steps"]
 
 _SPLIT_PHASE = np.pi / 2  # an edge step whose phase change exceeds this is bisected
 _MAX_EDGE_DEPTH = 50  # bisection levels along an edge (2**-50 of its length)
@@ -26,6 +33,21 @@ _POLISH = 1e-4  # refinement continues (while it improves) down to this fraction
 _MAX_ISOLATE_DEPTH = 30
 _TANGENT_THRESHOLD = 0.1  # local minima of |R|^2 / (1 + |GN|^2) below this are searched for hidden roots
 _MAX_TANGENT_SEEDS = 5000
+_JUMP_LENGTH = 1e-9  # segments shorter than this (log units, i.e. relative in A and w) ...
+_JUMP_SIZE = 1e-3  # ... across which R changes by more than this times 1 + |G N| are discontinuities
+_JUMP_BOX = 1e-7  # a winding box narrower than this (log units) touching a discontinuity is a jump crossing
+_JUMP_DOMINANCE = 4.0  # a grid step of G N this many times larger than both neighbouring steps is a jump
+
+
+def dominant_steps(P: np.ndarray) -> np.ndarray:
+    """Steps of P along axis 0 larger than ``_JUMP_DOMINANCE`` times both neighbouring steps: a
+    discontinuity, which refining the grid would not shrink. Shape (n - 1, m)."""
+    d = np.abs(np.diff(P, axis=0))
+    if d.shape[0] < 2:
+        return np.zeros(d.shape, bool)
+    before = np.vstack([d[1:2], d[:-1]])  # the first/last step are compared with their one neighbour
+    after = np.vstack([d[1:], d[-2:-1]])
+    return d > _JUMP_DOMINANCE * np.maximum(before, after)
 
 
 class Residual:
@@ -108,16 +130,19 @@ class Box:
         return Box(self.a_lo[mask], self.a_hi[mask], self.v_lo[mask], self.v_hi[mask])
 
 
-def edge_phases(res: Residual, a0, v0, a1, v1, P0, P1) -> tuple[np.ndarray, list]:
+def edge_phases(res: Residual, a0, v0, a1, v1, P0, P1) -> tuple[np.ndarray, list, list]:
     """Continuous change of arg R along straight segments (a0, v0) -> (a1, v1).
 
-    Segments whose phase step exceeds pi/2 are bisected (vectorised, at most 50 levels). Returns the
-    phase changes and the midpoints of segments still unresolved at the last level (a root on the edge).
+    Segments whose phase step exceeds pi/2 are bisected (vectorised, at most 50 levels), except across
+    a discontinuity of N (a segment shorter than ``_JUMP_LENGTH`` over which R still changes by more than
+    ``_JUMP_SIZE`` (1 + |G N|)), where the step along the chord is taken. Returns the phase changes,
+    the midpoints of segments still unresolved at the last level (a root on the edge) and the midpoints
+    of the discontinuities met.
     """
     total = np.zeros(np.size(a0))
     seg = np.arange(total.size)
     R0, R1 = 1.0 + P0, 1.0 + P1
-    suspects = []
+    suspects, jumps = [], []
     for depth in range(_MAX_EDGE_DEPTH + 1):
         zero = (R0 == 0) | (R1 == 0)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -125,6 +150,11 @@ def edge_phases(res: Residual, a0, v0, a1, v1, P0, P1) -> tuple[np.ndarray, list
         if zero.any():
             suspects.extend(zip(np.where(R0 == 0, a0, a1)[zero], np.where(R0 == 0, v0, v1)[zero]))
         split = np.abs(d) > _SPLIT_PHASE
+        short = np.maximum(np.abs(a1 - a0), np.abs(v1 - v0)) < _JUMP_LENGTH
+        jump = split & short & (np.abs(R1 - R0) > _JUMP_SIZE * (1 + np.maximum(np.abs(R0 - 1), np.abs(R1 - 1))))
+        if jump.any():
+            jumps.extend(zip(((a0 + a1) / 2)[jump], ((v0 + v1) / 2)[jump]))
+            split &= ~jump
         if depth == _MAX_EDGE_DEPTH and split.any():
             suspects.extend(zip(((a0 + a1) / 2)[split], ((v0 + v1) / 2)[split]))
             split[:] = False
@@ -139,7 +169,7 @@ def edge_phases(res: Residual, a0, v0, a1, v1, P0, P1) -> tuple[np.ndarray, list
         a0, v0, R0 = np.concatenate([a0, am]), np.concatenate([v0, vm]), np.concatenate([R0, Rm])
         a1, v1, R1 = np.concatenate([am, a1]), np.concatenate([vm, v1]), np.concatenate([Rm, R1])
         seg = np.concatenate([seg, seg])
-    return total, suspects
+    return total, suspects, jumps
 
 
 def grid_windings(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray):
@@ -153,25 +183,26 @@ def grid_windings(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray):
     ph_a, ph_v, ai, aj, vi, vj = edge_steps(np.angle(R), R, _SPLIT_PHASE)
     suspects = []
     if ai.size:
-        ph_a[ai, aj], s1 = edge_phases(res, a[ai], v[aj], a[ai + 1], v[aj], P[ai, aj], P[ai + 1, aj])
+        ph_a[ai, aj], s1, _ = edge_phases(res, a[ai], v[aj], a[ai + 1], v[aj], P[ai, aj], P[ai + 1, aj])
         suspects += s1
     if vi.size:
-        ph_v[vi, vj], s2 = edge_phases(res, a[vi], v[vj], a[vi], v[vj + 1], P[vi, vj], P[vi, vj + 1])
+        ph_v[vi, vj], s2, _ = edge_phases(res, a[vi], v[vj], a[vi], v[vj + 1], P[vi, vj], P[vi, vj + 1])
         suspects += s2
     ii, jj, wind = nonzero_windings(ph_a, ph_v)
     return ii, jj, wind, suspects
 
 
-def box_windings(res: Residual, box: Box) -> tuple[np.ndarray, list]:
-    """Winding number of R around each box (counter-clockwise in (a, v))."""
+def box_windings(res: Residual, box: Box) -> tuple[np.ndarray, list, list]:
+    """Winding number of R around each box (counter-clockwise in (a, v)), suspected roots on the edges
+    and discontinuities met on the edges (see :func:`edge_phases`)."""
     k = len(box)
     ca = np.concatenate([box.a_lo, box.a_hi, box.a_hi, box.a_lo])
     cv = np.concatenate([box.v_lo, box.v_lo, box.v_hi, box.v_hi])
     P = res.terms(ca, cv)
     nxt = np.concatenate([np.arange(k, 4 * k), np.arange(k)])
-    ph, suspects = edge_phases(res, ca, cv, ca[nxt], cv[nxt], P, P[nxt])
+    ph, suspects, jumps = edge_phases(res, ca, cv, ca[nxt], cv[nxt], P, P[nxt])
     turn = ph.reshape(4, k).sum(axis=0)
-    return np.rint(turn / (2 * np.pi)).astype(int), suspects
+    return np.rint(turn / (2 * np.pi)).astype(int), suspects, jumps
 
 
 def _with_slopes(res: Residual, a: np.ndarray, v: np.ndarray):
@@ -233,15 +264,29 @@ def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.nd
     return a, v, rel <= tol
 
 
+def _touches(box: Box, points: list) -> np.ndarray:
+    """Mask of boxes containing (edges included) at least one of ``points`` [(a, v), ...]."""
+    if not points:
+        return np.zeros(len(box), bool)
+    pa, pv = np.array(points).T
+    inside = ((box.a_lo[:, None] <= pa) & (pa <= box.a_hi[:, None])
+              & (box.v_lo[:, None] <= pv) & (pv <= box.v_hi[:, None]))
+    return inside.any(axis=1)
+
+
 def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float, float] | None = None):
-    """Quadrisect one box until its roots sit in boxes of winding +-1, then refine those (bounded)."""
-    found_a, found_v = [], []
+    """Quadrisect one box until its roots sit in boxes of winding +-1, then refine those (bounded).
+
+    Returns the refined roots (a, v) and the jump crossings [(a, v, winding), ...]: boxes narrower than
+    ``_JUMP_BOX`` that still wind, hold no refinable root and touch a discontinuity of N.
+    """
+    found_a, found_v, crossings = [], [], []
     queue = box
     for _ in range(_MAX_ISOLATE_DEPTH):
         if len(queue) == 0:
             break
         kids = queue.quadrisect()
-        wind, suspects = box_windings(res, kids)
+        wind, suspects, jumps = box_windings(res, kids)
         single = np.abs(wind) == 1
         if single.any():
             sb = kids.take(single)
@@ -251,6 +296,11 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
             found_v.extend(v[ok])
             single[single] = ok  # failed refinements are subdivided further
         keep = ~single & (wind != 0)
+        tiny = np.maximum(kids.a_hi - kids.a_lo, kids.v_hi - kids.v_lo) < _JUMP_BOX
+        crossing = keep & tiny & _touches(kids, jumps)
+        crossings.extend(zip((kids.a_lo + kids.a_hi)[crossing] / 2, (kids.v_lo + kids.v_hi)[crossing] / 2,
+                             wind[crossing]))
+        keep &= ~crossing
         if hint is not None:
             keep |= (wind == 0) & kids.contains(*hint)
         for sa, sv in suspects:
@@ -262,7 +312,16 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
                           queue.grown(1.0, window), tol)
         found_a.extend(a[ok])
         found_v.extend(v[ok])
-    return found_a, found_v
+    return found_a, found_v, crossings
+
+
+def _merge_crossings(crossings: list) -> np.ndarray:
+    """Jump crossings (a, v, winding) closer than 1e-6 (max norm, log units) merged; rows sorted by v."""
+    out: list = []
+    for a, v, w in sorted(crossings, key=lambda c: (c[1], c[0])):
+        if not any(max(abs(a - b), abs(v - u)) < 1e-6 for b, u, _ in out):
+            out.append((a, v, w))
+    return np.array(out, dtype=float).reshape(-1, 3)
 
 
 def merge(res: Residual, a: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -306,16 +365,32 @@ def _linear_guess(P: np.ndarray, i: np.ndarray, j: np.ndarray, cells: Box) -> tu
             np.clip((cells.v_lo + cells.v_hi) / 2 + dv, cells.v_lo, cells.v_hi))
 
 
+def _near_jump(P: np.ndarray, i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
+    """Whether a dominant step of P (:func:`dominant_steps`) lies within n nodes of each node (i, j)."""
+    out = np.zeros(i.size, bool)
+    for k, (x, y) in enumerate(zip(i, j)):
+        patch = P[max(x - n - 1, 0):x + n + 2, max(y - n - 1, 0):y + n + 2]
+        out[k] = dominant_steps(patch).any() or dominant_steps(patch.T).any()
+    return out
+
+
+def _node_boxes(a: np.ndarray, v: np.ndarray, i: np.ndarray, j: np.ndarray, n: int) -> Box:
+    """Boxes spanning n grid nodes on each side of nodes (i, j), clipped to the grid."""
+    return Box(a[np.maximum(i - n, 0)], a[np.minimum(i + n, a.size - 1)],
+               v[np.maximum(j - n, 0)], v[np.minimum(j + n, v.size - 1)])
+
+
 def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: float):
     """All roots of R in the window spanned by the grid (a, v) with loop products P = G N on it.
 
-    Returns arrays (a, v) of refined roots (|R| <= tol (1 + |GN|)), merged and sorted by frequency.
+    Returns arrays (a, v) of refined roots (|R| <= tol (1 + |GN|)), merged and sorted by frequency,
+    and the jump crossings of N as rows (a, v, winding) sorted by frequency.
     """
     window = Box(a[0], a[-1], v[0], v[-1])
     ii, jj, wind, suspects = grid_windings(res, a, v, P)
     cells = Box(a[ii], a[ii + 1], v[jj], v[jj + 1])
     single = np.abs(wind) == 1
-    roots_a, roots_v = [], []
+    roots_a, roots_v, crossings = [], [], []
     sb = cells.take(single)
     a0, v0 = _linear_guess(P, ii[single], jj[single], sb)
     ra, rv, ok = refine(res, a0, v0, sb.grown(0.5, window), tol)
@@ -326,9 +401,10 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
     failed = sb.take(~ok)
     for box in (hard, failed):
         for k in range(len(box)):
-            fa, fv = _isolate(res, box.take([k]), window, tol)
+            fa, fv, fc = _isolate(res, box.take([k]), window, tol)
             roots_a.extend(fa)
             roots_v.extend(fv)
+            crossings.extend(fc)
     # roots lying on grid edges (edge phase unresolved at the finest level), incl. the window boundary
     if suspects:
         sa, sv = np.array(suspects).T
@@ -344,18 +420,28 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
         best = np.argsort(sm)[:_MAX_TANGENT_SEEDS]
         si, sj = si[best], sj[best]
     if si.size:
-        lo_i, hi_i = np.maximum(si - 2, 0), np.minimum(si + 2, a.size - 1)
-        lo_j, hi_j = np.maximum(sj - 2, 0), np.minimum(sj + 2, v.size - 1)
-        sbox = Box(a[lo_i], a[hi_i], v[lo_j], v[hi_j])
+        sbox = _node_boxes(a, v, si, sj, 2)
         ta, tv, ok = refine(res, a[si], v[sj], sbox, tol)
+        # a seed next to a jump of N pressed against its box (its root may hide next to a jump crossing
+        # of opposite winding, which cancels it in the cell's winding): one more try in a wider box
+        pinned = (ta == sbox.a_lo) | (ta == sbox.a_hi) | (tv == sbox.v_lo) | (tv == sbox.v_hi)
+        retry = np.flatnonzero(~ok & pinned)
+        if retry.size:
+            retry = retry[_near_jump(P, si[retry], sj[retry], 3)]
+        if retry.size:
+            wide = _node_boxes(a, v, si[retry], sj[retry], 3)
+            ta[retry], tv[retry], ok[retry] = refine(res, a[si[retry]], v[sj[retry]], wide, tol)
+            for name in ("a_lo", "a_hi", "v_lo", "v_hi"):
+                getattr(sbox, name)[retry] = getattr(wide, name)
         known_a, known_v = np.asarray(roots_a), np.asarray(roots_v)
         for k in np.flatnonzero(ok):
             if known_a.size and np.min(np.maximum(np.abs(known_a - ta[k]), np.abs(known_v - tv[k]))) < 1e-5:
                 continue
             # a root the windings did not show: isolate everything in its neighbourhood
-            fa, fv = _isolate(res, sbox.take([k]), window, tol, hint=(ta[k], tv[k]))
+            fa, fv, fc = _isolate(res, sbox.take([k]), window, tol, hint=(ta[k], tv[k]))
             roots_a.extend(fa + [ta[k]])
             roots_v.extend(fv + [tv[k]])
+            crossings.extend(fc)
     if not roots_a:
-        return np.empty(0), np.empty(0)
-    return merge(res, np.asarray(roots_a), np.asarray(roots_v))
+        return np.empty(0), np.empty(0), _merge_crossings(crossings)
+    return (*merge(res, np.asarray(roots_a), np.asarray(roots_v)), _merge_crossings(crossings))
