@@ -188,6 +188,7 @@ class SceneReport:
     verifications: list[Any] = field(default_factory=list)
     files: list[Path] = field(default_factory=list)
     stages: list[tuple[str, float]] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
 
     def to_markdown(self) -> str:
         lines = [f"# {self.scene.title}", "", f"Scene `{self.scene.source}`; element `{self.scene.element!r}`.", ""]
@@ -198,6 +199,7 @@ class SceneReport:
             lines += ["```", ""]
         lines += ["## Stages run", "", "| stage | time (s) |", "|---|---|"]
         lines += [f"| {name} | {seconds:.3f} |" for name, seconds in self.stages]
+        lines += [""] + [f"- {note}" for note in self.notes] if self.notes else []
         if self.files:
             lines += ["", "## Files", ""] + [f"- `{p.name}`" for p in self.files]
         return "\n".join(lines) + "\n"
@@ -229,6 +231,11 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
         lambda: predict_limit_cycles(scene.plant, scene.element, omega=scene.omega, amplitude=scene.amplitude),
     )
     log(repr(report.cycles))
+    simulations = getattr(scene.element, "n_simulations", None)
+    if simulations is not None:  # tabulated elements: how much of the table this run had to simulate
+        report.notes.append(f"{type(scene.element).__name__}: {simulations} motions simulated in this run "
+                            f"({'table served from the cache' if simulations == 0 else 'table built and cached'})")
+        log(f"[{scene.name}] {report.notes[-1]}")
     if scene.verify:
         from dfloop.verify import verify_cycle
 

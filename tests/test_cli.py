@@ -1,6 +1,8 @@
 """End to end: the console script runs a scene, runs only the stages it names, and writes its files."""
 from pathlib import Path
 
+import numpy as np
+
 import pytest
 
 from dfloop.cli import main
@@ -51,3 +53,17 @@ def test_cli_reports_bad_scene_without_traceback(tmp_path, capsys):
 def test_cli_without_command_prints_help(capsys):
     assert main([]) == 2
     assert "run" in capsys.readouterr().out
+
+
+def test_dynamic_scene_tabulates_only_its_window_and_second_run_simulates_nothing(tmp_path, monkeypatch):
+    monkeypatch.setenv("DFLOOP_CACHE_DIR", str(tmp_path / "cache"))
+    first = run_scene(load_scene(MODELS / "dynamic_backlash_pd.toml"), tmp_path, log=lambda message: None)
+    element = first.scene.element
+    assert element.n_simulations > 0
+    # the solver's window (F, w in [5, 60]) reaches beta = F/(M2 h w^2) <= 60/(0.1 * 25) = 24 only
+    assert np.exp(element.table.hi) <= 2 * 24.0
+    assert [c.stable for c in first.cycles] == [True] and all(c.valid for c in first.cycles)
+    second = run_scene(load_scene(MODELS / "dynamic_backlash_pd.toml"), tmp_path, log=lambda message: None)
+    assert second.scene.element.n_simulations == 0
+    assert second.cycles[0].amplitude == first.cycles[0].amplitude
+    assert any("served from the cache" in note for note in second.notes)

@@ -166,8 +166,28 @@ def test_bad_inputs_and_window():
     with pytest.raises(ValueError, match="omega"):
         db(10.0)
     assert np.isnan(db(np.nan, 30.0))
+
+
+def test_beyond_beta_max_rigid_body_value_within_its_exact_bound():
+    """beta = 500 > beta_max = 2: no table there; the value is the rigid-body one, flagged, and the
+    reported error bound holds against a direct simulation."""
+    db = DynamicBacklash(M1, M2, H, EPS, beta_max=2.0, **KW)
+    F, w = 50.0, 1.0
+    n, err, ok = db(F, w), db.error_estimate(F, w), db.validity(F, w)
+    assert n == pytest.approx(-1.0 / ((M1 + M2) * w**2), rel=1e-15)
+    assert not ok
+    assert err == pytest.approx((M2 / (M1 + M2)) * (2 * H / np.pi) / F, rel=1e-15)
+    direct = impact_describing_function(M1, M2, H, EPS, F, w, transient_periods=20, periods=10).N
+    assert abs(direct - n) <= err
+    assert abs(direct - n) > 1e-3 * err     # the bound is not vacuous: the true value does differ
+    assert db.amplitude_domain(w)[1] == np.inf
+
+
+def test_effects_keep_the_hard_window_limit():
+    db = DynamicBacklash(M1, M2, H, EPS, effects=(_Marker(),), beta_max=2.0, **KW)
+    assert db.amplitude_domain(1.0)[1] == pytest.approx(2.0 * M2 * H)
     with pytest.raises(ValueError, match="beta_max"):
-        db(50.0, 1.0)                                   # beta = 500 > beta_max: raises, no extrapolation
+        db(50.0, 1.0)                                   # with effects: raises, no extrapolation
 
 
 class _Marker:

@@ -32,7 +32,10 @@ def test_nyquist_draws_plant_locus_and_cycles_by_stability():
     gp = df.as_plant(G)(np.array([w_pick]))[0]
     assert np.min(np.abs(x + 1j * y - gp)) < 1e-12
     xs, ys = n_line.get_data()
-    A = np.geomspace(*cycles.amplitude_window, 1000)
+    lo, hi = cycles.amplitude_window
+    # -1/N over log-spaced amplitudes of the window plus points crowding its lower edge (steep there)
+    A = np.unique(np.concatenate([np.geomspace(lo, hi, 1000),
+                                  lo + (min(hi, 10 * lo) - lo) * np.geomspace(1e-9, 1.0, 400)]))
     np.testing.assert_allclose(xs + 1j * ys, -1 / N(A))
     markers = ax.collections
     assert len(markers) == len(cycles) == 2

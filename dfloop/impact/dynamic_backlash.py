@@ -64,7 +64,11 @@ class DynamicBacklash(DescribingFunction):
     edge_dx : float
         Width in ln beta to which edges of irregular regions and bifurcations without a jump are located.
     beta_max : float
-        Largest beta the table may reach; requests beyond raise ValueError.
+        Largest beta the table may reach. Beyond it (deep in the low-frequency region, where the masses
+        move almost as one body) the paper's model returns the rigid-body value -1/((M1 + M2) w^2), whose
+        distance to the true N is bounded exactly by (M2/(M1 + M2)) (2h/pi)/F (a relative 2/(pi beta)):
+        that bound is its ``error_estimate`` and ``validity`` is False there. With effects, requests beyond
+        ``beta_max`` raise ValueError.
     cache : bool
         Load and save tables in :func:`dfloop.impact.cache.cache_dir`.
     progress : bool or callable
@@ -271,6 +275,16 @@ class DynamicBacklash(DescribingFunction):
             beta = F / (self.m2 * self.h * w ** 2)
         if self.similarity:
             need = ~nan & (beta > BETA_NO_IMPACT)
+            far = need & (beta > self.beta_max)
+            need &= ~far
+            if np.any(far):
+                # beyond the table: the rigid-body value -1/((M1 + M2) w^2), within the exact centre-of-mass
+                # bound |N - N_rigid| <= (M2/(M1 + M2)) (2h/pi) / F (x1 differs from the centre of mass by at
+                # most M2 h/(M1 + M2)); reported through error_estimate and flagged not valid (not simulated)
+                mass = self.m1 + self.m2
+                n[far] = -1.0 / (mass * w[far] ** 2)
+                err[far] = (self.m2 / mass) * (2.0 * self.h / np.pi) / F[far]
+                valid[far] = False
             if np.any(need):
                 u = np.maximum(np.log(beta[need]), _U_START)
                 self._ensure_1d(float(np.exp(u.max())))
@@ -306,10 +320,15 @@ class DynamicBacklash(DescribingFunction):
         return self._lookup(*self._validated(A, omega)).error
 
     def amplitude_domain(self, omega=None) -> tuple[np.ndarray, np.ndarray]:
-        """(lo, hi) force amplitudes (N): N = 0 below lo (no impacts, eq. 11); hi from ``beta_max``."""
+        """(lo, hi) force amplitudes (N): N = 0 below lo (no impacts, eq. 11).
+
+        hi is infinite for the paper's model (beyond ``beta_max`` the rigid-body value with its exact bound
+        is returned, flagged not valid) and ``beta_max`` M2 h w^2 with effects (beyond it: ValueError).
+        """
         w = np.asarray(omega if omega is not None else np.nan, dtype=float)
         base = self.m2 * self.h * w ** 2
-        return BETA_NO_IMPACT * base, self.beta_max * base
+        hi = np.full(np.shape(base), np.inf) if self.similarity else self.beta_max * base
+        return BETA_NO_IMPACT * base, hi
 
     def negative_inverse(self, F, omega) -> np.ndarray:
         """-1/N(F, w) (N/m) computed from the table as -M2 w^2 / D; complex infinity where N = 0."""
