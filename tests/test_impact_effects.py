@@ -1,11 +1,15 @@
 """Optional effects: the linear-mode engine against the JIT kernel, solve_ivp and closed forms."""
+import json
 import math
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp, trapezoid
 
-from dfloop.impact.effects import CoulombFriction, LoadSpring, ViscousDamping, simulate_with_effects
+from dfloop.impact.effects import GROUND_EVENT, CoulombFriction, LoadSpring, ViscousDamping, simulate_with_effects
 from dfloop.impact.extract import describing_function_from_trajectory
 from dfloop.impact.kernel import ImpactParameters, simulate
 from dfloop.impact.reference import simulate_solve_ivp
@@ -201,3 +205,67 @@ def test_pair_in_contact_slips_together_under_friction():
     st = tr.evaluate(np.array([2.2, 2.4]))
     assert np.all(st["gap"] == 0.0)                    # still in contact on side A
     assert np.all(st["v1"] == st["v2"]) and st["v1"][1] < 0.0  # sliding together backwards
+
+
+def _oscillator_with_offset(wn, x0, v0):
+    """z = [x, v, 0, 0, 0, 0, 1] of x'' = -wn^2 x (the unused slots of the engine's state kept at 0)."""
+    A = np.zeros((7, 7))
+    A[0, 1], A[1, 0] = 1.0, -wn ** 2
+    return A, np.array([x0, v0, 0.0, 0.0, 0.0, 0.0, 1.0])
+
+
+def test_jit_step_scan_finds_the_closed_form_crossing():
+    """x = x0 cos(wn t) + v0/wn sin(wn t) crosses x = -b first at a closed-form time; rows hold r.z >= 0."""
+    from scipy.linalg import expm
+
+    from dfloop.impact._effects_core import scan_steps
+    wn, x0, v0, b = 3.0, 0.2, 1.1, 0.35
+    A, z = _oscillator_with_offset(wn, x0, v0)
+    rows = np.zeros((2, 7))
+    rows[0, 0], rows[0, 6] = 1.0, b          # x + b >= 0
+    rows[1, 0], rows[1, 6] = -1.0, 10.0      # never violated
+    dt = 2 * math.pi / wn / 32
+    amp, phase = math.hypot(x0, v0 / wn), math.atan2(v0 / wn, x0)
+    t_cross = (math.pi - math.acos(b / amp) + phase) / wn  # first wn t - phase with cos = -b / amp
+    t, hit = scan_steps(A, expm(A * dt), dt, rows, np.zeros(2, dtype=np.bool_), z, 0.0, 10.0)
+    assert hit == 0
+    assert abs(t - t_cross) < 1e-14
+    assert abs(z[0] + b) < 1e-14 and abs(z[1] - (-amp * wn * math.sin(wn * t - phase))) < 1e-12
+
+
+def test_jit_step_scan_stops_before_a_short_last_step_and_propagate_matches_expm():
+    from scipy.linalg import expm
+
+    from dfloop.impact._effects_core import propagate, scan_steps
+    A, z0 = _oscillator_with_offset(2.0, 0.3, -0.4)
+    rows = np.zeros((1, 7))
+    rows[0, 6] = 1.0                          # 1 >= 0 always holds
+    dt = 0.1
+    z = z0.copy()
+    t, hit = scan_steps(A, expm(A * dt), dt, rows, np.zeros(1, dtype=np.bool_), z, 0.0, 1.05)
+    assert hit == -1 and 0.95 < t < 1.05 and abs(t - 10 * dt) < 1e-14
+    assert np.max(np.abs(z - expm(A * t) @ z0)) < 1e-14
+    s = np.array([0.0, 0.37, 1.05, 0.099999, 2.5])
+    ref = np.array([expm(A * si) @ z0 for si in s])
+    assert np.max(np.abs(propagate(A, expm(A * dt), z0, s, dt) - ref)) < 1e-13
+
+
+_PLAIN_SCRIPT = """
+import json, math
+from dfloop.impact.effects import CoulombFriction, ViscousDamping
+from dfloop.impact.kernel import simulate
+tr = simulate(1.0, 1.0, 0.1, 0.5, 50.0, 15.0, 1.0, effects=(ViscousDamping(0.5), CoulombFriction(20.0, "m2")))
+print(json.dumps({"t": tr.t0.tolist(), "cause": tr.cause.tolist(), "x1": tr.evaluate([0.3, 0.9])["x1"].tolist()}))
+"""
+
+
+def test_engine_gives_the_same_events_with_jit_disabled():
+    env = dict(os.environ, NUMBA_DISABLE_JIT="1")
+    out = subprocess.run([sys.executable, "-c", _PLAIN_SCRIPT], env=env, capture_output=True, text=True,
+                         timeout=120, check=True)
+    plain = json.loads(out.stdout)
+    tr = simulate(M1, M2, H, 0.5, F, 15.0, 1.0, effects=(ViscousDamping(0.5), CoulombFriction(20.0, "m2")))
+    assert tr.n_impacts >= 10 and np.any(tr.cause == GROUND_EVENT)  # impacts and stick-slip events
+    assert plain["cause"] == tr.cause.tolist()
+    assert np.allclose(plain["t"], tr.t0, rtol=1e-13, atol=1e-15)
+    assert np.allclose(plain["x1"], tr.evaluate([0.3, 0.9])["x1"], rtol=1e-12, atol=1e-15)

@@ -13,8 +13,10 @@ Engine: in every mode (free / stuck together on side A or B) x (friction mass sl
 the motion is a linear ODE z' = A z of z = [x1, v1, x2, v2, cos wt, sin wt, 1], solved exactly by the
 matrix exponential. Events (impacts, separation, stop, stick-slip) are roots of linear functionals r.z(s):
 bracketed on steps of 1/32 of the fastest time scale (turning points inside a step found from r.A z),
-then refined (Newton + bisection) on the Taylor series of exp(A s) over the step (to rounding level).
-Slower than the closed-form JIT kernel of the paper's model, which is used whenever no effect is given.
+then refined (secant + bisection) on the Taylor series of exp(A s) over the step (to rounding level).
+The step loop and the event search run as numba functions (:mod:`dfloop.impact._effects_core`) on the
+mode matrices and their step exponentials exp(A dt), computed once per mode; the event transitions stay here.
+Still slower than the closed-form JIT kernel of the paper's model, which is used whenever no effect is given.
 """
 from __future__ import annotations
 
@@ -25,6 +27,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from .. import _checks
+from ._effects_core import admissible, propagate, rows_on_zero, scan_steps
 
 __all__ = ["ViscousDamping", "LoadSpring", "CoulombFriction", "simulate_with_effects", "EffectsTrajectory"]
 
@@ -33,7 +36,6 @@ FREE, STUCK_A, STUCK_B = 0, 1, 2
 SLIP_POS, SLIP_NEG, GROUNDED = 1, -1, 0
 START, IMPACT_A, IMPACT_B, SEPARATION, GROUND_EVENT = 0, 1, 2, 3, 4
 STEPS_PER_SCALE = 32
-TAYLOR_TERMS = 30
 
 
 @dataclass(frozen=True)
@@ -159,6 +161,14 @@ class _Model:
         self._cache[key] = out
         return out
 
+    def constraint_rows(self, contact, ground):
+        """The rows of :meth:`constraints` stacked as an (n, 7) array, and the list of their kinds (cached)."""
+        key = ("rows", contact, ground)
+        if key not in self._cache:
+            cons = self.constraints(contact, ground)
+            self._cache[key] = (np.array([r for r, _ in cons]), [kind for _, kind in cons])
+        return self._cache[key]
+
     def constraints(self, contact, ground):
         """Rows r with r.z >= 0 in the mode, and their kind (for the transition)."""
         A, P, R, _ = self.mode(contact, ground)
@@ -179,103 +189,13 @@ class _Model:
         return out
 
 
-def _taylor(A, z, n=TAYLOR_TERMS):
-    """Vectors A^k z / k! for k < n (Taylor coefficients of exp(A s) z)."""
-    terms = [z]
-    for k in range(1, n):
-        terms.append(A @ terms[-1] / k)
-    return np.array(terms)
-
-
-def _poly(terms, s):
-    """exp(A s) z from Taylor coefficients (Horner)."""
-    out = terms[-1].copy()
-    for k in range(terms.shape[0] - 2, -1, -1):
-        out = out * s + terms[k]
-    return out
-
-
-def _propagate(A, z0, s, step):
-    """exp(A s) z0 for an array of s >= 0: exact steps exp(A step) to the chunk starts, Taylor inside."""
-    chunk = np.floor(s / step).astype(np.int64)
-    e_step = expm(A * step)
-    starts = [z0]
-    for _ in range(int(chunk.max(initial=0))):
-        starts.append(e_step @ starts[-1])
-    starts = np.array(starts)
-    powers = [np.eye(7)]
-    for k in range(1, TAYLOR_TERMS):
-        powers.append(powers[-1] @ A / k)
-    terms = np.einsum("kij,nj->nki", np.array(powers), starts)   # (chunk, k, 7)
-    r = (s - chunk * step)[:, None]
-    out = terms[chunk, -1]
-    for k in range(TAYLOR_TERMS - 2, -1, -1):
-        out = out * r + terms[chunk, k]
-    return out
-
-
-def _refine(fun, lo, hi, flo):
-    """Root of a scalar function with a sign change on [lo, hi] (bisection with secant steps)."""
-    fhi = fun(hi)
-    for _ in range(200):
-        if hi - lo <= 4e-16 * max(hi, 1e-300):
-            break
-        s = hi - fhi * (hi - lo) / (fhi - flo) if fhi != flo else 0.5 * (lo + hi)
-        if not (lo < s < hi) or (hi - lo) < 1e-3 * abs(s - 0.5 * (lo + hi)):
-            s = 0.5 * (lo + hi)
-        fs = fun(s)
-        if fs == 0.0:
-            return s
-        if (fs > 0) == (flo > 0):
-            lo, flo = s, fs
-        else:
-            hi, fhi = s, fs
-        # force a bisection every other step to guarantee progress
-        m = 0.5 * (lo + hi)
-        fm = fun(m)
-        if fm == 0.0:
-            return m
-        if (fm > 0) == (flo > 0):
-            lo, flo = m, fm
-        else:
-            hi, fhi = m, fm
-    return hi
-
-
-def _first_violation(terms, A, r, leaving, dt):
-    """First s in (0, dt] where r.z(s) < 0 given r.z >= 0 before (None if none in the step).
-
-    ``leaving``: the step starts on r.z = 0 and moves away; values within rounding of 0 are then not events.
-    One turning point per step is resolved (the step is 1/32 of the fastest time scale).
-    """
-    def f(s):
-        return r @ _poly(terms, s)
-
-    def df(s):
-        return r @ (A @ _poly(terms, s))
-
-    tol = 1e-12 * float(np.abs(r) @ np.abs(terms[0])) if leaving else 0.0
-    fa, fb = f(0.0), f(dt)
-    da, db = df(0.0), df(dt)
-    turn = _refine(df, 0.0, dt, da) if (da > 0.0 and db < 0.0) or (da < 0.0 and db > 0.0) else None
-    if fb < -tol:
-        if turn is not None and da > 0.0:  # rises to a maximum, then falls through zero
-            ft = f(turn)
-            return _refine(f, turn, dt, ft) if ft > 0.0 else turn
-        return _refine(f, 0.0, dt, fa) if fa > 0.0 else 0.0
-    if turn is not None and da < 0.0:      # dips to a minimum inside the step
-        ft = f(turn)
-        if ft < -tol:
-            return _refine(f, 0.0, turn, fa) if fa > 0.0 else 0.0
-    return None
-
-
 @dataclass(frozen=True, repr=False)
 class EffectsTrajectory:
     """Trajectory of the engine with effects; same interface as :class:`dfloop.impact.kernel.Trajectory`.
 
     Segment k starts at ``t0[k]`` with state ``z0[k]`` = [x1, v1, x2, v2, cos wt, sin wt, 1] and evolves by
-    exp(A s) with ``A = matrices[mode_key[k]]``. ``ground`` holds the friction mass's ground mode.
+    exp(A s) with ``A = matrices[mode_key[k]]`` (``exponentials``: exp(A step) of the same modes).
+    ``ground`` holds the friction mass's ground mode.
     """
 
     params: object
@@ -289,6 +209,7 @@ class EffectsTrajectory:
     pre: np.ndarray      # (n, 2) v1, v2 before the impact that starts the segment
     post: np.ndarray     # (n, 2) v1, v2 after it (Newton's law)
     matrices: tuple
+    exponentials: tuple
     mode_key: np.ndarray
     step: float
 
@@ -336,7 +257,9 @@ class EffectsTrajectory:
         z = np.empty((t.size, 7))
         for seg in np.unique(k):
             m = k == seg
-            z[m] = _propagate(self.matrices[self.mode_key[seg]], self.z0[seg], t[m] - self.t0[seg], self.step)
+            key = self.mode_key[seg]
+            z[m] = propagate(self.matrices[key], self.exponentials[key], self.z0[seg], t[m] - self.t0[seg],
+                             self.step)
         return z
 
     def evaluate(self, t) -> dict:
@@ -378,45 +301,35 @@ def simulate_with_effects(p, t_end: float, effects: tuple, max_events: int, chat
     z = np.array([0.0, 0.0, 0.5 * p.h, 0.0, 1.0, 0.0, 1.0])
     t = 0.0
     contact, ground = _choose_mode(model, z)
-    keys, mats = {}, []
+    keys, mats, exps = {}, [], []
 
     def key_of(contact, ground):
         kk = (contact, ground)
         if kk not in keys:
             keys[kk] = len(mats)
-            mats.append(model.mode(contact, ground)[0])
+            A, _, _, E = model.mode(contact, ground)
+            mats.append(A)
+            exps.append(E)
         return keys[kk]
 
     rec = {"t0": [0.0], "z0": [z.copy()], "mode": [contact], "ground": [0 if ground is None else ground],
            "cause": [START], "pre": [(0.0, 0.0)], "post": [(0.0, 0.0)], "key": [key_of(contact, ground)]}
-    leaving = set()
+    leaving = np.zeros(len(model.constraint_rows(contact, ground)[1]), dtype=np.bool_)  # rows starting on 0
     n_events = 0
     while t < t_end:
         A, P, R, E = model.mode(contact, ground)
-        cons = model.constraints(contact, ground)
-        dt = min(model.dt, t_end - t)
-        Edt = E if dt == model.dt else expm(A * dt)
-        z_next = Edt @ z
-        rows = np.array([r for r, _ in cons])
-        fb = rows @ z_next
-        da, db = rows @ (A @ z), rows @ (A @ z_next)
-        # cheap screen: a constraint needs the exact search only if it ends violated, turns, or starts on 0
-        suspect = [j for j in range(len(cons)) if fb[j] < 0.0 or da[j] * db[j] < 0.0 or j in leaving]
-        hits = []
-        if suspect:
-            terms = _taylor(A, z)
-            for j in suspect:
-                s = _first_violation(terms, A, cons[j][0], j in leaving, dt)
-                if s is not None:
-                    hits.append((s, j, cons[j][1]))
-        if not hits:
-            z = z_next
-            t += dt
-            leaving = set()
+        rows, kinds = model.constraint_rows(contact, ground)
+        t_scan = t
+        t, j = scan_steps(A, E, model.dt, rows, leaving, z, t, t_end)
+        if j < 0 and t < t_end:   # the last, shorter step before t_end
+            if t != t_scan:
+                leaving[:] = False
+            dt = t_end - t
+            t, j = scan_steps(A, expm(A * dt), dt, rows, leaving, z, t, t_end)
+        if j < 0:
+            leaving[:] = False
             continue
-        s, j, kind = min(hits)
-        z = _poly(terms, s)
-        t += s
+        kind = kinds[j]
         n_events += 1
         if n_events > max_events:
             from .kernel import EventLimitError
@@ -445,8 +358,7 @@ def simulate_with_effects(p, t_end: float, effects: tuple, max_events: int, chat
         else:  # slip
             cause = GROUND_EVENT
         contact, ground = _choose_mode(model, z)
-        leaving = set(j for j, (r, _) in enumerate(model.constraints(contact, ground))
-                      if abs(r @ z) <= 1e-12 * (np.abs(r) @ np.abs(z) + 1e-300))
+        leaving = rows_on_zero(model.constraint_rows(contact, ground)[0], z)
         rec["t0"].append(t)
         rec["z0"].append(z.copy())
         rec["mode"].append(contact)
@@ -458,25 +370,7 @@ def simulate_with_effects(p, t_end: float, effects: tuple, max_events: int, chat
     return EffectsTrajectory(params=p, t_end=t_end, effects=effects, t0=np.array(rec["t0"]),
                              z0=np.array(rec["z0"]), mode=np.array(rec["mode"]), ground=np.array(rec["ground"]),
                              cause=np.array(rec["cause"]), pre=np.array(rec["pre"]), post=np.array(rec["post"]),
-                             matrices=tuple(mats), mode_key=np.array(rec["key"]), step=model.dt)
-
-
-def _admissible(model, z, contact, ground) -> bool:
-    """All constraints of the mode hold at z, ties broken by the first non-negligible time derivative."""
-    A = model.mode(contact, ground)[0]
-    derivs, sizes = [z], [np.abs(z)]   # sizes bound the terms summed in each derivative (rounding scale)
-    for _ in range(3):
-        derivs.append(A @ derivs[-1])
-        sizes.append(np.abs(A) @ sizes[-1])
-    for r, _ in model.constraints(contact, ground):
-        for d, size in zip(derivs, sizes):
-            val = r @ d
-            tol = 1e-12 * (np.abs(r) @ size)
-            if val > tol:
-                break
-            if val < -tol:
-                return False
-    return True
+                             matrices=tuple(mats), exponentials=tuple(exps), mode_key=np.array(rec["key"]), step=model.dt)
 
 
 def _choose_mode(model, z):
@@ -497,6 +391,6 @@ def _choose_mode(model, z):
         grounds = [GROUNDED, SLIP_POS, SLIP_NEG] if v == 0.0 else [SLIP_POS if v > 0 else SLIP_NEG]
     for contact in contacts:
         for ground in grounds:
-            if _admissible(model, z, contact, ground):
+            if admissible(model.mode(contact, ground)[0], model.constraint_rows(contact, ground)[0], z):
                 return contact, ground
     raise RuntimeError(f"no admissible contact/friction mode at state {z[:4]}")
