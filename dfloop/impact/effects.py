@@ -28,6 +28,7 @@ from scipy.linalg import expm
 
 from .. import _checks
 from ._effects_core import admissible, propagate, rows_on_zero, scan_steps
+from .kernel import ImpactEvents
 
 __all__ = ["ViscousDamping", "LoadSpring", "CoulombFriction", "simulate_with_effects", "EffectsTrajectory"]
 
@@ -190,7 +191,7 @@ class _Model:
 
 
 @dataclass(frozen=True, repr=False)
-class EffectsTrajectory:
+class EffectsTrajectory(ImpactEvents):
     """Trajectory of the engine with effects; same interface as :class:`dfloop.impact.kernel.Trajectory`.
 
     Segment k starts at ``t0[k]`` with state ``z0[k]`` = [x1, v1, x2, v2, cos wt, sin wt, 1] and evolves by
@@ -218,23 +219,8 @@ class EffectsTrajectory:
         """Forcing phase w t0 mod 2 pi at every segment start."""
         return np.arctan2(self.z0[:, S], self.z0[:, C]) % (2.0 * math.pi)
 
-    @property
-    def impact_mask(self) -> np.ndarray:
-        """Boolean mask over segments that start with an impact."""
-        return (self.cause == IMPACT_A) | (self.cause == IMPACT_B)
-
-    @property
-    def n_impacts(self) -> int:
-        """Number of impacts."""
-        return int(np.count_nonzero(self.impact_mask))
-
-    @property
-    def impacts(self) -> dict:
-        """Impact times (s), sides (0 = A, 1 = B), and pre/post velocities v1, v2 (m/s)."""
-        m = self.impact_mask
-        return {"t": self.t0[m], "side": (self.cause[m] == IMPACT_B).astype(np.int8),
-                "v1_pre": self.pre[m, 0], "v2_pre": self.pre[m, 1],
-                "v1_post": self.post[m, 0], "v2_post": self.post[m, 1]}
+    def _segment_velocities(self):
+        return self.pre[:, 0], self.pre[:, 1], self.post[:, 0], self.post[:, 1]
 
     @property
     def segment_ends(self) -> np.ndarray:

@@ -75,8 +75,34 @@ class ImpactParameters:
         return 2.0 * math.pi / self.omega
 
 
+class ImpactEvents:
+    """Impact bookkeeping shared by the kernel's :class:`Trajectory` and the effects engine's trajectory.
+
+    Subclasses hold per-segment ``t0`` (s) and ``cause`` (1/2: the segment starts with an impact on side
+    A/B) and implement ``_segment_velocities()`` -> (v1_pre, v2_pre, v1_post, v2_post) per segment (m/s).
+    """
+
+    @property
+    def impact_mask(self) -> np.ndarray:
+        """Boolean mask over segments that start with an impact."""
+        return (self.cause == IMPACT_A) | (self.cause == IMPACT_B)
+
+    @property
+    def n_impacts(self) -> int:
+        """Number of impacts."""
+        return int(np.count_nonzero(self.impact_mask))
+
+    @property
+    def impacts(self) -> dict:
+        """Impact times (s), sides (0 = A, 1 = B), and pre/post velocities v1, v2 (m/s)."""
+        m = self.impact_mask
+        v1_pre, v2_pre, v1_post, v2_post = self._segment_velocities()
+        return {"t": self.t0[m], "side": (self.cause[m] == IMPACT_B).astype(np.int8),
+                "v1_pre": v1_pre[m], "v2_pre": v2_pre[m], "v1_post": v1_post[m], "v2_post": v2_post[m]}
+
+
 @dataclass(frozen=True, repr=False)
-class Trajectory:
+class Trajectory(ImpactEvents):
     """Piecewise-analytic motion returned by :func:`simulate`.
 
     Segment k starts at ``t0[k]`` (phase ``phase0[k]`` = w t0 mod 2 pi) with state ``x1, v1, gap, u``
@@ -102,23 +128,8 @@ class Trajectory:
     effects: tuple = field(default=())
 
     # --- events -----------------------------------------------------------------------------------
-    @property
-    def impact_mask(self) -> np.ndarray:
-        """Boolean mask over segments that start with an impact."""
-        return (self.cause == IMPACT_A) | (self.cause == IMPACT_B)
-
-    @property
-    def n_impacts(self) -> int:
-        """Number of impacts."""
-        return int(np.count_nonzero(self.impact_mask))
-
-    @property
-    def impacts(self) -> dict:
-        """Impact times (s), sides ('A' = 0, 'B' = 1), and pre/post velocities v1, v2 (m/s)."""
-        m = self.impact_mask
-        return {"t": self.t0[m], "side": (self.cause[m] == IMPACT_B).astype(np.int8),
-                "v1_pre": self.v1_pre[m], "v2_pre": self.v1_pre[m] + self.u_pre[m],
-                "v1_post": self.v1_post[m], "v2_post": self.v1_post[m] + self.u_post[m]}
+    def _segment_velocities(self):
+        return self.v1_pre, self.v1_pre + self.u_pre, self.v1_post, self.v1_post + self.u_post
 
     @property
     def stuck_intervals(self) -> np.ndarray:
