@@ -166,14 +166,23 @@ def load_scene(path: str | Path) -> Scene:
         if callable(plant) and not hasattr(plant, "dt"):
             raise ValueError("a [controller] cannot be combined with a delayed plant; put the delay last")
         plant = controller * plant
+    element = build(data["element"])
+    verify = bool(analysis.get("verify", False))
+    if verify:
+        try:
+            element.operator()
+        except NotImplementedError:
+            raise ValueError(f"analysis.verify: {type(element).__name__} has no time-domain operator, so the "
+                             "closed-loop verification cannot run (for dynamic backlash, see "
+                             "examples/dynamic_backlash_loop.py)") from None
     return Scene(
         name=meta.get("name", path.stem),
         title=meta.get("title", path.stem),
         plant=plant,
-        element=build(data["element"]),
+        element=element,
         omega=_window(analysis, "omega"),
         amplitude=_window(analysis, "amplitude"),
-        verify=bool(analysis.get("verify", False)),
+        verify=verify,
         plots=plots,
         source=path,
     )

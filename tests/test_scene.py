@@ -54,6 +54,8 @@ limit = 1.0
          "analysis.omega"),
         ("[plant]\nnum=[1.0]\nden=[1.0,1.0]\n[element]\ntype='Saturation'\nlimit=1.0\n[analysis]\nplots=['x']\n",
          "analysis.plots"),
+        ("[plant]\nnum=[1.0]\nden=[1.0,1.0]\n[element]\ntype='MassBacklash'\nm1=1.0\nm2=1.0\nh=0.1\n"
+         "[analysis]\nverify=true\n", "analysis.verify: MassBacklash has no time-domain operator"),
     ],
 )
 def test_bad_scene_names_the_problem(tmp_path, text, match):
