@@ -17,6 +17,7 @@ by one mechanism, :func:`build`, so any DF object or effect exported by dfloop c
     [analysis]
     omega = [0.1, 10.0]          # optional windows; chosen automatically when absent
     verify = true                # closed-loop time simulation of each predicted cycle
+    verify_perturbation = 0.3    # relative offset of the starts inside and outside each cycle
     plots = ["nyquist"]
 """
 from __future__ import annotations
@@ -29,6 +30,8 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
+
+from ._checks import in_closed_interval
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -131,6 +134,7 @@ class Scene:
     omega: tuple[float, float] | None = None
     amplitude: tuple[float, float] | None = None
     verify: bool = False
+    verify_perturbation: float = 0.3
     plots: tuple[str, ...] = ("nyquist",)
     source: Path | None = None
 
@@ -168,13 +172,12 @@ def load_scene(path: str | Path) -> Scene:
         plant = controller * plant
     element = build(data["element"])
     verify = bool(analysis.get("verify", False))
-    if verify:
+    if verify and not hasattr(element, "simulate_loop"):
         try:
             element.operator()
         except NotImplementedError:
             raise ValueError(f"analysis.verify: {type(element).__name__} has no time-domain operator, so the "
-                             "closed-loop verification cannot run (for dynamic backlash, see "
-                             "examples/dynamic_backlash_loop.py)") from None
+                             "closed-loop verification cannot run") from None
     return Scene(
         name=meta.get("name", path.stem),
         title=meta.get("title", path.stem),
@@ -183,6 +186,8 @@ def load_scene(path: str | Path) -> Scene:
         omega=_window(analysis, "omega"),
         amplitude=_window(analysis, "amplitude"),
         verify=verify,
+        verify_perturbation=in_closed_interval("analysis.verify_perturbation",
+                                               analysis.get("verify_perturbation", 0.3), 1e-3, 0.95),
         plots=plots,
         source=path,
     )
@@ -252,7 +257,8 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
             report.verifications.append(
                 stage(
                     f"verify cycle at w = {cycle.frequency:.4g} rad/s",
-                    lambda c=cycle: verify_cycle(scene.plant, scene.element, c),
+                    lambda c=cycle: verify_cycle(scene.plant, scene.element, c,
+                                                 perturbation=scene.verify_perturbation),
                 )
             )
             log(repr(report.verifications[-1]))

@@ -48,11 +48,15 @@ def simulate_loop(G, N, amplitude: float, frequency: float, *, periods: float = 
 
     The plant starts in the steady state it would have if the element's input were exactly
     ``amplitude`` sin(``frequency`` t); the element's operator is first driven through one period of
-    that sinusoid so its internal state (play, relay branch) matches.
+    that sinusoid so its internal state (play, relay branch) matches. Elements with internal dynamics
+    provide their own ``simulate_loop(G, amplitude, frequency, *, periods, steps_per_period)`` (the dynamic
+    backlash: :func:`dfloop.impact.loop.simulate_impact_loop`), which is used instead.
     """
     from ._checks import positive
 
     A0, w = positive("amplitude", amplitude), positive("frequency", frequency)
+    if hasattr(N, "simulate_loop"):  # elements with internal dynamics (dynamic backlash) simulate themselves
+        return N.simulate_loop(G, A0, w, periods=periods, steps_per_period=steps_per_period)
     if periods <= 0 or steps_per_period < 20:
         raise ValueError("periods must be > 0 and steps_per_period >= 20")
     Am, B, C = _state_space(G)

@@ -63,6 +63,11 @@ def test_dynamic_scene_tabulates_only_its_window_and_second_run_simulates_nothin
     # the solver's window (F, w in [5, 60]) reaches beta = F/(M2 h w^2) <= 60/(0.1 * 25) = 24 only
     assert np.exp(element.table.hi) <= 2 * 24.0
     assert [c.stable for c in first.cycles] == [True] and all(c.valid for c in first.cycles)
+    # the closed-loop impact simulation settles on the predicted cycle within the DF's few-percent error
+    (check,) = first.verifications
+    assert check.stable
+    assert abs(check.inside.frequency / first.cycles[0].frequency - 1) < 0.05
+    assert abs(check.inside.amplitude / first.cycles[0].amplitude - 1) < 0.05
     second = run_scene(load_scene(MODELS / "dynamic_backlash_pd.toml"), tmp_path, log=lambda message: None)
     assert second.scene.element.n_simulations == 0
     assert second.cycles[0].amplitude == first.cycles[0].amplitude

@@ -330,6 +330,14 @@ class DynamicBacklash(DescribingFunction):
         hi = np.full(np.shape(base), np.inf) if self.similarity else self.beta_max * base
         return BETA_NO_IMPACT * base, hi
 
+    def simulate_loop(self, G, amplitude: float, frequency: float, *, periods: float = 80,
+                      steps_per_period: int = 400):
+        """Closed-loop time simulation of this element around G (see :func:`dfloop.impact.loop.simulate_impact_loop`)."""
+        from .loop import simulate_impact_loop
+
+        return simulate_impact_loop(G, self, amplitude, frequency, periods=periods,
+                                    steps_per_period=steps_per_period)
+
     def negative_inverse(self, F, omega) -> np.ndarray:
         """-1/N(F, w) (N/m) computed from the table as -M2 w^2 / D; complex infinity where N = 0."""
         n = self(F, omega)
