@@ -92,3 +92,21 @@ def test_residual_map_shows_the_relative_residual_and_zero_lines():
 def test_plot_needs_windows_without_cycles_result():
     with pytest.raises(ValueError, match="windows"):
         plot_nyquist(G, N, cycles=[])
+
+
+def test_nyquist_marks_jump_crossings_apart_from_cycles():
+    """A DF with a step in w (the stepped DF of test_solve_jumps): the crossing of the gap is drawn as a
+    cross at G(jw) of the crossing, and no cycle marker is drawn."""
+    import warnings
+
+    from test_solve_jumps import G_SYN, SteppedDF
+
+    N = SteppedDF(1.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cycles = df.predict_limit_cycles(G_SYN, N, omega=(0.9, 1.1), amplitude=(1.0, 3.0))
+    ax = plot_nyquist(G_SYN, N, cycles)
+    (j,) = cycles.jump_crossings
+    (marker,) = ax.collections
+    np.testing.assert_allclose(marker.get_offsets()[0], [j.G.real, j.G.imag])
+    assert any("no cycle" in t.get_text() for t in ax.texts)

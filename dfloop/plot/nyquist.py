@@ -48,7 +48,8 @@ def plot_nyquist(G, N, cycles=None, ax=None, *, omega=None, amplitude=None, n_lo
     G, N : plant and describing function, as for :func:`~dfloop.predict_limit_cycles`.
     cycles : LimitCycles, optional
         Result of ``predict_limit_cycles``; computed here when omitted. Stable cycles are drawn
-        filled, unstable hollow, marginal as diamonds, each labelled with amplitude and frequency.
+        filled, unstable hollow, marginal as diamonds, each labelled with amplitude and frequency;
+        jump crossings of a discontinuous N (not cycles) as orange crosses.
     ax : matplotlib Axes, optional
     omega, amplitude : (lo, hi), optional
         Windows to draw (default: those of ``cycles``).
@@ -90,6 +91,10 @@ def plot_nyquist(G, N, cycles=None, ax=None, *, omega=None, amplitude=None, n_lo
         ax.scatter([c.G.real], [c.G.imag], s=60, zorder=3, linewidths=1.5, **_STYLE[c.stability])
         ax.annotate(f"A={c.amplitude:.3g}, ω={c.frequency:.3g}\n{c.stability}", (c.G.real, c.G.imag),
                     textcoords="offset points", xytext=(6, 6), fontsize=8)
+    for j in getattr(cycles, "jump_crossings", ()):
+        ax.scatter([j.G.real], [j.G.imag], s=60, zorder=3, marker="x", color="C1", linewidths=1.5)
+        ax.annotate(f"jump of N at A={j.amplitude:.3g}, ω={j.frequency:.3g}\n(no cycle)", (j.G.real, j.G.imag),
+                    textcoords="offset points", xytext=(6, -18), fontsize=8, color="C1")
     _view_limits(ax, np.concatenate(points), cycles)
     ax.axhline(0, color="0.8", lw=0.5)
     ax.axvline(0, color="0.8", lw=0.5)
