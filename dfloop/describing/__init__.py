@@ -1,36 +1,8 @@
 """Describing-function objects: one protocol, analytic static elements, numeric DFs, compositions."""
+from . import composition, numeric, static
 from .base import DescribingFunction, negative_inverse
-from .composition import LinearThenStatic, MassBacklash
-from .numeric import NumericDF
-from .static import (
-    Backlash,
-    CoulombViscousFriction,
-    CubicStiffness,
-    DeadZone,
-    PlayOperator,
-    PreloadedSpring,
-    Quantizer,
-    Relay,
-    RelayOperator,
-    Saturation,
-    StaticElement,
-)
+from .composition import *  # noqa: F401,F403
+from .numeric import *  # noqa: F401,F403
+from .static import *  # noqa: F401,F403
 
-__all__ = [
-    "DescribingFunction",
-    "negative_inverse",
-    "StaticElement",
-    "Backlash",
-    "PlayOperator",
-    "Saturation",
-    "DeadZone",
-    "Relay",
-    "RelayOperator",
-    "CubicStiffness",
-    "Quantizer",
-    "PreloadedSpring",
-    "CoulombViscousFriction",
-    "NumericDF",
-    "LinearThenStatic",
-    "MassBacklash",
-]
+__all__ = ["DescribingFunction", "negative_inverse", *static.__all__, *numeric.__all__, *composition.__all__]
