@@ -1,6 +1,6 @@
 """Fourier fundamental and periodicity measures of sampled signals.
 
-Convention (DESIGN.md section 2): a signal A sin(w t + phi) has the complex fundamental A exp(j phi),
+Convention (docs/design.md section 1): a signal A sin(w t + phi) has the complex fundamental A exp(j phi),
 i.e. x(t) ~ Im(c exp(j w t)).
 """
 from __future__ import annotations

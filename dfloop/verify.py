@@ -1,4 +1,4 @@
-"""Closed-loop time simulation of a predicted limit cycle (loop of DESIGN.md Fig. 1).
+"""Closed-loop time simulation of a predicted limit cycle (loop of the paper's Fig. 1).
 
 Reference 0, element input x = -c, element output y, plant output c = G y. The plant is a state-space
 realisation updated exactly over each step for a zero-order-held y (matrix exponential); the element is

@@ -1,6 +1,6 @@
 """A PD-controlled two-mass drive with dynamic backlash: predict its limit cycle, then verify it in time.
 
-Loop (DESIGN.md Fig. 1): the force on M2 is u = -C(s) x1, where x1 is the load position (M1) and
+Loop (the paper's Fig. 1): the force on M2 is u = -C(s) x1, where x1 is the load position (M1) and
 C(s) = (Kp + Kd s) / (tau s + 1)^2 is a PD controller with a second-order roll-off. Seen from the
 element (force -> x1) the rest of the loop is G = C. The dynamic backlash (M1 = M2 = 1 kg, h = 0.1 m,
 eps = 0.5) is a tabulated DF N(F, w); the gains are chosen so that G(j w0) = -1/N(F0, w0) at a point of

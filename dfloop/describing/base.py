@@ -1,6 +1,6 @@
 """The describing-function protocol shared by every nonlinear element in dfloop.
 
-Convention (DESIGN.md section 2): the input is x(t) = A sin(w t); the output's fundamental is
+Convention (docs/design.md section 1): the input is x(t) = A sin(w t); the output's fundamental is
 Y1 sin(w t + phi1); N(A, w) = (Y1 / A) exp(j phi1). Amplitudes are amplitudes of the fundamental.
 """
 from __future__ import annotations

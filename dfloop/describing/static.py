@@ -1,6 +1,6 @@
 """Analytic describing functions of rate-independent elements (closed forms, vectorised).
 
-Convention (DESIGN.md section 2): input x(t) = A sin(w t), N(A) = (Y1 / A) exp(j phi1) where Y1 sin(w t + phi1)
+Convention (docs/design.md section 1): input x(t) = A sin(w t), N(A) = (Y1 / A) exp(j phi1) where Y1 sin(w t + phi1)
 is the output's fundamental. Every ``N`` here is amplitude-only, evaluated with numpy broadcasting, equal to
 0 exactly (never NaN) where the output has no fundamental (inside dead bands, below switching levels); NaN
 entries of ``A`` give NaN in those entries only; negative ``A`` raises ``ValueError``.
@@ -138,7 +138,7 @@ class Backlash(DescribingFunction):
     """Backlash (friction-controlled, geometric) of total clearance ``h`` and slope ``k``.
 
     Input x is the driving side's position (m), output y = k * (position of the driven side). Its DF
-    (paper eq. (4), written as in DESIGN.md section 2) with r = h / X:
+    (paper eq. (4), written as in docs/design.md section 1) with r = h / X:
 
         Im N = -(k / pi) r (2 - r)                      (= -(2 k h / (pi X^2)) (X - h/2)),
         Re N = k [1 - phi(t) / pi]   for X >= h,        Re N = (k / pi) phi(t)   for h/2 < X < h,

@@ -7,7 +7,7 @@ The forcing enters through
     dshape(theta) = cos(phi0) sin theta - sin(phi0) (1 - cos theta)
 
 so that a body of mass m driven by F cos(w t) moves as x0 + v0 s + F/(m w^2) shape, v0 + F/(m w) dshape.
-Both are evaluated without cancellation for small theta (DESIGN.md section 3: local time).
+Both are evaluated without cancellation for small theta (docs/design.md section 2: local time).
 """
 from __future__ import annotations
 

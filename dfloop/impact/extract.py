@@ -1,6 +1,6 @@
 """Describing function of the impact system, N(F, w) = X1 / F, from exact trajectories.
 
-Convention (DESIGN.md section 2): the force is Re(F e^{j w t}) = F cos(w t) and x1's fundamental is
+Convention (docs/design.md section 1): the force is Re(F e^{j w t}) = F cos(w t) and x1's fundamental is
 Re(X1 e^{j w t}); N = X1 / F (m/N) is the ratio of phasors. The fundamental is taken over an integer number
 of forcing periods after a transient, by exact integration of the piecewise-analytic x1(t) (no sampling),
 after removing the linear drift (x1(t_end) - x1(t_start)) / window, which is exact for a periodic motion

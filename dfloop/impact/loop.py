@@ -1,6 +1,6 @@
 """Closed-loop time simulation of the paper's two-mass impact element inside a feedback loop.
 
-Loop of DESIGN.md Fig. 1: the element's input is the force on M2, x = -c, its output is x1, and the linear
+Loop of the paper's Fig. 1: the element's input is the force on M2, x = -c, its output is x1, and the linear
 part closes the loop, c = G x1. The masses move freely between impacts (plus the force on M2), impacts follow
 eqs. (8a)/(8b), and the plant's state integrates alongside; ``solve_ivp`` (rtol 1e-10) is restarted at every
 impact found by its terminal events. This is an independent check of a DF prediction, not the exact kernel:

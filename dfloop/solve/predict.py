@@ -142,7 +142,7 @@ def _classify(res, a, v, marginal_tol):
 
 def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), tol: float = 1e-10,
                          marginal_tol: float = MARGINAL_TOL) -> LimitCycles:
-    """Predict the limit cycles of the loop of DESIGN.md Fig. 1 by the describing-function method.
+    """Predict the limit cycles of the loop of the paper's Fig. 1 by the describing-function method.
 
     Solves 1 + G(jw) N(A, w) = 0 for all (A, w) in the window, refines each root to
     |1 + G N| <= tol (1 + |G N|), and classifies it by the Loeb criterion.

@@ -1,6 +1,6 @@
 """Stability of a predicted limit cycle: the Loeb criterion and the classical graphical rule.
 
-Loeb (DESIGN.md section 2): with R = 1 + G(jw) N(A, w) = U + jV, a cycle at (A0, w0) is stable iff
+Loeb (docs/design.md section 1): with R = 1 + G(jw) N(A, w) = U + jV, a cycle at (A0, w0) is stable iff
 U_A V_w - U_w V_A > 0. This is the sign of the Jacobian of (A, w) -> (U, V), i.e. the local degree.
 Near-zero determinants (tangent / double roots) are reported as marginal instead of guessed.
 """

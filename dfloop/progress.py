@@ -1,0 +1,130 @@
+"""Progress reporting for long work (table builds, sweeps, batches, scene stages).
+
+One small protocol: a *progress sink* is a context manager with ``update(n=1, stage=None)`` and
+``set_total(total)``. :func:`progress_bar` makes one:
+
+- on a terminal, a tqdm bar with rate and an estimate of the time left;
+- otherwise (a log file, CI, a pipe), plain lines without carriage returns, at most one every few seconds
+  plus one at the end, so logs stay readable;
+- ``enabled=False`` (or ``DFLOOP_PROGRESS=0`` in the environment), nothing at all.
+
+``enabled=None`` (the default) means "on when the work is long enough to matter": the first line appears only
+after ``delay`` seconds, so quick calls print nothing.
+"""
+from __future__ import annotations
+
+import os
+import sys
+import time
+from typing import TextIO
+
+__all__ = ["progress_bar", "ProgressSink", "NullProgress"]
+
+
+class NullProgress:
+    """A progress sink that reports nothing."""
+
+    def __enter__(self) -> "NullProgress":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        return None
+
+    def update(self, n: int = 1, stage: str | None = None) -> None:
+        """Count ``n`` more units of work done (ignored)."""
+
+    def set_total(self, total: int | None) -> None:
+        """Change the expected amount of work (ignored)."""
+
+    def close(self) -> None:
+        """Finish (nothing to do)."""
+
+
+class ProgressSink(NullProgress):
+    """Plain-line progress for non-terminal streams: ``label: n/total (stage), t elapsed, ~t left``."""
+
+    def __init__(self, label: str, total: int | None, stream: TextIO, delay: float, interval: float = 5.0):
+        self.label, self.total, self.stream = label, total, stream
+        self.delay, self.interval = delay, interval
+        self.n, self.stage = 0, None
+        self.t0 = time.monotonic()
+        self._last = None
+
+    def set_total(self, total: int | None) -> None:
+        self.total = total
+
+    def _line(self) -> str:
+        elapsed = time.monotonic() - self.t0
+        count = f"{self.n}/{self.total}" if self.total else f"{self.n}"
+        left = ""
+        if self.total and 0 < self.n < self.total:
+            left = f", ~{elapsed * (self.total - self.n) / self.n:.0f} s left"
+        stage = f" ({self.stage})" if self.stage else ""
+        return f"{self.label}: {count}{stage}, {elapsed:.0f} s elapsed{left}"
+
+    def update(self, n: int = 1, stage: str | None = None) -> None:
+        self.n += n
+        if stage is not None:
+            self.stage = stage
+        now = time.monotonic()
+        if now - self.t0 < self.delay:
+            return
+        if self._last is None or now - self._last >= self.interval:
+            self._last = now
+            print(self._line(), file=self.stream, flush=True)
+
+    def close(self) -> None:
+        if self._last is not None:  # only close with a line when something was printed
+            print(self._line() + ", done", file=self.stream, flush=True)
+            self._last = None
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class _TqdmSink(NullProgress):
+    def __init__(self, label: str, total: int | None, stream: TextIO, delay: float):
+        from tqdm.auto import tqdm
+
+        self.bar = tqdm(total=total, desc=label, file=stream, delay=delay, leave=False, dynamic_ncols=True)
+
+    def set_total(self, total: int | None) -> None:
+        self.bar.total = total
+        self.bar.refresh()
+
+    def update(self, n: int = 1, stage: str | None = None) -> None:
+        if stage is not None:
+            self.bar.set_postfix_str(stage, refresh=False)
+        self.bar.update(n)
+
+    def close(self) -> None:
+        self.bar.close()
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def progress_bar(label: str, total: int | None = None, *, enabled: bool | None = None,
+                 stream: TextIO | None = None, delay: float = 1.0) -> NullProgress:
+    """A progress sink for ``total`` units of work labelled ``label``.
+
+    Parameters
+    ----------
+    label : str
+        What is being done, e.g. ``"DynamicBacklash(restitution=0.5) table"``.
+    total : int or None
+        Expected number of units (None when unknown; :meth:`set_total` may set it later).
+    enabled : bool or None
+        False reports nothing; True and None report (None after ``delay`` seconds only, so quick work is
+        silent). The environment variable ``DFLOOP_PROGRESS=0`` turns every bar off.
+    stream : text stream, optional
+        Where to write; ``sys.stderr`` by default.
+    delay : float
+        Seconds of work before the first report.
+    """
+    if enabled is False or os.environ.get("DFLOOP_PROGRESS", "1") == "0":
+        return NullProgress()
+    stream = sys.stderr if stream is None else stream
+    if getattr(stream, "isatty", lambda: False)():
+        return _TqdmSink(label, total, stream, delay)
+    return ProgressSink(label, total, stream, delay)
