@@ -262,8 +262,6 @@ def _problem(error: dict) -> Problem:
         return Problem(key, f"wrong type: got {type(value).__name__} {value!r}", None, expected)
     if kind == "value_error":
         return Problem(key, error["msg"].removeprefix("Value error, "), None, None)
-    if field is not None and kind in ("too_short", "too_long") and field.annotation is not None:
-        return Problem(key, f"wrong length: got {value!r}", None, expected)
     return Problem(key, f"{error['msg'][0].lower()}{error['msg'][1:]}, got {value!r}", None, expected)
 
 
