@@ -10,6 +10,7 @@ from typing import Any
 from pydantic import BaseModel
 
 from .elements import registry, signature
+from .load import read_toml, shipped_scenes
 from .schema import PLANT_TYPES, SceneFile, Sweep, SweepRange, type_name
 
 __all__ = ["scene_reference"]
@@ -72,6 +73,34 @@ def scene_reference() -> str:
              "shows the scenes shipped with dfloop. Every key is checked: an unknown section or key, a value of "
              "the wrong type (`verify = \"false\"` is a string, not a bool) or an unknown element parameter "
              "stops the run with the file, the key, the closest valid name and the expected type.", ""]
+    lines += ["## Commands", "",
+              "| command | what it does |", "|---|---|",
+              "| `dfloop run <scene> [<scene> ...] [--out DIR] [--quiet]` | Check every scene, then run the good "
+              "ones (a bad one is reported and the exit code is 1). Progress of long stages on stderr (a bar on a "
+              "terminal, plain lines otherwise); `--quiet` prints errors only. |",
+              "| `dfloop list` | The shipped scenes and their titles. |",
+              "| `dfloop scene-keys` | This page. |",
+              "| `dfloop cache info` | Files and size of the table cache, per code version. |",
+              "| `dfloop cache clear [--stale]` | Remove every cache file, or (`--stale`) only those of other code "
+              "versions and unreadable ones. |", "",
+              "## Shipped scenes", "",
+              "They install with the package (`models/` in the repository becomes `dfloop/models`), so "
+              "`dfloop run backlash_servo` works from any directory after `pip install .`; a path to a file of "
+              "your own works too.", "", "| name | title |", "|---|---|"]
+    lines += [f"| `{name}` | {_cell(read_toml(path).get('scene', {}).get('title', ''))} |"
+              for name, path in shipped_scenes().items()]
+    lines += ["", "To check a real (non-editable) install without downloading anything, install into a "
+              "throw-away virtual environment that sees the development environment's packages:", "", "```sh",
+              "python -m venv /tmp/dfloop-venv",
+              "python -c 'import site; print(site.getsitepackages()[0])' \\",
+              "    > /tmp/dfloop-venv/lib/python3.11/site-packages/dev.pth   # the dependencies, not dfloop",
+              "/tmp/dfloop-venv/bin/pip install wheel   # setuptools < 70 builds wheels with it",
+              "/tmp/dfloop-venv/bin/pip install --no-deps --no-build-isolation .",
+              "cd /tmp && /tmp/dfloop-venv/bin/dfloop run backlash_servo && /tmp/dfloop-venv/bin/dfloop list",
+              "```", "",
+              "`tests/test_cli_install.py` checks the same layout quickly: it runs setuptools' `build_py` (the step "
+              "that copies the package and its data into a wheel) and loads a shipped scene by name from the "
+              "result.", ""]
     for section, field in SceneFile.model_fields.items():
         lines += [f"## `[{section}]` ({'required' if field.is_required() else 'optional'})", "",
                   field.description or "", ""]
