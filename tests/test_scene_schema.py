@@ -128,3 +128,23 @@ def test_every_registered_type_misspelt_parameter_suggests_it(name):
         problems = element_problems({"type": name, param + param[-1]: 1.0}, ("element",))
         (unknown,) = [p for p in problems if p.key == f"element.{param + param[-1]}"]
         assert unknown.suggestion == param and name in unknown.message
+
+
+def test_exact_is_a_strict_bool_passed_to_the_solver(tmp_path, monkeypatch):
+    """``[analysis] exact`` reaches predict_limit_cycles as exact=True (and is not sent when false)."""
+    import dfloop.solve
+    from dfloop.scene.run import predict_cycles
+
+    error(tmp_path, GOOD + "[analysis]\nexact = 'yes'\n")
+    calls = []
+
+    def solver(G, N, *, omega=None, amplitude=None, exact=False):
+        calls.append((omega, amplitude, exact))
+        return []
+
+    monkeypatch.setattr(dfloop.solve, "predict_limit_cycles", solver)
+    for flag in ("true", "false"):
+        scene = load_scene(write(tmp_path, GOOD + f"[analysis]\nexact = {flag}\nomega = [0.5, 5.0]\n"))
+        assert scene.exact is (flag == "true")
+        predict_cycles(scene)
+    assert calls == [((0.5, 5.0), None, True), ((0.5, 5.0), None, False)]
