@@ -183,3 +183,15 @@ def test_cache_clear_stale_spares_a_write_in_progress(cache):
     c, current, old, (truncated, stray) = cache
     removed = {f.path for f in clear_cache(stale=True)}
     assert removed == set(old) | {truncated} and stray.exists()
+
+
+def test_cli_loading_gives_table_builds_a_progress_bar_unless_the_scene_sets_one(tmp_path):
+    from dfloop.scene import load_scene
+
+    assert isinstance(load_scene("dynamic_backlash_pd", progress=True).element._progress, TableProgress)
+    assert load_scene("dynamic_backlash_pd").element._progress is False
+    own = tmp_path / "own.toml"
+    own.write_text((ROOT / "models" / "dynamic_backlash_pd.toml").read_text().replace(
+        "restitution = 0.5", "restitution = 0.5\nprogress = false"))
+    assert load_scene(own, progress=True).element._progress is False
+    assert load_scene("backlash_servo", progress=True).element.h == 1.0  # no progress parameter: nothing added

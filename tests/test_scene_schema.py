@@ -41,6 +41,9 @@ def error(tmp_path, text) -> SceneError:
     (GOOD.replace("[plant]", "[plant]\ntype = 'tff'"), "plant.type", "unknown type 'tff'", "tf", "'zpk'"),
     (GOOD + "[sweep]\nparameter = 'element.limitt'\nvalues = [1.0, 2.0]\n", "sweep.parameter",
      "no key 'limitt'", "limit", None),
+    ("plant = 5.0\n" + GOOD[GOOD.index("[element]"):], "plant", "wrong type", None, "table"),
+    (GOOD.replace("[element]", "[element]\nvalue = 1.0"), "element.value", "unknown parameter", None,
+     "one of limit, k"),
 ])
 def test_each_mistake_is_named(tmp_path, text, key, message, suggestion, expected):
     err = error(tmp_path, text)

@@ -19,7 +19,7 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Fiel
 from .errors import Problem, closest, dotted
 
 __all__ = ["SceneFile", "SceneMeta", "TfPlant", "ZpkPlant", "SsPlant", "Analysis", "Sweep", "SweepRange",
-           "validate_scene", "validate_plant", "type_name", "SECTIONS", "PLANT_TYPES"]
+           "validate_scene", "validate_plant", "type_name", "PLANT_TYPES"]
 
 MAX_SWEEP_VALUES = 100_000
 
@@ -150,9 +150,6 @@ class SceneFile(_Table):
     sweep: Sweep | None = Field(None, description="A parameter sweep (continuation of every cycle).")
 
 
-SECTIONS = tuple(SceneFile.model_fields)
-
-
 # ---------------------------------------------------------------------------------------------- type names
 def _unwrap(annotation: Any) -> Any:
     """The type inside ``Annotated[...]`` layers."""
@@ -258,7 +255,7 @@ def _problem(error: dict) -> Problem:
         options = [o.strip(" '") for o in error.get("ctx", {}).get("expected", "").replace(" or ", ",").split(",")]
         return Problem(key, f"unknown value {value!r}", closest(value, [o for o in options if o]),
                        error.get("ctx", {}).get("expected"))
-    if kind.endswith("_type") or kind in ("model_type", "dict_type", "list_type"):
+    if kind.endswith("_type") or kind == "union_tag_not_found":
         return Problem(key, f"wrong type: got {type(value).__name__} {value!r}", None, expected)
     if kind == "value_error":
         return Problem(key, error["msg"].removeprefix("Value error, "), None, None)
