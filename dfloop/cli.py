@@ -44,7 +44,7 @@ def _run(args: argparse.Namespace) -> int:
         try:
             run_scene(scene, args.out, log=(lambda message: None) if args.quiet else print,
                       progress=not args.quiet)
-        except ValueError as err:
+        except (ValueError, RuntimeError) as err:  # bad input or a bound reached: report it, run the others
             print(f"dfloop: {scene.source}: {err}", file=sys.stderr)
             failed.append(str(scene.source))
     if failed:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import types
 import typing
+from functools import lru_cache
 from typing import Annotated, Any, Literal, Union
 
 from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Field, Tag, TypeAdapter, ValidationError,
@@ -25,7 +26,8 @@ MAX_SWEEP_VALUES = 100_000
 
 
 class _Table(BaseModel):
-    model_config = ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False)
+    # defer_build: the validators are compiled on first use, not when dfloop.scene is imported
+    model_config = ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False, defer_build=True)
 
 
 class _WindowName(str):
@@ -141,12 +143,12 @@ class Sweep(_Table):
 class SceneFile(_Table):
     """A whole scene file."""
 
-    scene: SceneMeta = Field(SceneMeta(), description="Names of the study.")
+    scene: SceneMeta = Field(default_factory=SceneMeta, description="Names of the study.")
     plant: Plant = Field(description="The linear part G seen by the element (after the controller, if any).")
     controller: Plant | None = Field(None, description="Optional controller C: the loop is C * plant.")
     element: dict[str, Any] = Field(description="The nonlinear element: `type` names a describing-function "
                                                 "class, the other keys are its parameters (see below).")
-    analysis: Analysis = Field(Analysis(), description="Windows and the optional stages.")
+    analysis: Analysis = Field(default_factory=Analysis, description="Windows and the optional stages.")
     sweep: Sweep | None = Field(None, description="A parameter sweep (continuation of every cycle).")
 
 
@@ -262,13 +264,15 @@ def _problem(error: dict) -> Problem:
     return Problem(key, f"{error['msg'][0].lower()}{error['msg'][1:]}, got {value!r}", None, expected)
 
 
-_PLANT = TypeAdapter(Plant)
+@lru_cache(maxsize=1)
+def _plant_adapter() -> TypeAdapter:
+    return TypeAdapter(Plant)
 
 
 def validate_plant(data: dict, loc: tuple = ("plant",)) -> tuple[TfPlant | ZpkPlant | SsPlant | None, list[Problem]]:
     """Validate a plant table found at ``loc`` (e.g. nested in an element): the model, or every problem."""
     try:
-        return _PLANT.validate_python(data), []
+        return _plant_adapter().validate_python(data), []
     except ValidationError as err:
         problems = []
         for e in err.errors():
