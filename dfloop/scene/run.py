@@ -139,8 +139,9 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
             if scene.sweep.csv:
                 report.sweep.to_csv(out / f"{scene.name}_sweep.csv")
                 report.files.append(out / f"{scene.name}_sweep.csv")
-            drawn = report.sweep.plot()
-            report.files.append(_save(getattr(drawn, "figure", None) or plt.gcf(), out / f"{scene.name}_sweep.png"))
+            drawn = report.sweep.plot()  # axes, a tuple of axes, or a plot object with .figure
+            first = drawn[0] if isinstance(drawn, (tuple, list)) else drawn
+            report.files.append(_save(getattr(first, "figure", None) or plt.gcf(), out / f"{scene.name}_sweep.png"))
         if "nyquist" in scene.plots:
             from dfloop.plot.nyquist import plot_nyquist
 
