@@ -70,6 +70,8 @@ def test_plant_coefficient_is_replaced(tmp_path):
 def test_delay_and_defaulted_parameter_can_be_swept(tmp_path):
     G, _ = scene(tmp_path, BASE, "plant.delay", "[0.0, 0.3]").loop_at(0.3)
     assert np.allclose(G(W), loop(5.0, delay=0.3)(W), rtol=1e-13)
+    G, _ = scene(tmp_path, BASE, "controller.delay", "[0.0, 0.2]").loop_at(0.2)  # not in the file: default 0
+    assert np.allclose(G(W), loop(5.0, delay=0.3)(W), rtol=1e-13)  # delays of controller and plant add up
     _, N = scene(tmp_path, BASE, "element.k", "[0.5, 2.0]").loop_at(2.0)  # k is not in the file: its default
     assert N.k == 2.0 and N.h == 1.0
 

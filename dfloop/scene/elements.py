@@ -21,7 +21,8 @@ from pydantic import TypeAdapter, ValidationError
 
 from .errors import Problem, SceneError, closest, dotted
 
-__all__ = ["registry", "Signature", "signature", "build", "element_problems", "check_parameter_path"]
+__all__ = ["registry", "Signature", "signature", "build", "element_problems", "table_defaults",
+           "check_parameter_path"]
 
 _SCALARS = {"float": float, "int": int, "str": str, "bool": bool, "None": type(None)}
 
@@ -232,6 +233,20 @@ def build(spec: Any, loc: tuple = ("element",), extra: dict | None = None) -> An
     return _make(spec, loc, extra)
 
 
+def table_defaults(table: dict) -> dict[str, Any]:
+    """The parameters a table may leave out, with their defaults: a ``{type = ...}`` table's optional constructor
+    parameters, or a plant table's optional keys (e.g. ``delay``)."""
+    if _plant_table(table):
+        from .schema import PLANT_TYPES
+
+        model = PLANT_TYPES.get(table.get("type", "tf"))
+        fields = model.model_fields.items() if model is not None else ()
+        return {name: f.get_default(call_default_factory=True) for name, f in fields if not f.is_required()}
+    if isinstance(table.get("type"), str) and table["type"] in registry():
+        return {p.name: p.default for p in signature(table["type"]).parameters.values() if not p.required}
+    return {}
+
+
 def check_parameter_path(data: dict, path: str) -> list[Problem]:
     """Problems of a sweep's ``parameter``: a dotted path to a number in the scene (or to a parameter its
     element may take, e.g. ``element.k`` when ``k`` is left at its default)."""
@@ -250,16 +265,12 @@ def check_parameter_path(data: dict, path: str) -> list[Problem]:
                                 None, f"an index 0..{len(node) - 1}")]
             node = node[int(part)]
         elif isinstance(node, dict):
-            valid = list(node)
-            if isinstance(node.get("type"), str) and node["type"] in registry():
-                valid += [p for p in signature(node["type"]).parameters if p not in node]
+            defaults = table_defaults(node)
+            valid = list(node) + [p for p in defaults if p not in node]
             if part not in valid:
                 return [Problem(key, f"{path!r}: {where} has no key {part!r}", closest(part, valid),
                                 "one of " + ", ".join(v for v in valid if v != "type"))]
-            if part not in node:  # a parameter left at its default
-                node = signature(node["type"]).parameters[part].default
-            else:
-                node = node[part]
+            node = node[part] if part in node else defaults[part]  # else: a parameter left at its default
         else:
             return [Problem(key, f"{path!r}: {where} is a number, it has no {part!r}")]
     if isinstance(node, bool) or not isinstance(node, (int, float)):

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from .elements import build, check_parameter_path, element_problems, signature
+from .elements import build, check_parameter_path, element_problems, table_defaults
 from .errors import Problem, SceneError, closest
 from .plant import make_plant, series
 from .schema import Sweep, SweepRange, validate_scene
@@ -109,9 +109,7 @@ def _set_path(data: dict, path: str, value: float) -> dict:
     for part in parents:
         node = node[int(part)] if isinstance(node, list) else node[part]
     key: Any = int(last) if isinstance(node, list) else last
-    old = node[key] if isinstance(node, list) or key in node else None
-    if old is None and isinstance(node, dict):
-        old = signature(node["type"]).parameters[key].default
+    old = node[key] if isinstance(node, list) or key in node else table_defaults(node)[key]
     value = float(value)
     node[key] = int(value) if isinstance(old, int) and not isinstance(old, bool) and value.is_integer() else value
     return data
