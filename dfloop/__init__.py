@@ -28,7 +28,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
         "predict_limit_cycles", "LimitCycle", "LimitCycles", "JumpCrossing", "Plant", "as_plant",
         "graphical_stability"),
     "dfloop.verify": ("LoopSimulation", "simulate_loop", "Verification", "verify_cycle"),
-    "dfloop.plot": ("plot_loci", "plot_nyquist", "plot_residual_map", "plot_time_response", "plot_collision_map"),
+    "dfloop.plot": ("case_labels", "curve_with_gaps", "plot_loci", "plot_nyquist", "plot_residual_map", "plot_time_response", "plot_collision_map"),
 }
 _SUBMODULES = ("describing", "impact", "solve", "verify", "plot", "harmonics", "progress", "scene", "cli")
 
