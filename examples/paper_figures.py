@@ -38,13 +38,14 @@ def curve(nl, F):
     of N (located by bisection: the jump at w_J is a gap, not a line).
 
     Invalid points far outside the range of the valid ones (the grazing band just below w_L, where
-    N -> 0 and the motion has not settled) are dropped so that they do not set the axes.
+    N -> 0 and the motion has not settled) are set to NaN (a gap: no line joins their neighbours) so that
+    they do not set the axes.
     """
     w, z = curve_with_gaps(lambda x: nl.negative_inverse(F, x), W[W < no_impact_frequency(F, M2, H) * (1 - 1e-9)])
     ok = np.zeros(w.size, bool)
     ok[np.isfinite(w)] = nl.validity(F, w[np.isfinite(w)])
-    keep = ~np.isfinite(w) | ok | (np.abs(z) <= 2 * np.abs(z[ok]).max())
-    return w[keep], z[keep], ok[keep]
+    far = ~ok & (np.abs(z) > 2 * np.abs(z[ok]).max())
+    return w, np.where(far, complex(np.nan, np.nan), z), ok
 
 
 def draw_nyquist(ax, w, z, ok, color, label):

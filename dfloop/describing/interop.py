@@ -128,7 +128,21 @@ def _vectorised(f):
             return f
     except Exception:  # noqa: BLE001 - scalar-only code (math functions, if/else on x) fails on arrays
         pass
-    return np.vectorize(lambda x: _scalar(f, x), otypes=[float])
+    return _Elementwise(f)
+
+
+class _Elementwise:
+    """A scalar-only f(x) applied elementwise to arrays (repr: the wrapped function's)."""
+
+    def __init__(self, f):
+        self.f = f
+
+    def __call__(self, x):
+        x = np.asarray(x, dtype=float)
+        return np.array([_scalar(self.f, v) for v in x.ravel()]).reshape(x.shape)
+
+    def __repr__(self) -> str:
+        return repr(self.f)
 
 
 def _from_control(obj) -> DescribingFunction | None:

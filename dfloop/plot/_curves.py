@@ -5,25 +5,29 @@ from typing import Callable
 
 import numpy as np
 
-_WINDOW = 9  # neighbours whose median step sets the local scale
-_SUSPECT_RATIO = 4.0  # a step this many times the local median is bisected
+_WINDOW = 9  # neighbours whose smallest step sets the local scale
+_SUSPECT_RATIO = 4.0  # a step this many times the local scale is bisected
+_MAX_PASSES = 8  # bound on search passes (an interval may hold several jumps: one is found per pass)
 _MAX_HALVINGS = 60  # bound on bisection steps per suspect interval (machine resolution comes first)
 _JUMP_SHRINK = 1e-6  # a step that keeps this fraction of its size after full bisection is a jump
 _ARROW_POINTS = 18.0  # arrow length on screen (points)
 
 
-def _local_median(d: np.ndarray) -> np.ndarray:
+def _local_min(d: np.ndarray) -> np.ndarray:
+    """Smallest step among each step's neighbours (window _WINDOW): the local scale of a smooth stretch,
+    kept small even where several neighbouring steps are jumps (a branch that switches back and forth)."""
     half = _WINDOW // 2
     padded = np.pad(d, half, mode="edge")
-    return np.median(np.lib.stride_tricks.sliding_window_view(padded, _WINDOW), axis=-1)
+    return np.min(np.lib.stride_tricks.sliding_window_view(padded, _WINDOW), axis=-1)
 
 
 def locate_jumps(f: Callable[[np.ndarray], np.ndarray], t: np.ndarray, z: np.ndarray):
     """Discontinuities of a curve z = f(t) sampled at increasing ``t``.
 
-    Steps much larger than their neighbours' are bisected (vectorised over all of them), keeping the half
-    with the larger step, until the bracket reaches machine resolution in ``t``: a continuous curve's step
-    shrinks to nothing there, a jump keeps its size.
+    Steps much larger than the smallest of their neighbours' are bisected (vectorised over all of them),
+    keeping the half with the larger step, until the bracket reaches machine resolution in ``t``: a
+    continuous curve's step shrinks to nothing there (it is dropped once below a millionth of its size), a
+    jump keeps its size. NaN separators in ``t`` are skipped.
 
     Returns
     -------
@@ -31,16 +35,20 @@ def locate_jumps(f: Callable[[np.ndarray], np.ndarray], t: np.ndarray, z: np.nda
         For each jump, the sample interval [t[index], t[index + 1]] that holds it and the two sides of the
         final bracket (the curve's one-sided values at the jump, to machine resolution in ``t``).
     """
-    finite = np.isfinite(z)
+    finite = np.isfinite(z) & np.isfinite(t)
     ok = finite[:-1] & finite[1:]
     with np.errstate(invalid="ignore"):  # inf - inf between two points outside N's domain
         d = np.where(ok, np.abs(np.diff(z)), 0.0)
-    scale = np.max(np.abs(z[finite])) if np.any(finite) else 0.0
-    idx = np.flatnonzero(ok & (d > _SUSPECT_RATIO * _local_median(d)) & (d > 1e-12 * scale))
+        scale = np.maximum(np.abs(z[:-1]), np.abs(z[1:]))  # local: -1/N may run off towards infinity elsewhere
+    d_ok = np.where(ok, d, np.inf)  # gaps do not set the local scale
+    idx = np.flatnonzero(ok & (d > _SUSPECT_RATIO * _local_min(d_ok)) & (d > 1e-12 * scale))
     lo, hi, zlo, zhi = t[idx].astype(float), t[idx + 1].astype(float), z[idx], z[idx + 1]
+    alive = np.ones(idx.size, bool)
     for _ in range(_MAX_HALVINGS):
         mid = 0.5 * (lo + hi)
-        active = (mid > lo) & (mid < hi)
+        with np.errstate(invalid="ignore"):
+            alive &= ~(np.abs(zhi - zlo) <= _JUMP_SHRINK * d[idx])  # continuous here: stop refining
+        active = alive & (mid > lo) & (mid < hi)
         if not np.any(active):
             break
         zm = np.asarray(f(mid[active]), dtype=complex)
@@ -65,8 +73,10 @@ def curve_with_gaps(f: Callable[[np.ndarray], np.ndarray], t) -> tuple[np.ndarra
     """
     t = np.asarray(t, dtype=float)
     z = np.asarray(f(t), dtype=complex)
-    idx, t_l, z_l, t_r, z_r = locate_jumps(f, t, z)
-    if idx.size:
+    for _ in range(_MAX_PASSES):
+        idx, t_l, z_l, t_r, z_r = locate_jumps(f, t, z)
+        if not idx.size:
+            break
         t = np.insert(t, np.repeat(idx + 1, 3), np.column_stack([t_l, np.full(idx.size, np.nan), t_r]).ravel())
         z = np.insert(z, np.repeat(idx + 1, 3),
                       np.column_stack([z_l, np.full(idx.size, np.nan), z_r]).ravel())
