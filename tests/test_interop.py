@@ -109,6 +109,17 @@ def test_object_with_describing_function_is_used_as_is():
         as_element(Broken())(np.array([1.0]))
 
 
+def test_static_nonlinear_io_system_is_exact_and_dynamic_systems_are_refused():
+    sat = ct.nlsys(None, lambda t, x, u, p: np.clip(u, -1.0, 1.0), inputs=1, outputs=1)
+    a = np.geomspace(0.1, 10.0, 7)
+    np.testing.assert_allclose(as_element(sat)(a), df.Saturation(1.0)(a), rtol=1e-12)
+    lag = ct.nlsys(lambda t, x, u, p: -x + u, lambda t, x, u, p: x, inputs=1, outputs=1, states=1)
+    with pytest.raises(ValueError, match="1 states"):
+        as_element(lag)
+    with pytest.raises(ValueError, match="belongs in the plant G"):
+        as_element(ct.tf([1], [1, 1]))
+
+
 def test_dfloop_elements_pass_through_unchanged():
     element = df.Backlash(0.1)
     assert as_element(element) is element

@@ -14,6 +14,7 @@ python-control object                                      dfloop element
 ``friction_backlash_nonlinearity(b)``                      :class:`~dfloop.Backlash` ``(h=b)``
 ``relay_hysteresis_nonlinearity(b, c)``                    :class:`~dfloop.Relay` ``(M=b, hysteresis=c)``
 any other object with a ``describing_function(A)`` method  :class:`ControlDescribingFunction` (its values)
+a static SISO ``control.nlsys`` (no states)                 :class:`~dfloop.NumericDF` of its output map
 a callable f(x) without one                                :class:`~dfloop.NumericDF` (switching points
                                                            located), static or hysteretic (see below)
 =========================================================  ================================================
@@ -161,6 +162,21 @@ def _from_control(obj) -> DescribingFunction | None:
     return None
 
 
+def _check_not_a_system(obj) -> None:
+    """python-control systems are callable too: only a static SISO nonlinear system is an element."""
+    iosys = sys.modules.get("control.iosys")
+    if iosys is None or not isinstance(obj, iosys.InputOutputSystem):
+        return
+    lti = sys.modules.get("control.lti")
+    if lti is not None and isinstance(obj, lti.LTI):
+        raise ValueError(f"N is a linear system ({type(obj).__name__}): it belongs in the plant G; the element N "
+                         "must be a nonlinearity")
+    if obj.nstates != 0 or obj.ninputs != 1 or obj.noutputs != 1:
+        raise ValueError(f"N must be a static SISO input/output system to act as a nonlinearity; got one with "
+                         f"{obj.nstates} states, {obj.ninputs} inputs, {obj.noutputs} outputs (move its dynamics "
+                         "into the plant G, or wrap a rate-independent operator as NumericDF(op, hysteretic=True))")
+
+
 def as_element(obj, *, hysteretic: bool | None = None) -> DescribingFunction:
     """Any nonlinearity python-control accepts, as a dfloop :class:`~dfloop.DescribingFunction`.
 
@@ -202,6 +218,7 @@ def as_element(obj, *, hysteretic: bool | None = None) -> DescribingFunction:
             f"N must be a dfloop DescribingFunction (e.g. Saturation, Backlash, Relay), a python-control "
             f"nonlinearity (an object with a describing_function(A) method) or a callable static map f(x) "
             f"(wrapped as NumericDF); got {type(obj).__name__}: {obj!r}")
+    _check_not_a_system(obj)
     known = _from_control(obj)
     if known is not None:
         return known
