@@ -64,10 +64,10 @@ def case_labels(cases):
 
 
 def _renderer(fig):
-    canvas = fig.canvas
-    if not hasattr(canvas, "get_renderer"):
-        canvas.draw()
-    return canvas.get_renderer()
+    """A renderer for text extents on any backend (Agg canvases have one; others get one from a dry run)."""
+    if hasattr(fig.canvas, "get_renderer"):
+        return fig.canvas.get_renderer()
+    return fig._get_renderer()  # matplotlib >= 3.6, as used by its own layout engines
 
 
 def _overlaps(box, boxes) -> bool:
