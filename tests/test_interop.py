@@ -129,6 +129,7 @@ def test_dfloop_elements_pass_through_unchanged():
     (3.0, "NumericDF"),
     ("saturation", "callable static map"),
     (lambda x: np.array([x, x]), "one number per input"),
+    (lambda x: 1.0 / x, r"failed at x = 0.0: ZeroDivisionError"),
 ])
 def test_bad_input_says_what_is_accepted(bad, match):
     with pytest.raises(ValueError, match=match):

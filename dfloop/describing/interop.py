@@ -95,7 +95,10 @@ def _is(obj, name: str) -> bool:
 
 def _scalar(f, x: float) -> float:
     """f(x) as a float; python-control allows a one-element array as the output."""
-    y = np.asarray(f(x), dtype=float)
+    try:
+        y = np.asarray(f(x), dtype=float)
+    except Exception as err:  # noqa: BLE001 - report any failure of user code as bad input, with the input
+        raise ValueError(f"the nonlinearity failed at x = {x!r}: {type(err).__name__}: {err}") from err
     if y.size != 1:
         raise ValueError(f"the nonlinearity must return one number per input; f({x!r}) has shape {y.shape}")
     return float(y.reshape(()))
