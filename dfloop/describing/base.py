@@ -92,6 +92,35 @@ class DescribingFunction(ABC):
         """
         raise NotImplementedError(f"{type(self).__name__} has no time-domain operator")
 
+    def describing_function(self, A):
+        """N(A) through python-control's describing-function protocol (amplitude-only elements).
+
+        ``control.describing_function``, ``describing_function_response`` and ``describing_function_plot``
+        call this method (they look it up by name) instead of treating the element as a static map f(x).
+
+        Parameters
+        ----------
+        A : float or array_like
+            Input amplitude(s), >= 0, in ``input_unit``.
+
+        Returns
+        -------
+        complex or numpy.ndarray of complex
+            The same values as ``self(A)`` (a Python complex for scalar ``A``).
+
+        Raises
+        ------
+        ValueError
+            For a frequency-dependent element: python-control's analysis assumes N(A) only; use
+            :func:`dfloop.predict_limit_cycles`, which solves 1 + G(jw) N(A, w) = 0.
+        """
+        if self.frequency_dependent:
+            raise ValueError(
+                f"{type(self).__name__} depends on frequency (N(A, omega)); python-control's describing-function "
+                "analysis assumes N(A) only: use dfloop.predict_limit_cycles(G, element) instead")
+        n = self(A)
+        return complex(n) if n.ndim == 0 else n
+
     def __repr__(self) -> str:
         params = ", ".join(f"{k}={v!r}" for k, v in vars(self).items() if not k.startswith("_"))
         return f"{type(self).__name__}({params})"

@@ -9,8 +9,8 @@ frequency dependent, and zero wherever |G_lin(jw)| F lies in the static element'
 """
 from __future__ import annotations
 
+import sys
 
-import control as ct
 import numpy as np
 
 from .._checks import positive
@@ -37,7 +37,8 @@ class LinearThenStatic(DescribingFunction):
     frequency_dependent = True
 
     def __init__(self, linear, static: DescribingFunction, input_name: str = "A", input_unit: str = ""):
-        if isinstance(linear, ct.LTI):
+        ct = sys.modules.get("control")  # an LTI exists only once python-control is imported
+        if ct is not None and isinstance(linear, ct.LTI):
             if linear.ninputs != 1 or linear.noutputs != 1:
                 raise ValueError(f"linear must be SISO, got {linear.noutputs}x{linear.ninputs}")
         elif not callable(linear):
@@ -50,9 +51,10 @@ class LinearThenStatic(DescribingFunction):
 
     def gain(self, omega) -> np.ndarray:
         """G_lin(j omega) with the shape of ``omega`` (rad/s)."""
+        ct = sys.modules.get("control")  # an LTI exists only once python-control is imported
         w = np.asarray(omega, dtype=float)
         s = 1j * w.ravel()
-        if isinstance(self.linear, ct.LTI):
+        if ct is not None and isinstance(self.linear, ct.LTI):
             g = np.asarray(self.linear(s), dtype=complex).reshape(-1) if s.size else np.empty(0, complex)
         else:
             g = np.asarray(self.linear(s), dtype=complex)

@@ -5,6 +5,7 @@ where the response has features (lightly damped poles and zeros), so the solver'
 """
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -127,10 +128,7 @@ def as_plant(G) -> Plant:
     """
     if isinstance(G, Plant):
         return G
-    try:
-        import control as ct
-    except ImportError:  # pragma: no cover - control is a dependency
-        ct = None
+    ct = sys.modules.get("control")  # an LTI exists only once python-control is imported
     if ct is not None and isinstance(G, ct.LTI):
         _check_siso(G)
         if isinstance(G, ct.FrequencyResponseData):

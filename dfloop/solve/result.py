@@ -155,3 +155,25 @@ class LimitCycles(list):
         return "\n".join([head] + rows + jumps)
 
     __str__ = __repr__
+
+    def plot(self, G=None, N=None, **kwargs):
+        """Nyquist picture of these cycles (python-control conventions): see :func:`dfloop.plot_nyquist`.
+
+        Parameters
+        ----------
+        G, N : plant and describing function, optional
+            Default: the ones ``predict_limit_cycles`` was called with (its ``plant`` and ``element``).
+        **kwargs
+            Passed to :func:`dfloop.plot_nyquist` (``ax``, ``n_loci``, windows).
+
+        Returns
+        -------
+        control.ControlPlot
+        """
+        from ..plot.nyquist import plot_nyquist
+
+        G = getattr(self, "plant", None) if G is None else G
+        N = getattr(self, "element", None) if N is None else N
+        if G is None or N is None:
+            raise ValueError("G and N are required: these cycles do not record the plant and element they came from")
+        return plot_nyquist(G, N, self, **kwargs)
