@@ -28,9 +28,13 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
         "predict_limit_cycles", "LimitCycle", "LimitCycles", "JumpCrossing", "Plant", "as_plant",
         "graphical_stability"),
     "dfloop.verify": ("LoopSimulation", "simulate_loop", "Verification", "verify_cycle"),
-    "dfloop.plot": ("case_labels", "curve_with_gaps", "plot_loci", "plot_nyquist", "plot_residual_map", "plot_time_response", "plot_collision_map"),
+    "dfloop.plot": ("case_labels", "curve_with_gaps", "plot_loci", "plot_nyquist", "plot_residual_map",
+                    "plot_time_response", "plot_collision_map"),
+    "dfloop.scene": ("Scene", "SceneError", "Problem", "SceneLoop", "SceneReport", "load_scene", "run_scene",
+                     "build", "find_scene", "shipped_scenes", "scene_reference"),
+    "dfloop.cache_admin": ("CacheFile", "CacheInfo", "cache_info", "clear_cache"),
 }
-_SUBMODULES = ("describing", "impact", "solve", "verify", "plot", "harmonics", "progress", "scene", "cli")
+_SUBMODULES = ("describing", "impact", "solve", "verify", "plot", "harmonics", "progress", "scene", "cli", "cache_admin")
 
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
 __all__ = [*_WHERE, "__version__"]
