@@ -10,7 +10,7 @@ import numpy as np
 from .errors import DfloopError
 
 __all__ = ["positive", "nonnegative", "finite", "in_closed_interval", "amplitude_array", "frequency_array",
-           "real_array"]
+           "real_array", "integer_at_least"]
 
 
 def _real(name: str, value) -> float:
@@ -102,14 +102,23 @@ def amplitude_array(A, name: str = "A") -> np.ndarray:
 
 
 def frequency_array(omega, name: str = "omega") -> np.ndarray:
-    """Frequencies in rad/s as a float array, > 0 (``inf`` allowed); NaN entries pass through.
+    """Frequencies in rad/s as a float array, finite and > 0; NaN entries pass through.
 
-    Non-positive, complex or non-numeric entries raise naming ``name`` and the value.
+    Non-positive, infinite, complex or non-numeric entries raise naming ``name`` and the value.
     """
     w = real_array(omega, name)
     with np.errstate(invalid="ignore"):
-        bad = w <= 0
+        bad = (w <= 0) | np.isinf(w)
     if np.any(bad):
-        raise DfloopError(f"{name} (frequency, rad/s) must be > 0; got {w[bad].ravel()[0]!r} "
-                          f"({int(np.count_nonzero(bad))} non-positive entr{'y' if np.count_nonzero(bad) == 1 else 'ies'})")
+        n_bad = int(np.count_nonzero(bad))
+        raise DfloopError(f"{name} (frequency, rad/s) must be finite and > 0; got {w[bad].ravel()[0]!r} "
+                          f"({n_bad} bad entr{'y' if n_bad == 1 else 'ies'})")
     return w
+
+
+def integer_at_least(name: str, value, minimum: int) -> int:
+    """``value`` as an int >= ``minimum`` (integral floats such as 4.0 pass; 2.5, NaN, inf, True do not)."""
+    x = finite(name, value)
+    if x != int(x) or x < minimum:
+        raise DfloopError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(x)
