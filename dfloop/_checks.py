@@ -80,7 +80,8 @@ def real_array(value, name: str) -> np.ndarray:
         flat = a.ravel()
         if not all(isinstance(v, numbers.Real) for v in flat):
             bad = next(v for v in flat if not isinstance(v, numbers.Real))
-            raise DfloopError(f"{name} must hold real numbers only, got {_show(bad)} in {_show(value)}")
+            where = "" if a.ndim == 0 else f" in {_show(value)}"
+            raise DfloopError(f"{name} must hold real numbers only, got {_show(bad)}{where}")
     elif a.dtype.kind not in "biuf":
         raise DfloopError(f"{name} must be a real number or an array of them, got {_show(value)}")
     return a.astype(float)
@@ -96,7 +97,7 @@ def amplitude_array(A, name: str = "A") -> np.ndarray:
     with np.errstate(invalid="ignore"):
         neg = a < 0
     if np.any(neg):
-        raise DfloopError(f"{name} (amplitude) must be >= 0; got {a[neg].ravel()[0]!r} "
+        raise DfloopError(f"{name} (amplitude) must be >= 0; got {float(a[neg].ravel()[0])!r} "
                           f"({int(np.count_nonzero(neg))} negative entr{'y' if np.count_nonzero(neg) == 1 else 'ies'})")
     return a
 
@@ -111,7 +112,7 @@ def frequency_array(omega, name: str = "omega") -> np.ndarray:
         bad = (w <= 0) | np.isinf(w)
     if np.any(bad):
         n_bad = int(np.count_nonzero(bad))
-        raise DfloopError(f"{name} (frequency, rad/s) must be finite and > 0; got {w[bad].ravel()[0]!r} "
+        raise DfloopError(f"{name} (frequency, rad/s) must be finite and > 0; got {float(w[bad].ravel()[0])!r} "
                           f"({n_bad} bad entr{'y' if n_bad == 1 else 'ies'})")
     return w
 

@@ -37,7 +37,7 @@ def _samples(t, x) -> tuple[np.ndarray, np.ndarray]:
                           + ("" if t.size < 3 else f" (first non-increasing step at index {int(np.argmax(np.diff(t) <= 0))})"))
     for name, v in (("t", t), ("x", x)):
         if not np.all(np.isfinite(v)):
-            raise DfloopError(f"{name} must be finite, got {v[~np.isfinite(v)][0]!r}")
+            raise DfloopError(f"{name} must be finite, got {float(v[~np.isfinite(v)][0])!r}")
     return t, x
 
 

@@ -55,7 +55,8 @@ class LinearThenStatic(DescribingFunction):
     def __init__(self, linear, static: DescribingFunction, input_name: str = "A", input_unit: str = ""):
         if isinstance(linear, ct.LTI):
             if linear.ninputs != 1 or linear.noutputs != 1:
-                raise DfloopError(f"linear must be SISO, got {linear.noutputs}x{linear.ninputs} ({linear!r})")
+                raise DfloopError(f"linear must be SISO, got a system with {linear.ninputs} inputs and "
+                                  f"{linear.noutputs} outputs")
         elif not callable(linear):
             raise DfloopError(f"linear must be a python-control LTI or a callable G(jw), got {linear!r} "
                               f"({type(linear).__name__})")
@@ -129,7 +130,7 @@ class MassBacklash(LinearThenStatic):
         F = real_array(F, "F")
         bad = ~(F > 0) | np.isinf(F)
         if np.any(bad):
-            raise DfloopError(f"F (force amplitude, N) must be finite and > 0, got {F[bad].ravel()[0]!r}")
+            raise DfloopError(f"F (force amplitude, N) must be finite and > 0, got {float(F[bad].ravel()[0])!r}")
         return np.sqrt(2.0 * F / (self.h * (self.m1 + self.m2)))
 
     def __repr__(self) -> str:

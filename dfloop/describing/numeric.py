@@ -320,7 +320,7 @@ class NumericDF(DescribingFunction):
         lo, hi = _A_RANGE
         outside = (a < lo) | (a > hi)
         if np.any(outside):
-            bad = float(a[outside][0])
+            bad = float(a[outside][0])  # a plain float: its repr is the number
             raise DfloopError(
                 f"{self.input_name} (amplitude) must lie in [{lo:g}, {hi:g}] for NumericDF, got {bad!r}: a numeric "
                 "DF has no limit at 0 or infinity (an analytic element gives it), and beyond this range the "
@@ -328,12 +328,7 @@ class NumericDF(DescribingFunction):
             )
         if a.size:
             n, e = self._hysteretic(a) if self.hysteretic else self._static(a)
-            broken = ~np.isfinite(n) | (~np.isfinite(e) if self.method == "pieces" else False)  # sampled: e is NaN
-            if np.any(broken):
-                raise DfloopError(
-                    f"the element's output is not finite along {self.input_name} sin(t) at {self.input_name} = "
-                    f"{float(a[broken][0])!r}: NumericDF needs an element with finite output at that amplitude"
-                )
+            self._finite(np.column_stack([n.real, n.imag, e if self.method == "pieces" else 0 * n.real]), a)
             n_out[ok], e_out[ok] = n, e
         return n_out, e_out
 
@@ -351,7 +346,8 @@ class NumericDF(DescribingFunction):
         f = self.element
 
         def evaluate(rows, theta):
-            return np.asarray(f(a[rows][:, None] * np.sin(theta)), dtype=float).reshape(theta.shape)
+            return self._finite(np.asarray(f(a[rows][:, None] * np.sin(theta)), dtype=float).reshape(theta.shape),
+                                a[rows])
 
         if self.method == "sampled":
             theta = 2.0 * np.pi * np.arange(self.samples) / self.samples
@@ -362,6 +358,17 @@ class NumericDF(DescribingFunction):
             evaluate, lo, hi, self._fixed_phases(a), self.nodes, self.samples, self.locate, self.rtol
         )
         return (2.0 / np.pi) * (i_sin / a), (2.0 / np.pi) * (err / a)  # pi a would overflow near 1e308
+
+    def _finite(self, values: np.ndarray, amplitudes: np.ndarray) -> np.ndarray:
+        """``values`` (one row per amplitude), raising DfloopError naming the amplitude where one is not finite."""
+        bad = ~np.isfinite(values)
+        if np.any(bad):
+            row = int(np.argwhere(bad)[0][0])
+            raise DfloopError(
+                f"the element's output is not finite along {self.input_name} sin(t) at {self.input_name} = "
+                f"{float(amplitudes[row])!r}: NumericDF needs an element with finite output at that amplitude"
+            )
+        return values
 
     def _branch_states(self, A: float):
         """Operator states at the start of the rising (x = -A) and falling (x = +A) branches, after a
@@ -405,7 +412,7 @@ class NumericDF(DescribingFunction):
                     vals[i] = [c(v) for v in x]
                 else:
                     vals[i] = [copy.deepcopy(states[row])(v) for v in x]
-            return vals
+            return self._finite(vals, amp[rows])
 
         lo = np.tile([-0.5 * np.pi, 0.5 * np.pi], a.size)
         i_sin, i_cos, err = _branch_integrals(
