@@ -84,7 +84,10 @@ def real_array(value, name: str) -> np.ndarray:
             raise DfloopError(f"{name} must hold real numbers only, got {_show(bad)}{where}")
     elif a.dtype.kind not in "biuf":
         raise DfloopError(f"{name} must be a real number or an array of them, got {_show(value)}")
-    return a.astype(float)
+    try:
+        return a.astype(float)
+    except OverflowError:  # Python integers beyond the float range
+        raise DfloopError(f"{name} must be representable as a float, got {_show(value)}") from None
 
 
 def amplitude_array(A, name: str = "A") -> np.ndarray:

@@ -9,6 +9,7 @@ frequency dependent, and zero wherever |G_lin(jw)| F lies in the static element'
 """
 from __future__ import annotations
 
+import math
 
 import control as ct
 import numpy as np
@@ -67,20 +68,32 @@ class LinearThenStatic(DescribingFunction):
         self.input_name, self.input_unit = input_name, input_unit
 
     def gain(self, omega) -> np.ndarray:
-        """G_lin(j omega) with the shape of ``omega`` (rad/s, finite and > 0)."""
+        """G_lin(j omega) with the shape of ``omega`` (rad/s, finite and > 0).
+
+        Raises ``DfloopError`` naming omega where G_lin is not finite there (a pole on the imaginary axis,
+        or a value beyond the float range, e.g. 1/s^2 at omega = 1e-200). NaN entries of omega give NaN.
+        """
         w = frequency_array(omega)
         s = 1j * w.ravel()
-        if isinstance(self.linear, ct.LTI):
-            g = np.asarray(self.linear(s), dtype=complex).reshape(-1) if s.size else np.empty(0, complex)
-        else:
-            g = np.asarray(self.linear(s), dtype=complex)
-        return np.broadcast_to(g, s.shape).reshape(w.shape)
+        with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+            if isinstance(self.linear, ct.LTI):
+                g = (np.asarray(self.linear(s, warn_infinite=False), dtype=complex).reshape(-1) if s.size
+                     else np.empty(0, complex))
+            else:
+                g = np.asarray(self.linear(s), dtype=complex)
+        g = np.broadcast_to(g, s.shape).reshape(w.shape)
+        bad = ~np.isfinite(g) & ~np.isnan(w)
+        if np.any(bad):
+            raise DfloopError(f"the linear block G_lin(j omega) is not finite at omega = {float(w[bad].ravel()[0])!r} "
+                              "rad/s (a pole on the imaginary axis, or beyond the float range)")
+        return g
 
     def _evaluate(self, A, omega):
         g = self.gain(omega)
+        mag = np.abs(g)
         with np.errstate(over="ignore", invalid="ignore"):
-            n = self.static(np.abs(g) * A)
-        return _product(g, n)
+            x = np.where(mag == 0.0, 0.0, mag * A)  # G_lin = 0 exactly: the element sees no input at any A
+        return _product(g, self.static(x))
 
     def amplitude_domain(self, omega=None):
         """The static element's domain divided by |G_lin(j omega)| (omega required)."""
@@ -131,7 +144,7 @@ class MassBacklash(LinearThenStatic):
         bad = ~(F > 0) | np.isinf(F)
         if np.any(bad):
             raise DfloopError(f"F (force amplitude, N) must be finite and > 0, got {float(F[bad].ravel()[0])!r}")
-        return np.sqrt(2.0 * F / (self.h * (self.m1 + self.m2)))
+        return np.sqrt(F) * math.sqrt(2.0 / (self.h * (self.m1 + self.m2)))  # no overflow of 2 F near 1e308
 
     def __repr__(self) -> str:
         return f"MassBacklash(m1={self.m1!r}, m2={self.m2!r}, h={self.h!r}, k={self.static.k!r})"

@@ -259,7 +259,7 @@ class DeadZone(StaticElement):
         with np.errstate(invalid="ignore"):
             rc = np.clip(r, 0.0, 1.0)
             gap = np.clip(_one_minus_ratio(self.delta, A), 0.0, 1.0)  # 1 - delta/A without cancellation
-            near_edge = (2.0 * self.k / np.pi) * _asin_minus(np.sqrt(gap * (1.0 + rc)), rc)
+            near_edge = (2.0 / np.pi) * self.k * _asin_minus(np.sqrt(gap * (1.0 + rc)), rc)
             n = np.where(rc < 0.5, self.k * (1.0 - _f(rc)), near_edge)
             return np.where(r >= 1.0, 0.0, n)
 
@@ -354,10 +354,10 @@ class Relay(DescribingFunction):
             c_off = np.clip(r_off, -1.0, 1.0)
             gap_on = np.clip(_one_minus_ratio(on, A), 0.0, 2.0)  # 1 - on/A without cancellation
             gap_off = np.clip(_one_minus_ratio(off, A), 0.0, 2.0)
-            re = (2.0 * self.M / np.pi) * (1.0 / A) * (  # no overflow of pi A at A ~ 1e308
+            re = (2.0 / np.pi) * (self.M / A) * (  # scaled so that neither pi A nor 2 M overflows
                 np.sqrt(gap_on * (1.0 + c_on)) + np.sqrt(gap_off * (1.0 + c_off))
             )
-            im = -(4.0 * self.M / np.pi) * (self.hysteresis / A) / A  # no 0/0 when A^2 underflows
+            im = 0.0 if self.hysteresis == 0.0 else -(4.0 / np.pi) * ((self.M / A) * (self.hysteresis / A))
             n = re + 1j * im
             if on == 0.0:
                 return np.where(A == 0.0, complex(np.inf, 0.0), n)
@@ -470,7 +470,7 @@ class Quantizer(StaticElement):
                 rc = np.clip(r, 0.0, 1.0)
                 terms = np.where(i <= n[..., None], np.sqrt((1.0 - rc) * (1.0 + rc)), 0.0)
                 total += terms.sum(axis=-1)
-            n_out = (4.0 * self.step / np.pi) * (total / A)
+            n_out = (4.0 / np.pi) * (self.step * (total / A))  # step total / A <= 1 + step / A: no overflow
         return _keep_nan(A, np.where(A <= 0.5 * self.step, 0.0, np.where(np.isinf(A), 1.0, n_out)))
 
     def amplitude_domain(self, omega=None):
@@ -507,7 +507,7 @@ class PreloadedSpring(StaticElement):
 
     def _evaluate(self, A, omega):
         with np.errstate(divide="ignore", over="ignore"):
-            return self.k + (4.0 * self.preload / np.pi) / A
+            return self.k + (4.0 / np.pi) * (self.preload / A)
 
     def amplitude_domain(self, omega=None):
         """(0, inf)."""
@@ -547,7 +547,7 @@ class CoulombViscousFriction(StaticElement):
 
     def _evaluate(self, A, omega):
         with np.errstate(divide="ignore", over="ignore"):
-            return self.c + (4.0 * self.Fc / np.pi) / A
+            return self.c + (4.0 / np.pi) * (self.Fc / A)
 
     def amplitude_domain(self, omega=None):
         """(0, inf)."""
