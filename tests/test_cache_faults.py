@@ -48,6 +48,7 @@ def evaluate_recording(db, *args):
 
 
 def test_healthy_cache_gives_no_warning_and_the_same_n(reference, tmp_path):
+    """The cache directory does not exist yet (a missing directory is created, silently)."""
     n, cw, caught = evaluate_recording(element(), F, W)
     np.testing.assert_array_equal(n, reference)
     assert cw == [] and [str(w.message) for w in caught] == []

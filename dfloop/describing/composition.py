@@ -25,13 +25,18 @@ __all__ = ["LinearThenStatic", "MassBacklash"]
 def _product(g: np.ndarray, n: np.ndarray) -> np.ndarray:
     """g * n with 0 * inf = 0 per component: an exactly zero part of G stays zero when N_s is infinite
     (the limit A -> 0 of an ideal relay or a preloaded spring), instead of numpy's NaN."""
-    def mul(x, y):
-        with np.errstate(invalid="ignore"):
-            return np.where((x == 0) | (y == 0), 0.0, x * y)
+    with np.errstate(invalid="ignore"):
+        out = np.asarray(g * n, dtype=complex)  # an array also for 0-d input (item assignment below)
+    inf = np.isinf(n)
+    if np.any(inf):  # rare: only there the careful product
 
-    re = mul(g.real, n.real) - mul(g.imag, n.imag)
-    im = mul(g.real, n.imag) + mul(g.imag, n.real)
-    return re + 1j * im
+        def mul(x, y):
+            with np.errstate(invalid="ignore"):
+                return np.where((x == 0) | (y == 0), 0.0, x * y)
+
+        gi, ni = g[inf], n[inf]
+        out[inf] = (mul(gi.real, ni.real) - mul(gi.imag, ni.imag)) + 1j * (mul(gi.real, ni.imag) + mul(gi.imag, ni.real))
+    return out
 
 
 class LinearThenStatic(DescribingFunction):
