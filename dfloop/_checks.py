@@ -85,7 +85,7 @@ def real_array(value, name: str) -> np.ndarray:
     elif a.dtype.kind not in "biuf":
         raise DfloopError(f"{name} must be a real number or an array of them, got {_show(value)}")
     try:
-        return a.astype(float)
+        return a.astype(float, copy=False)  # float input passes without a copy, as np.asarray(A, float) did
     except OverflowError:  # Python integers beyond the float range
         raise DfloopError(f"{name} must be representable as a float, got {_show(value)}") from None
 

@@ -146,3 +146,27 @@ def test_dynamic_backlash(F, omega, tmp_path_factory):
     el = df.DynamicBacklash(1.0, 1.0, 0.1, 0.5, tol=1e-2, transient_periods=10, periods=4, base_dx=0.3, min_dx=1e-2,
                             beta_max=30.0, cache=False)
     check_element(el, F, omega)
+
+
+STATIC = [el for el in AMPLITUDE_ONLY if isinstance(el, df.StaticElement)]
+
+
+@pytest.mark.parametrize("el", STATIC + [df.Backlash(0.2), df.Relay(1.0, 0.1, 0.2)], ids=repr)
+@settings(max_examples=30, deadline=2000, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(x=values)
+def test_outputs_and_operators(el, x):
+    """y = f(x) and the time-domain operator: a ValueError, or no NaN where x is not NaN."""
+    if isinstance(el, df.StaticElement):
+        try:
+            y = el.output(x)
+        except ValueError:
+            pass
+        else:
+            assert not np.any(np.isnan(y) & ~np.isnan(np.asarray(x, dtype=float)))
+    op = el.operator()
+    for sample in (np.ravel(np.asarray(x, dtype=object)) if isinstance(x, (list, np.ndarray)) else [x]):
+        try:
+            y = op(sample)
+        except ValueError:
+            continue
+        assert isinstance(y, float)

@@ -91,7 +91,7 @@ class DescribingFunction(ABC):
         For frequency-dependent elements the bounds may depend on ``omega`` (broadcast).
         Default: (0, inf).
         """
-        shape = np.shape(omega) if omega is not None else ()
+        shape = np.shape(frequency_array(omega)) if omega is not None else ()
         return np.zeros(shape), np.full(shape, np.inf)
 
     def validity(self, A, omega=None) -> np.ndarray:

@@ -18,7 +18,7 @@ from abc import abstractmethod
 
 import numpy as np
 
-from .._checks import finite, in_closed_interval, nonnegative, positive
+from .._checks import finite, frequency_array, in_closed_interval, nonnegative, positive, real_array
 from ..errors import DfloopError
 from .base import DescribingFunction
 
@@ -77,8 +77,16 @@ def _keep_nan(A: np.ndarray, values: np.ndarray) -> np.ndarray:
     return np.where(np.isnan(A), np.nan, values)
 
 
+def _scalar_input(x) -> float:
+    """One input sample of an operator as a float; complex or non-numeric samples raise naming ``x``."""
+    try:
+        return float(x)
+    except (TypeError, ValueError, OverflowError):
+        raise DfloopError(f"x must be a real number, got {x!r}") from None
+
+
 def _domain(lo: float, hi: float, omega) -> tuple[np.ndarray, np.ndarray]:
-    shape = np.shape(omega) if omega is not None else ()
+    shape = np.shape(frequency_array(omega)) if omega is not None else ()
     return np.full(shape, float(lo)), np.full(shape, float(hi))
 
 
@@ -98,7 +106,7 @@ class StaticElement(DescribingFunction):
         f = self.output
 
         def op(x: float) -> float:
-            return float(f(float(x)))
+            return float(f(_scalar_input(x)))
 
         return op
 
@@ -120,7 +128,7 @@ class PlayOperator:
         self.center = 0.0
 
     def __call__(self, x: float) -> float:
-        x = float(x)
+        x = _scalar_input(x)
         half = 0.5 * self.h
         if x - self.center > half:
             self.center = x - half
@@ -211,7 +219,7 @@ class Saturation(StaticElement):
         self.k = positive("k", k)
 
     def output(self, x):
-        return self.k * np.clip(np.asarray(x, dtype=float), -self.limit, self.limit)
+        return self.k * np.clip(real_array(x, "x"), -self.limit, self.limit)
 
     def breakpoints(self, A_max=None):
         return np.array([self.limit])
@@ -248,7 +256,7 @@ class DeadZone(StaticElement):
         self.k = positive("k", k)
 
     def output(self, x):
-        x = np.asarray(x, dtype=float)
+        x = real_array(x, "x")
         return self.k * (x - np.clip(x, -self.delta, self.delta))
 
     def breakpoints(self, A_max=None):
@@ -287,7 +295,7 @@ class RelayOperator:
         self.state = 0
 
     def __call__(self, x: float) -> float:
-        x = float(x)
+        x = _scalar_input(x)
         if self.state == 1 and x < self.off:
             self.state = -1 if x < -self.on else 0
         elif self.state == -1 and x > -self.off:
@@ -399,8 +407,9 @@ class CubicStiffness(StaticElement):
             raise DfloopError("k3 must be non-zero, got 0.0 (use a linear gain for k3 = 0)")
 
     def output(self, x):
-        x = np.asarray(x, dtype=float)
-        return self.k1 * x + self.k3 * x**3
+        x = real_array(x, "x")
+        with np.errstate(over="ignore"):  # Horner form: the limits at x = +/-inf, not inf - inf
+            return x * (self.k1 + self.k3 * (x * x))
 
     def _evaluate(self, A, omega):
         with np.errstate(over="ignore"):  # beyond ~1e154 m: +/-inf, the rounded value of the true N
@@ -434,8 +443,10 @@ class Quantizer(StaticElement):
         self.step = positive("step", step)
 
     def output(self, x):
-        x = np.asarray(x, dtype=float)
-        return self.step * np.sign(x) * np.floor(np.abs(x) / self.step + 0.5)
+        x = real_array(x, "x")
+        with np.errstate(over="ignore", invalid="ignore"):
+            q = self.step * np.sign(x) * np.floor(np.abs(x) / self.step + 0.5)
+        return np.where(np.abs(x) > self.step * 2.0**52, x, q)  # beyond: x is a multiple of step to rounding
 
     def breakpoints(self, A_max: float | None = None) -> np.ndarray:
         """Thresholds (i - 1/2) step below ``A_max`` (required: there are infinitely many)."""
@@ -499,7 +510,7 @@ class PreloadedSpring(StaticElement):
         self.k = nonnegative("k", k)
 
     def output(self, x):
-        x = np.asarray(x, dtype=float)
+        x = real_array(x, "x")
         return self.k * x + self.preload * np.sign(x)
 
     def breakpoints(self, A_max=None):
@@ -539,7 +550,7 @@ class CoulombViscousFriction(StaticElement):
         self.c = nonnegative("c", c)
 
     def output(self, x):
-        x = np.asarray(x, dtype=float)
+        x = real_array(x, "x")
         return self.c * x + self.Fc * np.sign(x)
 
     def breakpoints(self, A_max=None):
