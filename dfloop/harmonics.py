@@ -32,9 +32,12 @@ def _samples(t, x) -> tuple[np.ndarray, np.ndarray]:
     t, x = real_array(t, "t"), real_array(x, "x")
     if t.ndim != 1 or t.shape != x.shape:
         raise DfloopError(f"t and x must be one-dimensional of one length, got shapes {t.shape} and {x.shape}")
-    if t.size < 3 or np.any(np.diff(t) <= 0):
-        raise DfloopError(f"t must hold at least 3 strictly increasing samples, got {t.size} samples"
-                          + ("" if t.size < 3 else f" (first non-increasing step at index {int(np.argmax(np.diff(t) <= 0))})"))
+    if t.size < 3:
+        raise DfloopError(f"t must hold at least 3 strictly increasing samples, got {t.size} samples")
+    step = np.diff(t) <= 0
+    if np.any(step):
+        raise DfloopError(f"t must hold at least 3 strictly increasing samples, got {t.size} samples "
+                          f"(first non-increasing step at index {int(np.argmax(step))})")
     for name, v in (("t", t), ("x", x)):
         if not np.all(np.isfinite(v)):
             raise DfloopError(f"{name} must be finite, got {float(v[~np.isfinite(v)][0])!r}")

@@ -35,7 +35,8 @@ def _product(g: np.ndarray, n: np.ndarray) -> np.ndarray:
                 return np.where((x == 0) | (y == 0), 0.0, x * y)
 
         gi, ni = g[inf], n[inf]
-        out[inf] = (mul(gi.real, ni.real) - mul(gi.imag, ni.imag)) + 1j * (mul(gi.real, ni.imag) + mul(gi.imag, ni.real))
+        re = mul(gi.real, ni.real) - mul(gi.imag, ni.imag)
+        out[inf] = re + 1j * (mul(gi.real, ni.imag) + mul(gi.imag, ni.real))
     return out
 
 
