@@ -33,8 +33,9 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     "dfloop.scene": ("Scene", "SceneError", "Problem", "SceneLoop", "SceneReport", "load_scene", "run_scene",
                      "build", "find_scene", "shipped_scenes", "scene_reference"),
     "dfloop.cache_admin": ("CacheFile", "CacheInfo", "cache_info", "clear_cache"),
+    "dfloop.errors": ("DfloopError", "CacheWarning"),
 }
-_SUBMODULES = ("describing", "impact", "solve", "verify", "plot", "harmonics", "progress", "scene", "cli", "cache_admin")
+_SUBMODULES = ("describing", "impact", "solve", "verify", "plot", "harmonics", "progress", "scene", "cli", "cache_admin", "errors")
 
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
 __all__ = [*_WHERE, "__version__"]

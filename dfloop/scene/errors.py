@@ -10,6 +10,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable
 
+from ..errors import DfloopError
+
 __all__ = ["SceneError", "Problem", "closest", "dotted"]
 
 
@@ -56,7 +58,7 @@ class Problem:
         return text + (f" ({'; '.join(hints)})" if hints else "")
 
 
-class SceneError(ValueError):
+class SceneError(DfloopError):
     """A scene file that cannot be used: one or more :class:`Problem` records, each naming its key.
 
     Attributes
