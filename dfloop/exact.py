@@ -29,6 +29,7 @@ __all__ = ["ExactCycle", "exact_cycle", "cycle_argument"]
 _SAMPLES = 512
 _HISTORY = 256      # samples of the predicted sinusoid that set the element's state (relay branch, play)
 _LINE_SEARCH = 8    # step halvings per Newton iteration
+_FLOOR = 1e-9       # a residual below this that stops decreasing is the rounding floor: accepted
 
 
 @dataclass(frozen=True, repr=False)
@@ -141,12 +142,12 @@ def cycle_argument(cycle, name: str = "cycle") -> tuple[float, float]:
     return positive(f"{name} amplitude", A0), positive(f"{name} frequency", w0)
 
 
-def _harmonic_balance_state(G_matrices, N, A0: float, w: float) -> np.ndarray:
-    """Plant state at x = 0 rising of the sinusoidal orbit x = A0 sin(w t) that the DF assumes."""
+def _harmonic_balance_state(G_matrices, N, A0: float, w: float, t: float = 0.0) -> np.ndarray:
+    """Plant state at time t of the sinusoidal orbit x = A0 sin(w t) that the DF assumes."""
     A, B, _ = G_matrices
     n_val = complex(N(A0, w) if N.frequency_dependent else N(A0))
     X = np.linalg.solve(1j * w * np.eye(A.shape[0]) - A, B) * n_val * A0
-    return X.imag.copy()
+    return (X * np.exp(1j * w * t)).imag.copy()
 
 
 def _failure(message, predicted, method, residual=math.inf, iterations=0) -> ExactCycle:
@@ -154,7 +155,8 @@ def _failure(message, predicted, method, residual=math.inf, iterations=0) -> Exa
 
 
 def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, tol: float = 1e-11,
-                max_iterations: int = 40, settle_periods: float = 1.0, max_events: int = 10_000) -> ExactCycle:
+                max_iterations: int = 40, settle_periods: float = 0.0, max_events: int = 10_000,
+                max_deviation: float = 0.5, nodes: int = 8) -> ExactCycle:
     """Find the true periodic orbit near a predicted limit cycle, its Floquet multipliers and the DF's errors.
 
     Parameters
@@ -176,9 +178,17 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     max_iterations : int
         Bound on Newton iterations (each is one flow over a period plus at most 8 line-search flows).
     settle_periods : float
-        Periods flowed from the harmonic-balance start before shooting, in [0, 1000].
+        Periods flowed from the harmonic-balance start before shooting, in [0, 1000]. With 0 (default) the
+        shooting starts on the predicted sinusoidal orbit itself (right for unstable cycles, which a flow
+        leaves); a few periods help a stable cycle that the DF places poorly.
     max_events : int
         Bound on switches per flow (a flow reaching it fails with a message that says so).
+    nodes : int
+        Multiple-shooting nodes per period (1: single shooting). Several nodes keep Newton's corrections
+        small on strongly unstable cycles, whose flow leaves the prediction within a period.
+    max_deviation : float
+        An orbit whose amplitude or frequency differs from the prediction by more than this in log scale
+        (0.5: a factor 1.65) is reported as another orbit (``success`` False, its numbers in the message).
 
     Returns
     -------
@@ -195,6 +205,7 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     tol = in_closed_interval("tol", tol, 1e-14, 1e-4)
     max_iterations = int(in_closed_interval("max_iterations", max_iterations, 1, 10_000))
     settle_periods = in_closed_interval("settle_periods", settle_periods, 0.0, 1000.0)
+    max_deviation = positive("max_deviation", max_deviation)
 
     from .impact import DynamicBacklash
     if isinstance(N, DynamicBacklash):
@@ -206,82 +217,146 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
         raise ValueError(f"N: {method}; exact_cycle needs a piecewise-linear or static element "
                          "(or a DynamicBacklash)")
     T = 2.0 * math.pi / w0
-    s0 = _harmonic_balance_state(plant, N, A0, w0)
-    history = A0 * np.sin(w0 * T * (np.arange(_HISTORY) / _HISTORY - 1.0))
+    m = int(in_closed_interval("nodes", nodes, 1, 1000))
     try:
-        z, mode = loop.start(s0, history)
         if settle_periods > 0:
+            z, mode = loop.start(_harmonic_balance_state(plant, N, A0, w0), _history(A0, w0, 0.0))
             fl = loop.flow(z, mode, settle_periods * T, max_events=max_events)
-            z, mode = _section_point(loop, fl, settle_periods * T, T)
+            z, mode, t_first = _section_point(loop, fl, settle_periods * T, T, time=True)
+            fl = loop.flow(z, mode, T, max_events=max_events)
+            zs, modes = _nodes_on_flow(loop, fl, m, T)
+        else:   # nodes on the predicted sinusoidal orbit itself (right for unstable cycles, which a flow leaves)
+            z, mode = loop.start(_harmonic_balance_state(plant, N, A0, w0), _history(A0, w0, 0.0))
+            fl = loop.flow(z, mode, T, max_events=max_events)
+            _, _, t_first = _section_point(loop, fl, T, T, time=True)
+            zs, modes = [], []
+            for i in range(m):
+                ti = t_first + i * T / m
+                zi, mi = loop.start(_harmonic_balance_state(plant, N, A0, w0, ti), _history(A0, w0, ti))
+                zi, mi = loop.admissible_mode(zi, mi)
+                zs.append(zi)
+                modes.append(mi)
     except HybridError as exc:
         return _failure(f"the flow from the predicted orbit failed: {exc}", predicted, method)
 
     nx = loop.size - 1
-    residual, it, fl = math.inf, 0, None
+    residual, it = math.inf, 0
     for it in range(1, max_iterations + 1):
         try:
-            fl = loop.flow(z, mode, T, monodromy=True, max_events=max_events)
+            flows = [loop.flow(zs[i], modes[i], T / m, monodromy=True, max_events=max_events) for i in range(m)]
         except HybridError as exc:
             return _failure(f"Newton iteration {it}: {exc}", predicted, method, residual, it)
-        scale = max(float(np.linalg.norm(z[:nx])), 1e-300)
-        F = fl.z[:nx] - z[:nx]
-        residual = float(np.linalg.norm(F)) / scale
-        if residual <= tol and fl.mode == mode:
-            break
+        previous = residual
+        residual = _defect(flows, zs, nx)
+        consistent = all(flows[i].mode == modes[(i + 1) % m] for i in range(m))
+        if consistent and (residual <= tol or (residual <= _FLOOR and residual > 0.5 * previous)):
+            break   # converged, or stalled at the rounding floor of the switch times (quadratic convergence ended)
         if it == max_iterations:
             return _failure(f"Newton did not converge in max_iterations = {max_iterations} (residual "
                             f"{residual:.2e} > tol = {tol:g}): no periodic orbit near the prediction, or a "
                             "chaotic / quasi-periodic response; raise max_iterations or start elsewhere",
                             predicted, method, residual, it)
-        f0 = loop.field(z, mode)[:nx]
-        f1 = loop.field(fl.z, fl.mode)[:nx]
-        J = np.zeros((nx + 1, nx + 1))
-        J[:nx, :nx] = fl.monodromy[:nx, :nx] - np.eye(nx)
-        J[:nx, nx] = f1
-        J[nx, :nx] = f0
+        J, F = _shooting_system(loop, flows, zs, modes, m, nx)
         try:
-            delta = np.linalg.solve(J, np.append(-F, 0.0))
+            delta = np.linalg.solve(J, -F)
         except np.linalg.LinAlgError:
             return _failure(f"singular shooting Jacobian at iteration {it} (a multiplier equal to 1 besides "
                             "the trivial one: a marginal or non-isolated orbit)", predicted, method, residual, it)
-        z, T, ok = _line_search(loop, z, mode, T, delta, residual, scale, nx, max_events)
-        if not ok:
+        found = _line_search(loop, zs, flows, T, delta, residual, m, nx, max_events)
+        if found is None:
             return _failure(f"Newton iteration {it}: no step reduces the residual {residual:.2e} (no periodic "
                             "orbit near the prediction, or a chaotic / quasi-periodic response)", predicted, method,
                             residual, it)
-        if not (T > 0 and math.isfinite(T)):
-            return _failure(f"Newton iteration {it} gave a non-positive period", predicted, method, residual, it)
-    return _result(loop, fl, z, mode, T, predicted, method, residual, it, harmonics, samples)
+        zs, modes, T = found
+    try:
+        fl = loop.flow(zs[0], modes[0], T, monodromy=True, max_events=max_events)
+    except HybridError as exc:
+        return _failure(f"the converged orbit cannot be followed over one period: {exc}", predicted, method,
+                        residual, it)
+    z, mode = zs[0], modes[0]
+    out = _result(loop, fl, z, mode, T, predicted, method, residual, it, harmonics, samples)
+    deviation = max(abs(math.log(out.amplitude / A0)), abs(math.log(out.frequency / w0)))
+    if deviation > max_deviation:
+        return _failure(f"Newton converged to another orbit (A={out.amplitude:.6g}, w={out.frequency:.6g} rad/s, "
+                        f"{'stable' if out.stable else 'unstable'}), farther from the prediction than max_deviation "
+                        f"= {max_deviation:g} in log(A) or log(w): the predicted cycle may not exist as a true "
+                        "orbit; raise max_deviation to accept it", predicted, method, residual, it)
+    return out
 
 
-def _section_point(loop, fl, t_end: float, T: float):
-    """State and mode at the middle of the longest segment between switches in the last period of a flow."""
+def _section_point(loop, fl, t_end: float, T: float, time: bool = False):
+    """State, mode (and time) at the middle of the longest segment between switches in the last period of a
+    flow (segments that wrap around t_end - T count whole when the flow's mode at both ends is the same)."""
     starts = np.clip(fl.t0, t_end - T, t_end)
     ends = np.clip(np.append(fl.t0[1:], t_end), t_end - T, t_end)
-    k = int(np.argmax(ends - starts))
+    lengths = ends - starts
+    k = int(np.argmax(lengths))
     t_mid = 0.5 * (starts[k] + ends[k])
-    return loop.states(fl, t_mid)[0], int(fl.modes[k])
+    out = (loop.states(fl, t_mid)[0], int(fl.modes[k]))
+    return out + (t_mid,) if time else out
 
 
-def _line_search(loop, z, mode, T, delta, residual, scale, nx, max_events):
-    """Damped Newton step: halve until the residual decreases (bounded by _LINE_SEARCH halvings)."""
+def _history(A0: float, w0: float, t: float) -> np.ndarray:
+    """Samples of the predicted input A0 sin(w0 t') over the period before time t (sets the element's state)."""
+    T = 2.0 * math.pi / w0
+    return A0 * np.sin(w0 * (t + T * (np.arange(_HISTORY) / _HISTORY - 1.0)))
+
+
+def _nodes_on_flow(loop, fl, m: int, T: float):
+    """m equally spaced states of a flow over [0, T] and their modes."""
+    t = np.arange(m) * (T / m)
+    seg = np.clip(np.searchsorted(fl.t0, t, side="right") - 1, 0, fl.t0.size - 1)
+    return list(loop.states(fl, t)), [int(fl.modes[k]) for k in seg]
+
+
+def _defect(flows, zs, nx) -> float:
+    """Relative size of the shooting defects phi(z_i) - z_{i+1}."""
+    m = len(zs)
+    d = np.concatenate([flows[i].z[:nx] - zs[(i + 1) % m][:nx] for i in range(m)])
+    scale = max(float(np.linalg.norm(np.concatenate([z[:nx] for z in zs]))), 1e-300)
+    return float(np.linalg.norm(d)) / scale
+
+
+def _shooting_system(loop, flows, zs, modes, m, nx):
+    """Jacobian and defects of multiple shooting in (z_0..z_{m-1}, T); last row: correction orthogonal to
+    the flow at z_0."""
+    n = m * nx + 1
+    J = np.zeros((n, n))
+    F = np.zeros(n)
+    for i in range(m):
+        r = slice(i * nx, (i + 1) * nx)
+        j = (i + 1) % m
+        J[r, r] += flows[i].monodromy[:nx, :nx]
+        J[r, j * nx:(j + 1) * nx] -= np.eye(nx)
+        J[r, -1] = loop.field(flows[i].z, flows[i].mode)[:nx] / m
+        F[r] = flows[i].z[:nx] - zs[j][:nx]
+    J[-1, :nx] = loop.field(zs[0], modes[0])[:nx]
+    return J, F
+
+
+def _line_search(loop, zs, flows, T, delta, residual, m, nx, max_events):
+    """Damped Newton step (halvings bounded by _LINE_SEARCH) on nodes and period; node modes follow the flows."""
     from .hybrid import HybridError
 
     step = 1.0
     for _ in range(_LINE_SEARCH + 1):
-        z_new = z.copy()
-        z_new[:nx] += step * delta[:nx]
-        T_new = T + step * delta[nx]
+        T_new = T + step * delta[-1]
         if T_new > 0:
             try:
-                end = loop.flow(z_new, mode, T_new, max_events=max_events).z
-                r_new = float(np.linalg.norm(end[:nx] - z_new[:nx])) / max(float(np.linalg.norm(z_new[:nx])), 1e-300)
-                if r_new < residual or residual < 1e-9:
-                    return z_new, T_new, True
+                new_z, new_modes = [], []
+                for i in range(m):
+                    zi = zs[i].copy()
+                    zi[:nx] += step * delta[i * nx:(i + 1) * nx]
+                    zi, mi = loop.admissible_mode(zi, flows[i - 1].mode)
+                    new_z.append(zi)
+                    new_modes.append(mi)
+                trial = [loop.flow(new_z[i], new_modes[i], T_new / m, max_events=max_events) for i in range(m)]
+                if _defect(trial, new_z, nx) < residual or residual < _FLOOR:
+                    return new_z, new_modes, T_new
             except HybridError:
                 pass
         step *= 0.5
-    return z, T, False
+    return None
 
 
 def _result(loop, fl, z, mode, T, predicted, method, residual, iterations, harmonics, samples) -> ExactCycle:
@@ -309,6 +384,8 @@ def _result(loop, fl, z, mode, T, predicted, method, residual, iterations, harmo
     A0, w0 = predicted
     trivial = float(np.min(np.abs(mu - 1.0)))
     msg = f"converged in {iterations} Newton iteration(s), residual {residual:.1e}"
+    if residual > 1e-11:
+        msg += " (the rounding floor of the switch times)"
     if trivial > 1e-6:
         msg += f"; the trivial multiplier is off 1 by {trivial:.1e} (multipliers less accurate)"
     return ExactCycle(True, msg, predicted, method, amplitude=A_exact, frequency=w, period=T, t=t_new, x=x, y=y,

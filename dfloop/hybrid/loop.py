@@ -153,6 +153,22 @@ class HybridLoop:
             z[self.n] = e
         return z, mode
 
+    def admissible_mode(self, z: np.ndarray, mode: int) -> tuple[np.ndarray, int]:
+        """(z, mode) unchanged when z satisfies the mode's guards; otherwise the switches a guard violated at
+        z calls for are taken at once (at most one per mode; ``HybridError`` when none settles)."""
+        z = np.array(z, dtype=float)
+        for _ in range(len(self.matrices) + 1):
+            A, rows = self.matrices[mode], self.rows[mode]
+            if admissible(A, rows, z):
+                return z, mode
+            j = int(np.argmin(rows @ z))
+            target = self.targets[mode][j]
+            if target < 0:
+                break
+            z = self.resets[mode][j] @ z
+            mode = target
+        raise HybridError(f"no admissible mode of the {self.element.name} model at x = {self.x(z):.6g}")
+
     def states(self, flow: Flow, t) -> np.ndarray:
         """States z at times t (within the flow's span), one row per time."""
         t = np.atleast_1d(np.asarray(t, float))
@@ -201,6 +217,9 @@ class HybridLoop:
         mode = int(mode0)
         if not admissible(self.matrices[mode], self.rows[mode], z):
             raise HybridError(f"the start state violates a guard of mode {self.element.modes[mode].label!r}")
+        if t_end == 0.0:
+            return Flow(z, mode, np.eye(self.size) if monodromy else None, np.array([0.0]), z[None, :].copy(),
+                        np.array([mode]), [])
         t = 0.0
         M = np.eye(self.size) if monodromy else None
         t0s, z0s, modes, events = [0.0], [z.copy()], [mode], []

@@ -44,6 +44,9 @@ class SmoothLoop:
         s = z[:self.n]
         return np.append(self.A @ s + self.B * float(self.f(np.array(-self.C @ s))), 0.0)
 
+    def admissible_mode(self, z, mode: int = 0):
+        return np.asarray(z, float), 0
+
     def start(self, s0, x_history) -> tuple[np.ndarray, int]:
         return np.append(s0, 1.0), 0
 
