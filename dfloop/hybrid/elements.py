@@ -102,8 +102,10 @@ def _play(h: float, k: float, name: str) -> ElementModel:
         Mode(ge=k, de=0.0, label="free", guards=(
             Guard(cx=-1.0, ce=1.0, c1=half, target=rising, reset=(1.0, -half)),     # x - e reaches +h/2
             Guard(cx=1.0, ce=-1.0, c1=half, target=falling, reset=(1.0, half)))),   # x - e reaches -h/2
-        Mode(ge=k, de=1.0, label="engaged +", guards=(Guard(cxd=1.0, target=free),)),   # x' >= 0
-        Mode(ge=k, de=1.0, label="engaged -", guards=(Guard(cxd=-1.0, target=free),)),  # x' <= 0
+        # engaged: x' >= 0 (resp. <= 0); the release re-projects e = x -/+ h/2 (exact on the orbit, and it keeps
+        # perturbations that leave the contact constraint physical)
+        Mode(ge=k, de=1.0, label="engaged +", guards=(Guard(cxd=1.0, target=free, reset=(1.0, -half)),)),
+        Mode(ge=k, de=1.0, label="engaged -", guards=(Guard(cxd=-1.0, target=free, reset=(1.0, half)),)),
     ]
 
     def initial(x_history, xdot):
