@@ -22,12 +22,13 @@ import numpy as np
 
 from ._checks import positive
 
-__all__ = ["Confidence", "cycle_confidence", "BRACKET"]
+__all__ = ["Confidence", "cycle_confidence", "BRACKET", "DISTORTION_LIMIT"]
 
 _SAMPLES = 2048       # samples of one period
 _HARMONICS = 15       # harmonics carried through G
 _STEP = 1e-6          # relative step of the finite differences of the balance
-BRACKET = 2.0         # |true error| <= BRACKET |estimate| held on every loop of benchmarks/bench_exact.py
+BRACKET = 2.0         # |true error| <= BRACKET |estimate| held on every reliable loop of benchmarks/bench_exact.py
+DISTORTION_LIMIT = 0.05   # above this distortion the filter hypothesis fails: estimates are indicators only
 
 
 @dataclass(frozen=True, repr=False)
@@ -57,18 +58,27 @@ class Confidence:
     note: str
 
     @property
+    def reliable(self) -> bool:
+        """True when the distortion is at most ``DISTORTION_LIMIT`` (5 %): the estimates and the bracket are
+        then trustworthy. Above it the DF's premise fails and the errors may be several times the estimates
+        (they still say the prediction is poor); ``benchmarks/bench_exact.py`` shows both cases."""
+        return self.available and self.distortion <= DISTORTION_LIMIT
+
+    @property
     def bracket(self) -> tuple[float, float] | None:
         """(amplitude, frequency) relative error bounds, ``BRACKET`` (2) times the estimates' sizes: the bound
-        held on every loop of ``benchmarks/bench_exact.py`` (an empirical factor, not a theorem)."""
-        if not self.available:
+        held on every reliable loop of ``benchmarks/bench_exact.py`` (an empirical factor, not a theorem).
+        None when unavailable or not :attr:`reliable`."""
+        if not self.reliable:
             return None
         return BRACKET * abs(self.amplitude_error), BRACKET * abs(self.frequency_error)
 
     def __repr__(self) -> str:
         if not self.available:
             return f"Confidence(unavailable: {self.note})"
+        warn = "" if self.reliable else "; distortion above 5 %: the DF is unreliable here, errors may be larger"
         return (f"Confidence(distortion {100 * self.distortion:.3g} %, estimated DF error: amplitude "
-                f"{100 * self.amplitude_error:+.3g} %, frequency {100 * self.frequency_error:+.3g} %)")
+                f"{100 * self.amplitude_error:+.3g} %, frequency {100 * self.frequency_error:+.3g} %{warn})")
 
 
 def _element_response(N):

@@ -25,7 +25,7 @@ def test_confidence_brackets_the_true_error(name):
     e = exact_cycle(G, N, c)
     assert e.success
     conf = cycle_confidence(G, N, c.amplitude, c.frequency)
-    assert conf.available
+    assert conf.reliable
     bA, bw = conf.bracket
     assert abs(e.amplitude_error) <= bA and abs(e.frequency_error) <= bw
     # the estimate is an estimate, not only a bound: same sign, at least half the true error
@@ -44,3 +44,14 @@ def test_confidence_is_unavailable_for_frequency_dependent_elements_and_rejects_
         cycle_confidence(G, df.Saturation(1.0), -1.0, 1.0)
     with pytest.raises(ValueError, match="frequency"):
         cycle_confidence(G, df.Saturation(1.0), 1.0, float("inf"))
+
+
+def test_large_distortion_is_flagged_unreliable_where_the_df_is_far_off():
+    """Open-loop-unstable plant: the DF is 23 % / 49 % off; the confidence says the prediction is unreliable."""
+    G, N = ct.tf([30], [1, 4, 1, -6]), df.Saturation(1.0)
+    c = df.predict_limit_cycles(G, N)[0]
+    conf = cycle_confidence(G, N, c.amplitude, c.frequency)
+    e = exact_cycle(G, N, c)
+    assert e.success and abs(e.frequency_error) > 0.3
+    assert not conf.reliable and conf.bracket is None and "unreliable" in repr(conf)
+    assert conf.frequency_error > 0.1 and conf.amplitude_error < -0.05   # the estimate points the right way
