@@ -126,11 +126,16 @@ def _play(h: float, k: float, name: str) -> ElementModel:
 # --------------------------------------------------------------------------------------------- static PWL
 
 
-def _affine_pieces(f: Callable, levels: np.ndarray, scale: float):
-    """(slope, intercept) of f on each interval between sorted ``levels`` (outer ones unbounded), or None."""
+def _affine_pieces(f: Callable, levels: np.ndarray, scale: float, bounded: bool):
+    """(slope, intercept) of f on each interval between sorted ``levels`` (outer ones unbounded), or None.
+
+    ``bounded``: the two outer intervals lie outside the modelled range (not checked, never entered)."""
     edges = np.concatenate([[-np.inf], levels, [np.inf]])
     pieces = []
-    for lo, hi in zip(edges[:-1], edges[1:]):
+    for i, (lo, hi) in enumerate(zip(edges[:-1], edges[1:])):
+        if bounded and i in (0, len(edges) - 2):
+            pieces.append((0.0, 0.0))
+            continue
         if np.isinf(lo) and np.isinf(hi):
             pts = scale * np.array([-1.7, -0.6, 0.1, 0.9, 2.3])
         elif np.isinf(lo):
@@ -150,7 +155,7 @@ def _affine_pieces(f: Callable, levels: np.ndarray, scale: float):
 
 
 def _static(f: Callable, levels: np.ndarray, name: str, scale: float, bounded: bool) -> ElementModel | None:
-    pieces = _affine_pieces(f, levels, scale)
+    pieces = _affine_pieces(f, levels, scale, bounded)
     if pieces is None:
         return None
     n = len(pieces)
