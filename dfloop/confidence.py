@@ -94,7 +94,7 @@ def _element_response(N):
         op0 = N.operator() if not isinstance(N, NumericDF) else N.element
     except NotImplementedError:
         return None
-    from ._confidence_core import play_response, relay_response
+    from .hybrid._operators_core import play_response, relay_response
     from .describing.static import PlayOperator, RelayOperator
 
     if type(op0) is RelayOperator:

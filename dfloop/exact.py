@@ -69,6 +69,9 @@ class ExactCycle:
         Final |phi_T(z0) - z0| relative to |z0| (inf when no Newton step was taken).
     iterations : int
         Newton iterations used.
+    extra : dict
+        Engine details: ``z0`` (augmented state [plant state, element state, 1] at the shooting start, which is
+        not the waveform's t = 0) and ``mode0`` (the element's mode there), for re-running the flow.
     """
 
     success: bool
