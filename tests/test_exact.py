@@ -301,3 +301,23 @@ def test_repr_reports_errors_and_stability():
     e = exact_cycle(G, N, df.predict_limit_cycles(G, N)[0])
     text = repr(e)
     assert "stable" in text and "DF error" in text and "exact" in text
+
+
+def test_discontinuous_static_elements_map_to_the_exact_engine():
+    """A quantizer whose cycle stays below 1.5 steps is a dead-zone relay (M = step, d = step/2); a preloaded
+    spring k x + F0 sign(x) around G is an ideal relay of level F0 around G / (1 + k G). Both are checked against
+    the closed-form relay solution."""
+    G = ct.tf([7.5], [1, 3, 3, 1])
+    N = df.Quantizer(0.5)
+    c = df.predict_limit_cycles(G, N, amplitude=(0.26, 5.0))[1]        # the small stable cycle
+    e = exact_cycle(G, N, c)
+    assert e.success and "exact" in e.method and np.max(np.abs(e.x)) < 0.75
+    w, amp, _ = _relay_truth(G, 0.5, 0.25, 0.25, e.period)
+    assert e.frequency == pytest.approx(w, rel=1e-9) and e.amplitude == pytest.approx(amp, rel=1e-9)
+
+    G = ct.tf([1], [0.1, 1.1, 1, 0])
+    N = df.PreloadedSpring(0.3, k=1.0)
+    e = exact_cycle(G, N, df.predict_limit_cycles(G, N)[0])
+    assert e.success and "exact" in e.method
+    w, amp, _ = _relay_truth(ct.feedback(G, 1.0), 0.3, 0.0, 0.0, e.period)
+    assert e.frequency == pytest.approx(w, rel=1e-9) and e.amplitude == pytest.approx(amp, rel=1e-9)
