@@ -167,7 +167,9 @@ def cycle_confidence(G, N, amplitude: float, frequency: float, *, samples: int =
     X = -Gk * Y
     X[0] = A
     distortion = float(np.sqrt(np.sum(np.abs(X[1:]) ** 2)) / A)
-    x2 = x1 + np.imag(X[1:, None] * np.exp(1j * k[1:, None] * theta[None, :])).sum(axis=0)
+    spectrum = np.zeros(S // 2 + 1, complex)
+    spectrum[2:K + 1] = -0.5j * S * X[1:]          # irfft: sum_k Re(-j X_k e^{jk theta}) = sum_k Im(X_k e^{jk theta})
+    x2 = x1 + np.fft.irfft(spectrum, n=S)
     dN = (_fundamentals(response(x2), 1)[0] - Y[0]) / A
 
     def residual(a, om):
