@@ -5,7 +5,8 @@ gives the DF prediction, the exact cycle (:func:`dfloop.exact_cycle`), the true 
 prediction, the confidence's estimated errors (:func:`dfloop.confidence.cycle_confidence`) with the ratio
 true / estimate, whether the bracket (2x the estimate) holds, and the distortion at the element's input. A
 second table gives the cost of the confidence and of exact_cycle as ratios to the cost of
-predict_limit_cycles for the same loop (one run each, after a warm-up run that compiles the JIT functions).
+predict_limit_cycles for the same loop (one run each, after a warm-up run of all three that compiles the JIT
+functions).
 
 Run: python benchmarks/bench_exact.py [--write]   (--write also writes benchmarks/results/bench_exact.md)
 """
@@ -47,7 +48,9 @@ def main() -> str:
            "| within 2x | distortion |", "|---|---|---|---|---|---|---|---|---|"]
     cost = ["| loop | predict (ms) | confidence / predict | exact_cycle / predict | method |", "|---|---|---|---|---|"]
     for name, G, N in LOOPS:
-        df.predict_limit_cycles(G, N)          # warm-up (JIT compilation, caches)
+        t_pred, cycles = timed(lambda: df.predict_limit_cycles(G, N))     # warm-up (JIT compilation, caches)
+        cycle_confidence(G, N, cycles[0].amplitude, cycles[0].frequency)
+        exact_cycle(G, N, cycles[0])
         t_pred, cycles = timed(lambda: df.predict_limit_cycles(G, N))
         t_conf = t_exact = 0.0
         method = ""
