@@ -346,14 +346,16 @@ def _line_search(loop, zs, flows, T, delta, residual, m, nx, max_events):
         T_new = T + step * delta[-1]
         if T_new > 0:
             try:
-                new_z, new_modes = [], []
+                # node modes follow the trial flows in turn (a hysteretic element's mode is not a function of
+                # the state: a node moved across a switch takes the mode the flow reaching it ends in)
+                new_z, new_modes, trial = [], [], []
                 for i in range(m):
                     zi = zs[i].copy()
                     zi[:nx] += step * delta[i * nx:(i + 1) * nx]
-                    zi, mi = loop.admissible_mode(zi, flows[i - 1].mode)
+                    zi, mi = loop.admissible_mode(zi, trial[-1].mode if trial else flows[-1].mode)
                     new_z.append(zi)
                     new_modes.append(mi)
-                trial = [loop.flow(new_z[i], new_modes[i], T_new / m, max_events=max_events) for i in range(m)]
+                    trial.append(loop.flow(zi, mi, T_new / m, max_events=max_events))
                 if _defect(trial, new_z, nx) < residual or residual < _FLOOR:
                     return new_z, new_modes, T_new
             except HybridError:

@@ -70,6 +70,11 @@ RELAYS = {
     "hysteresis": (ct.tf([2], [1, 3, 2, 0]), df.Relay(M=1.0, hysteresis=0.1)),
     "dead zone": (ct.tf([2], [1, 3, 2, 0]), df.Relay(M=1.0, dead_zone=0.1)),
     "dead zone + hysteresis": (ct.tf([3], [1, 2, 3, 1]), df.Relay(M=1.5, dead_zone=0.2, hysteresis=0.1)),
+    # relative degree 2 (x' bends at every switch): multiple-shooting nodes moved across a switch of a
+    # hysteretic element must take the mode of the flow reaching them
+    "hysteresis, plant with a zero": (ct.tf([1, 0.5], [1, 3, 2, 0]), df.Relay(M=1.0, hysteresis=0.05)),
+    # the harmonic-balance start lies on the switching surface x = 0 and leaves it
+    "ideal, plant with a zero": (ct.tf([1, 0.5], [1, 4, 5, 2, 0]), df.Relay(M=1.0)),
 }
 
 

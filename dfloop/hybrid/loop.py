@@ -151,7 +151,7 @@ class HybridLoop:
         mode, e = self.element.initial(np.append(x_history, self.x(z)), xdot)
         if self.element.n_states:
             z[self.n] = e
-        return z, mode
+        return self.admissible_mode(z, mode)   # on a switching surface and leaving it: switch now
 
     def admissible_mode(self, z: np.ndarray, mode: int) -> tuple[np.ndarray, int]:
         """(z, mode) unchanged when z satisfies the mode's guards; otherwise the switches a guard violated at
