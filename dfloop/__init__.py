@@ -34,8 +34,10 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
                      "build", "find_scene", "shipped_scenes", "scene_reference"),
     "dfloop.cache_admin": ("CacheFile", "CacheInfo", "cache_info", "clear_cache"),
     "dfloop.errors": ("DfloopError", "CacheWarning"),
+    "dfloop.exact": ("exact_cycle", "ExactCycle"),
+    "dfloop.confidence": ("cycle_confidence", "Confidence"),
 }
-_SUBMODULES = ("describing", "impact", "solve", "verify", "plot", "harmonics", "progress", "scene", "cli", "cache_admin", "errors")
+_SUBMODULES = ("describing", "impact", "solve", "verify", "plot", "harmonics", "progress", "scene", "cli", "cache_admin", "errors", "exact", "confidence", "hybrid")
 
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
 __all__ = [*_WHERE, "__version__"]

@@ -22,7 +22,7 @@ import numpy as np
 
 from ._checks import positive
 
-__all__ = ["Confidence", "cycle_confidence", "BRACKET", "DISTORTION_LIMIT"]
+__all__ = ["Confidence", "cycle_confidence"]
 
 _SAMPLES = 2048       # samples of one period
 _HARMONICS = 15       # harmonics carried through G

@@ -24,7 +24,7 @@ import numpy as np
 
 from ._checks import positive
 
-__all__ = ["ExactCycle", "exact_cycle", "cycle_argument"]
+__all__ = ["ExactCycle", "exact_cycle"]
 
 _SAMPLES = 512
 _HISTORY = 256      # samples of the predicted sinusoid that set the element's state (relay branch, play)
