@@ -224,8 +224,11 @@ def claims_table(sl, direct, props, jmp, static) -> str:
     rows.append(("Fig. 9: for w_J < w < w_L a regular motion with one alternate collision on each side",
                  f"fraction of eq. (12)'s w_J..w_L that is period 1 with one impact per side, eps: {above}; of the "
                  f"measured w_J..w_L: {above_m}",
-                 "holds above the measured w_J except in narrow windows (period 3/5 at eps = 0.7-0.8 near w_L, "
-                 "hit or missed depending on the grid: regime map); not above eq. (12)'s w_J"))
+                 "holds above the measured w_J" + (" except for windows of other periods (period 3 and longer) at eps = " + ", ".join(
+                     f"{e:g}" for e in EPS_ALL if direct[e]["alternate_above_measured"] < 1) + " (hit or missed "
+                     "depending on the grid: regime map)" if any(direct[e]["alternate_above_measured"] < 1
+                                                                  for e in EPS_ALL) else "")
+                 + "; not above eq. (12)'s w_J"))
     re_lim = {k: sl[k][0][-1] for k in sl}
     im_lim = {k: sl[k][1][-1] for k in sl}
     conv = {k: abs(sl[k][1][-1] - sl[k][1][-2]) for k in sl}

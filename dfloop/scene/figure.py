@@ -73,6 +73,7 @@ class FigureData:
     curves: list[Curve] = field(default_factory=list)
     input_name: str = "A"
     input_unit: str = ""
+    simulations: int = 0
 
     @property
     def z_unit(self) -> str:
@@ -95,7 +96,8 @@ class FigureData:
 
     def __repr__(self) -> str:
         body = "\n".join("  " + repr(c) for c in self.curves)
-        return f"FigureData(kind={self.kind!r}, title={self.title!r}, curves={len(self.curves)})\n{body}"
+        sims = f", table motions simulated={self.simulations}" if self.simulations else ""
+        return f"FigureData(kind={self.kind!r}, title={self.title!r}, curves={len(self.curves)}{sims})\n{body}"
 
 
 # -------------------------------------------------------------------------------------------- computing
@@ -213,8 +215,10 @@ def figure_data(scene) -> FigureData:
         raise ValueError(f"scene {scene.name!r} has no [figure] section")
     elements = _elements(scene, spec)
     compute = {"nyquist": _loci, "loglog": _loci, "time_response": _time_responses, "collisions": _collisions}
-    return FigureData(spec.kind, scene.title, spec.parameter, compute[spec.kind](scene, spec, elements),
-                      getattr(scene.element, "input_name", "A"), getattr(scene.element, "input_unit", ""))
+    curves = compute[spec.kind](scene, spec, elements)
+    simulations = sum(getattr(el, "n_simulations", 0) for _, el in elements)  # tables built for this figure
+    return FigureData(spec.kind, scene.title, spec.parameter, curves, getattr(scene.element, "input_name", "A"),
+                      getattr(scene.element, "input_unit", ""), simulations)
 
 
 # --------------------------------------------------------------------------------------------- drawing
