@@ -47,6 +47,7 @@ EPS_SLOPES = (0.1, 0.3, 0.5, 0.7, 0.9)                     # Fig. 8's set
 OCTAVES = tuple(8.0 / 2 ** k for k in range(6))            # windows [w0, 2 w0], w0 = 8, 4, ..., 0.25 rad/s
 W_SCAN = np.linspace(1.5, 46.0, 240)                        # direct-simulation grid (rad/s), F = 50 N
 W_TABLE = (0.25, 100.0)                                     # table window (rad/s) for F = 10..50 N
+GRAZING = 0.98                                              # jumps searched below 0.98 w_L (grazing above)
 MIN_RUN = 5                                                 # regular band: a run of >= 5 alternate-impact points
 CMD = "python examples/paper_claims.py"
 
@@ -107,10 +108,16 @@ def direct_limits() -> dict:
             return (float(np.mean(irr[m])), int(m.sum())) if m.any() else (math.nan, 0)
 
         stuck = res[k, :, 1] > 0
+        # jumps: the largest step of |X1| w^2 (flat for the rigid-body limit) between neighbouring periodic points
+        y = res[k, :, 4] * W_SCAN ** 2
+        both = (cls[:-1] != IRREGULAR) & (cls[1:] != IRREGULAR) & (cls[:-1] != NO_IMPACT) & (cls[1:] != NO_IMPACT)
+        both &= W_SCAN[1:] < GRAZING * float(no_impact_frequency(F, M2, H))
+        step = np.where(both, np.abs(np.diff(y)) / np.maximum(y[:-1], y[1:]), 0.0)
         upper = (W_SCAN > wj_eq) & (cls != NO_IMPACT)
         out[eps] = {"w_c": w_c, "w_J": w_j, "measured_band": fraction(w_c, w_j),
                     "paper_band": fraction(wc_eq, wj_eq), "eq_c_to_measured_J": fraction(wc_eq, w_j),
                     "w_stick": float(W_SCAN[stuck].max()) if stuck.any() else math.nan,
+                    "jump": (float(step.max()), float(0.5 * (W_SCAN[step.argmax()] + W_SCAN[step.argmax() + 1]))),
                     "alternate_above_eq12": float(np.mean(cls[upper] == P1_ALTERNATE)),
                     "alternate_above_measured": float(np.mean(cls[upper & (W_SCAN >= w_j)] == P1_ALTERNATE)),
                     "irregular_below_eq10": fraction(0.0, wc_eq),
@@ -245,10 +252,13 @@ def claims_table(sl, direct, props, jmp, static) -> str:
                  slope_verdict(sl)))
     rel = {e: (float(jmp[e]["rel"].max()) if jmp[e]["rel"].size else 0.0) for e in EPS_ALL}
     rows.append(("Figs. 5-6: a jump, most visible around eps ~ 0.5, vanishing for eps -> 0 and eps -> 1",
-                 "largest relative jump of N between two periodic regimes, F = 50 N, eps: " +
-                 ", ".join(f"{e:g}: {100 * rel[e]:.0f} % ({jmp[e]['w'][np.argmax(jmp[e]['rel'])]:.1f} rad/s)"
-                           if rel[e] else f"{e:g}: none" for e in EPS_ALL),
-                 jump_verdict(jmp)))
+                 f"largest step of abs(X1) w^2 between neighbouring periodic points of the direct grid (step "
+                 f"{W_SCAN[1] - W_SCAN[0]:.2f} rad/s, w < {GRAZING:g} w_L), F = 50 N, eps: " +
+                 ", ".join(f"{e:g}: {100 * direct[e]['jump'][0]:.0f} % ({direct[e]['jump'][1]:.1f} rad/s)"
+                           for e in EPS_ALL) +
+                 "; largest jump of N between two periodic regimes located by the tables: " +
+                 ", ".join(f"{e:g}: {100 * rel[e]:.0f} %" for e in EPS_ALL),
+                 jump_verdict(direct)))
     rows.append(("Fig. 6: for fixed eps the charts are proportional to F",
                  f"(-1/N)/F at equal beta = F/(M2 h w^2), F = 10 vs 50 N, direct runs: max relative "
                  f"difference {props[0]:.1e} over the {props[1]} of {props[2]} (eps, beta) pairs where both "
@@ -275,15 +285,19 @@ def slope_verdict(sl) -> str:
     return text
 
 
-def jump_verdict(jmp) -> str:
-    """Verdict on 'the jump is most visible around eps ~ 0.5 and disappears for eps -> 0 and 1'."""
-    rel = {e: (float(jmp[e]["rel"].max()) if jmp[e]["rel"].size else 0.0) for e in EPS_ALL}
+def jump_verdict(direct) -> str:
+    """Verdict on 'the jump is most visible around eps ~ 0.5 and disappears for eps -> 0 and 1' (direct runs)."""
+    rel = {e: direct[e]["jump"][0] for e in EPS_ALL}
     peak = max(rel, key=rel.get)
     ends_small = max(rel[EPS_ALL[0]], rel[EPS_ALL[-1]]) < rel[peak] / 3
-    holds = 0.4 <= peak <= 0.6 and ends_small
-    return (f"{'holds' if holds else 'not confirmed'}: the largest jump is at eps = {peak:g} "
-            f"({100 * rel[peak]:.0f} %), eps = {EPS_ALL[0]:g}: {100 * rel[EPS_ALL[0]]:.0f} %, "
-            f"eps = {EPS_ALL[-1]:g}: {100 * rel[EPS_ALL[-1]]:.0f} %")
+    mid = max(rel[e] for e in EPS_ALL if 0.4 <= e <= 0.6)
+    verdict = ("holds" if 0.4 <= peak <= 0.6 and ends_small else
+               "partly" if mid >= rel[peak] / 2 and rel[EPS_ALL[0]] < mid / 3 else "not confirmed")
+    return (f"{verdict}: the largest step is at eps = {peak:g} "
+            f"({100 * rel[peak]:.0f} %, {direct[peak]['jump'][1]:.1f} rad/s), around eps = 0.5 {100 * mid:.0f} %, "
+            f"eps = {EPS_ALL[0]:g}: {100 * rel[EPS_ALL[0]]:.0f} %, "
+            f"eps = {EPS_ALL[-1]:g}: {100 * rel[EPS_ALL[-1]]:.0f} %. The tables' jump list depends on their "
+            "refinement history on this base (issue 9), so the verdict uses the direct runs")
 
 
 def old_findings(sl, direct, jmp) -> str:
@@ -329,7 +343,9 @@ def main(doc: Path) -> None:
     block = (f"Generated by `{CMD}` ({time.strftime('%Y-%m-%d')}, {time.perf_counter() - t0:.0f} s). "
              "Direct runs: exact kernel from rest, period detection, adaptive transient (200 periods, 1000 for "
              f"points first found irregular), {W_SCAN.size} frequencies in [{W_SCAN[0]:g}, {W_SCAN[-1]:g}] rad/s; "
-             f"table numbers in parentheses. M1 = M2 = {M1:g} kg, h = {H:g} m, F = {F:g} N.\n\n"
+             f"table numbers in parentheses (they depend on the tables' refinement history on this base, issue 9: the "
+             f"committed ones come from an empty cache, `DFLOOP_CACHE_DIR=$(mktemp -d) {CMD}`). "
+             f"M1 = M2 = {M1:g} kg, h = {H:g} m, F = {F:g} N.\n\n"
              + claims_table(sl, direct, props, jmp, static)
              + "\n\nThe previous findings of this page, with fresh numbers:\n\n" + old_findings(sl, direct, jmp) + "\n")
     text = doc.read_text() if doc.exists() else "<!-- claims:begin -->\n<!-- claims:end -->\n"
