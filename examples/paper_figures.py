@@ -1,4 +1,5 @@
-"""The paper's Figs. 5-9 computed from the model (exact impact kernel -> adaptive, cached DF tables).
+"""The paper's Figs. 5-9 computed from the model (exact impact kernel -> adaptive, cached DF tables), and the
+gallery of every paper figure as a scene (``models/paper_fig*.toml``: Figs. 3, 5-14).
 
 M1 = M2 = 1 kg, h = 0.1 m, F = 10..50 N, eps = 0.1..0.9, w = 1..100 rad/s. Writes fig5.png ... fig9.png
 and limits.md (measured limit frequencies next to eqs. 10-12) into the output directory (default ``out/``). Points where the motion is irregular (chaotic: the DF is an
@@ -6,12 +7,17 @@ average) are drawn as faint dots, regular (periodic) ones as lines; the static b
 (``MassBacklash``) is drawn for comparison in Figs. 7-8. Log-log panels plot |Re{-1/N}| and |Im{-1/N}|
 with slopes (dB/dec) fitted on the regular part of the low-frequency band.
 
-Run:  python examples/paper_figures.py [out_dir]
+The gallery runs each ``paper_fig*`` scene (``dfloop run paper_figN``) and copies its figure to
+``<out_dir>/paper_figN.png``. ``--no-gallery`` skips it (the table timing alone).
+
+Run:  python examples/paper_figures.py [out_dir] [--no-gallery]
 """
 from __future__ import annotations
 
 import math
+import shutil
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -148,7 +154,24 @@ def limits_table(tables, F, path):
     print(text)
 
 
-def main(out: Path) -> None:
+def scene_gallery(out: Path) -> list[Path]:
+    """Run every shipped ``paper_fig*`` scene and copy its figure to ``out/<scene>.png``."""
+    from dfloop.progress import progress_bar
+    from dfloop.scene import load_scene, run_scene, shipped_scenes
+
+    names = sorted((n for n in shipped_scenes() if n.startswith("paper_fig")),
+                   key=lambda n: int(n.removeprefix("paper_fig")))
+    written = []
+    with tempfile.TemporaryDirectory() as tmp, progress_bar("paper scenes", len(names)) as bar:
+        for name in names:
+            report = run_scene(load_scene(name), tmp, log=lambda line: None, progress=False)
+            figure = next(p for p in report.files if p.name == f"{name}_figure.png")
+            written.append(Path(shutil.copy(figure, out / f"{name}.png")))
+            bar.update(stage=name)
+    return written
+
+
+def main(out: Path, gallery: bool = True) -> None:
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     tables = {eps: DynamicBacklash(M1, M2, H, eps, progress=True) for eps in EPS_ALL}
@@ -165,7 +188,12 @@ def main(out: Path) -> None:
     fig_collisions(tables, 50.0, out / "fig9.png")
     limits_table(tables, 50.0, out / "limits.md")
     print(f"wrote fig5.png .. fig9.png to {out} in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+    if gallery:
+        files = scene_gallery(out)
+        print(f"wrote {', '.join(p.name for p in files)} to {out} in {time.perf_counter() - t0:.1f} s",
+              file=sys.stderr)
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out"))
+    args = [a for a in sys.argv[1:] if a != "--no-gallery"]
+    main(Path(args[0]) if args else Path("out"), gallery="--no-gallery" not in sys.argv[1:])

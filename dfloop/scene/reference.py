@@ -11,7 +11,7 @@ from pydantic import BaseModel
 
 from .elements import registry, signature
 from .load import read_toml, shipped_scenes
-from .schema import PLANT_TYPES, SceneFile, Sweep, SweepRange, type_name
+from .schema import PLANT_TYPES, SceneFile, Sweep, SweepRange, _model, type_name
 
 __all__ = ["scene_reference"]
 
@@ -117,6 +117,11 @@ def scene_reference() -> str:
         elif section == "sweep":
             lines += _keys_table(Sweep)
             lines += ["`values` as a table: " + SweepRange.__doc__.strip(), ""] + _keys_table(SweepRange)
+        elif section == "figure":
+            lines += ["Such a scene usually sets `[analysis] predict = false` and `plots = []` (the `[plant]` is "
+                      "then not used); `dfloop run` writes `<name>_figure.png` and lists the curves in the "
+                      "report. The shipped `paper_fig*` scenes are examples of every kind.", ""]
+            lines += _keys_table(_section_model(section))
         else:
             lines += _keys_table(_section_model(section))
     known = registry()
@@ -132,5 +137,5 @@ def scene_reference() -> str:
 
 
 def _section_model(section: str) -> type[BaseModel]:
-    """The model of a section holding a single table (``[scene]``, ``[analysis]``)."""
-    return SceneFile.model_fields[section].annotation
+    """The model of a section holding a single table (``[scene]``, ``[analysis]``, ``[figure]``)."""
+    return _model(SceneFile.model_fields[section].annotation)

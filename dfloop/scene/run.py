@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
+import numpy as np
+
 from .errors import Problem, SceneError
 from .load import Scene
 
@@ -49,16 +51,20 @@ class SceneReport:
     stages: list[tuple[str, float]] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     sweep: Any = None
+    figure: Any = None
 
     def to_markdown(self) -> str:
         lines = [f"# {self.scene.title}", "", f"Scene `{self.scene.source}`; element `{self.scene.element!r}`.", ""]
-        lines += ["## Predicted limit cycles", "", "```", repr(self.cycles), "```", ""]
+        if self.cycles is not None:
+            lines += ["## Predicted limit cycles", "", "```", repr(self.cycles), "```", ""]
         if self.verifications:
             lines += ["## Closed-loop verification", "", "```"]
             lines += [repr(v) for v in self.verifications]
             lines += ["```", ""]
         if self.sweep is not None:
             lines += ["## Sweep", "", "```", repr(self.sweep), "```", ""]
+        if self.figure is not None:
+            lines += ["## Figure", "", "```", repr(self.figure), "```", ""]
         lines += ["## Stages run", "", "| stage | time (s) |", "|---|---|"]
         lines += [f"| {name} | {seconds:.3f} |" for name, seconds in self.stages]
         lines += [""] + [f"- {note}" for note in self.notes] if self.notes else []
@@ -99,10 +105,15 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
 
     from dfloop.progress import progress_bar
 
+    from .figure import figure_data, figure_spec
+
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     report = SceneReport(scene)
-    planned = 1 + len(scene.plots) + (scene.sweep is not None)
+    figure = figure_spec(scene)
+    predict = scene.data.get("analysis", {}).get("predict", True)
+    plots = scene.plots if predict else ()
+    planned = predict + len(plots) + (scene.sweep is not None) + (figure is not None)
 
     with progress_bar(scene.name, planned, enabled=progress) as bar:
 
@@ -115,14 +126,15 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
             log(f"[{scene.name}] {name}: {report.stages[-1][1]:.2f} s")
             return result
 
-        report.cycles = stage("predict limit cycles", lambda: predict_cycles(scene))
-        log(repr(report.cycles))
+        if predict:
+            report.cycles = stage("predict limit cycles", lambda: predict_cycles(scene))
+            log(repr(report.cycles))
         simulations = getattr(scene.element, "n_simulations", None)
         if simulations is not None:  # tabulated elements: how much of the table this run had to simulate
             report.notes.append(f"{type(scene.element).__name__}: {simulations} motions simulated in this run "
                                 f"({'table served from the cache' if simulations == 0 else 'table built and cached'})")
             log(f"[{scene.name}] {report.notes[-1]}")
-        if scene.verify:
+        if scene.verify and predict:
             from dfloop.verify import verify_cycle
 
             bar.set_total(planned + len(report.cycles))
@@ -142,7 +154,12 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
             drawn = report.sweep.plot()  # axes, a tuple of axes, or a plot object with .figure
             first = drawn[0] if isinstance(drawn, (tuple, list)) else drawn
             report.files.append(_save(getattr(first, "figure", None) or plt.gcf(), out / f"{scene.name}_sweep.png"))
-        if "nyquist" in scene.plots:
+        if figure is not None:
+            report.figure = stage(f"figure ({figure.kind})", lambda: figure_data(scene))
+            log(repr(report.figure))
+            drawn = np.atleast_1d(report.figure.plot())
+            report.files.append(_save(drawn.flat[0].figure, out / f"{scene.name}_figure.png"))
+        if "nyquist" in plots:
             from dfloop.plot.nyquist import plot_nyquist
 
             def nyquist() -> Path:
@@ -152,7 +169,7 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
                 return _save(fig, out / f"{scene.name}_nyquist.png")
 
             report.files.append(stage("plot nyquist", nyquist))
-        if "residual" in scene.plots:
+        if "residual" in plots:
             from dfloop.plot.nyquist import plot_residual_map
 
             def residual() -> Path:

@@ -19,10 +19,12 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Fiel
 
 from .errors import Problem, closest, dotted
 
-__all__ = ["SceneFile", "SceneMeta", "TfPlant", "ZpkPlant", "SsPlant", "Analysis", "Sweep", "SweepRange",
-           "validate_scene", "validate_plant", "type_name", "PLANT_TYPES"]
+__all__ = ["SceneFile", "SceneMeta", "TfPlant", "ZpkPlant", "SsPlant", "Analysis", "Sweep", "SweepRange", "Figure",
+           "validate_scene", "validate_plant", "type_name", "PLANT_TYPES", "FIGURE_KINDS"]
 
 MAX_SWEEP_VALUES = 100_000
+MAX_FIGURE_POINTS = 5_000
+FIGURE_KINDS = ("nyquist", "loglog", "time_response", "collisions")
 
 
 class _Table(BaseModel):
@@ -106,6 +108,18 @@ class Analysis(_Table):
     plots: list[Literal["nyquist", "residual"]] = Field(["nyquist"], description="Plots to draw.")
     exact: bool = Field(False, description="Attach exact cycles (harmonic-balance correction) to the predicted "
                                            "ones.")
+    predict: bool = Field(True, description="Predict the loop's limit cycles; false for a study of the element "
+                                            "alone (a `[figure]`), which then skips prediction, verification "
+                                            "and plots.")
+
+    @model_validator(mode="after")
+    def _stages_need_prediction(self) -> "Analysis":
+        if not self.predict:
+            asked = [k for k in ("verify", "exact", "plots") if k in self.model_fields_set and getattr(self, k)]
+            if asked:
+                raise ValueError(f"{', '.join(asked)} need predict = true (with predict = false there are no "
+                                 f"cycles: use plots = [] and leave verify and exact out)")
+        return self
 
 
 class SweepRange(_Table):
@@ -140,6 +154,51 @@ class Sweep(_Table):
     csv: bool = Field(True, description="Write the branches to <name>_sweep.csv.")
 
 
+class Figure(_Table):
+    """A figure of the element alone: its -1/N loci, or (dynamic backlash) the forced motion's time responses
+    and collision runs, for several input amplitudes and values of one parameter."""
+
+    kind: Literal["nyquist", "loglog", "time_response", "collisions"] = Field(
+        description="nyquist: -1/N(A, w) in the complex plane; loglog: |Re{-1/N}| and |Im{-1/N}| vs w; "
+                    "time_response: dx1/dt of the forced two-mass motion at each of `frequencies` "
+                    "(DynamicBacklash only); collisions: longest run of consecutive impacts on side A (n_A) vs w "
+                    "(DynamicBacklash only).")
+    amplitudes: list[float] = Field(min_length=1, max_length=50, description="Input amplitudes A of the element "
+                                                                            "(the force F in N for backlash "
+                                                                            "with masses), each > 0.")
+    parameter: str | None = Field(None, description='Optional dotted path of a number in the scene varied from '
+                                                    'curve to curve, e.g. "element.restitution".')
+    values: list[float] = Field([], max_length=50, description="The values of `parameter` (required with it).")
+    omega: Window | None = Field(None, description="Frequency window [lo, hi] in rad/s of the nyquist, loglog "
+                                                   "and collisions kinds (required for them).")
+    points: int = Field(400, ge=10, le=MAX_FIGURE_POINTS, description="Frequencies, log-spaced over `omega`.")
+    frequencies: list[float] = Field([], max_length=20, description="Forcing frequencies (rad/s) of "
+                                                                    "time_response, one panel row each "
+                                                                    "(required for it).")
+    periods: int = Field(10, ge=1, le=1000, description="Forcing periods shown by time_response (the time axis "
+                                                       "of a panel), and simulated after the transient by "
+                                                       "collisions.")
+    transient_periods: int = Field(0, ge=0, le=10_000, description="Forcing periods simulated before the window "
+                                                                  "(time_response shows the motion from rest "
+                                                                  "when 0).")
+    mark_lower_limit: bool = Field(True, description="time_response: mark the panels where w is below the "
+                                                     "paper's lower limit w_c of eq. (10), where it says the "
+                                                     "model does not apply.")
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "Figure":
+        if any(a <= 0 for a in self.amplitudes):
+            raise ValueError(f"amplitudes must all be > 0, got {self.amplitudes}")
+        if (self.parameter is None) != (not self.values):
+            raise ValueError("parameter and values go together: give both or neither")
+        if self.kind == "time_response":
+            if not self.frequencies or any(w <= 0 for w in self.frequencies):
+                raise ValueError(f"kind = 'time_response' needs frequencies, all > 0, got {self.frequencies}")
+        elif self.omega is None:
+            raise ValueError(f"kind = {self.kind!r} needs omega = [lo, hi]")
+        return self
+
+
 class SceneFile(_Table):
     """A whole scene file."""
 
@@ -150,6 +209,10 @@ class SceneFile(_Table):
                                                 "class, the other keys are its parameters (see below).")
     analysis: Analysis = Field(default_factory=Analysis, description="Windows and the optional stages.")
     sweep: Sweep | None = Field(None, description="A parameter sweep (continuation of every cycle).")
+    figure: Figure | None = Field(None, description="A figure of the element alone: its -1/N loci, or (dynamic "
+                                                    "backlash) the forced motion's time responses and collision "
+                                                    "runs, for several input amplitudes and values of one "
+                                                    "parameter.")
 
 
 # ---------------------------------------------------------------------------------------------- type names
