@@ -6,7 +6,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["edge_steps", "nonzero_windings", "tangent_seeds"]
+__all__ = ["edge_steps", "nonzero_windings", "tangent_seeds", "candidate_cells"]
 
 _TWO_PI = 2.0 * math.pi
 
@@ -76,10 +76,35 @@ def nonzero_windings(ph_a, ph_v):
 
 
 @njit(cache=True)
-def tangent_seeds(P, ci, cj, threshold):
+def candidate_cells(ln_n, eps_a, ln_g, eps_v):
+    """Cells (i, j) of the tensor grid that may hold a root of 1 + G N (amplitude-only N).
+
+    ln_n, ln_g: complex logs of N at the amplitude nodes and of G at the frequency nodes; eps_a, eps_v:
+    bounds on the change of those logs within each interval (from its left node). A root needs
+    ln(N G) = j pi (mod 2 pi j), so the cell is kept iff |ln(N_i G_j) - j pi| (phase wrapped) is at most
+    eps_a[i] + eps_v[j]. Returns index arrays (i, j), sorted by i then j.
+    """
+    ci, cj = [0], [0]
+    ci.pop(), cj.pop()
+    for i in range(ln_n.size - 1):
+        ea = eps_a[i]
+        for j in range(ln_g.size - 1):
+            re = ln_n[i].real + ln_g[j].real
+            e = ea + eps_v[j]
+            if abs(re) > e:
+                continue
+            im = _wrap(ln_n[i].imag + ln_g[j].imag - math.pi)  # args in (-pi, pi]: one wrap suffices
+            if re * re + im * im <= e * e:
+                ci.append(i)
+                cj.append(j)
+    return np.array(ci, dtype=np.int64), np.array(cj, dtype=np.int64)
+
+
+@njit(cache=True)
+def tangent_seeds(P, ci, cj, threshold, allowed):
     """Grid nodes where m = |1 + P|^2 / (1 + |P|^2) (scale-free, 0 only at roots) is a local minimum
     (8 neighbours) below ``threshold``, excluding nodes within one node of a cell of non-zero winding
-    (cells ci, cj)."""
+    (cells ci, cj) and nodes where ``allowed`` is False."""
     na, nv = P.shape
     m = np.empty((na, nv))
     for i in range(na):
@@ -97,7 +122,7 @@ def tangent_seeds(P, ci, cj, threshold):
     for i in range(na):
         for j in range(nv):
             x = m[i, j]
-            if x >= threshold or explained[i, j]:
+            if x >= threshold or explained[i, j] or not allowed[i, j]:
                 continue
             is_min = True
             for di in range(-1, 2):

@@ -6,18 +6,21 @@ import warnings
 
 import numpy as np
 
+from .._checks import finite
+from ._kernels import candidate_cells
+from .grid import STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
 from .plant import as_plant
-from .result import JumpCrossing, LimitCycle, LimitCycles
+from .result import GridReport, JumpCrossing, LimitCycle, LimitCycles
 from .roots import _JUMP_BOX, Residual, dominant_steps, find_roots
-from .stability import MARGINAL_TOL, loeb
+from .stability import MARGINAL_TOL, classify
 
 __all__ = ["predict_limit_cycles"]
 
 _MAX_REFINE_ROUNDS = 30
-_MAX_GRID = 50_000  # points per axis
-_MAX_GRID_POINTS = 4_000_000
+_MAX_GRID = 1_000_000  # points per axis of the initial grid
+_MAX_GRID_POINTS = 20_000_000  # points of the refined tensor grid of a frequency-dependent N
 _MIN_LOG_STEP = 1e-6  # grid intervals narrower than this (in ln A or ln w) are not split further
-_PHASE_STEP = np.pi / 3  # max turn of arg G, arg N (per half interval) or arg(G N) between neighbours
+_PHASE_STEP = np.pi / 3  # max turn of arg(G N) between neighbours (frequency-dependent N)
 _NEAR_UNIT = math.log(20.0)  # "near 1": 1/20 <= |G N| <= 20
 
 
@@ -42,6 +45,7 @@ def _grid_size(grid) -> tuple[int, int]:
         raise ValueError(f"grid must be a pair (n_amplitudes, n_frequencies); got {grid!r}") from None
     if na < 2 or nw < 2 or na > _MAX_GRID or nw > _MAX_GRID:
         raise ValueError(f"grid sizes must lie in [2, {_MAX_GRID}]; got {grid!r}")
+    check_memory(na, nw)
     return na, nw
 
 
@@ -94,34 +98,9 @@ def _split_mask(P: np.ndarray, axis: int, x: np.ndarray) -> np.ndarray:
     return np.any(bad, axis=1) & (np.diff(x) > _MIN_LOG_STEP)
 
 
-def _resolve_axis(f, x: np.ndarray) -> np.ndarray:
-    """Insert midpoints until arg f turns by at most pi/6 from each point to the next midpoint and on
-    to the next point (the midpoint test guards against whole turns between samples; bounded)."""
-    for _ in range(_MAX_REFINE_ROUNDS):
-        mid = (x[:-1] + x[1:]) / 2
-        fx, fm = f(x), f(mid)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t1 = np.abs(np.angle(fm / fx[:-1]))
-            t2 = np.abs(np.angle(fx[1:] / fm))
-        zero = (fx[:-1] == 0) | (fx[1:] == 0) | (fm == 0)
-        split = ~zero & ((t1 > _PHASE_STEP) | (t2 > _PHASE_STEP)) & (np.diff(x) > _MIN_LOG_STEP)
-        if not split.any():
-            return x
-        x = np.sort(np.concatenate([x, mid[split]]))
-        if x.size > _MAX_GRID:
-            raise RuntimeError(f"grid refinement exceeded max_grid={_MAX_GRID} points per axis; "
-                               "narrow the omega or amplitude window")
-    raise RuntimeError(f"grid refinement did not settle within max_rounds={_MAX_REFINE_ROUNDS}")
-
-
 def _resolve_grid(res: Residual, a: np.ndarray, v: np.ndarray):
-    """Refine the grid: first each factor on its own axis (G along w; N along A when amplitude-only,
-    which then also resolves arg(G N) = arg G + arg N), else G N on the tensor grid where |G N| is
-    near 1 (bounded)."""
-    v = _resolve_axis(lambda x: res.plant(np.exp(x)), v)
-    if not res.frequency_dependent:
-        a = _resolve_axis(lambda x: res.N(np.exp(x)), a)
-        return a, v, res.grid(a, v)
+    """Refine a tensor grid whose v axis already resolves G, for a frequency-dependent N: G N sampled
+    on the grid, intervals split where arg(G N) turns fast while |G N| is near 1 (bounded)."""
     for _ in range(_MAX_REFINE_ROUNDS):
         P = res.grid(a, v)
         split_a, split_v = _split_mask(P, 0, a), _split_mask(P, 1, v)
@@ -129,15 +108,10 @@ def _resolve_grid(res: Residual, a: np.ndarray, v: np.ndarray):
             return a, v, P
         a = np.sort(np.concatenate([a, (a[:-1] + a[1:])[split_a] / 2]))
         v = np.sort(np.concatenate([v, (v[:-1] + v[1:])[split_v] / 2]))
-        if a.size > _MAX_GRID or v.size > _MAX_GRID or a.size * v.size > _MAX_GRID_POINTS:
-            raise RuntimeError(f"grid refinement exceeded max_grid={_MAX_GRID} points per axis or "
-                               f"{_MAX_GRID_POINTS} in all; narrow the omega or amplitude window")
+        if a.size * v.size > _MAX_GRID_POINTS:
+            raise RuntimeError(f"grid refinement exceeded {_MAX_GRID_POINTS} points; narrow the omega or "
+                               "amplitude window")
     raise RuntimeError(f"grid refinement did not settle within max_rounds={_MAX_REFINE_ROUNDS}")
-
-
-def _classify(res, a, v, marginal_tol):
-    det, cond = loeb(res, a, v)
-    return det, cond, np.where(np.abs(cond) < marginal_tol, "marginal", np.where(det > 0, "stable", "unstable"))
 
 
 def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), tol: float = 1e-10,
@@ -185,9 +159,12 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     plant = as_plant(G)
     if not (callable(N) and hasattr(N, "frequency_dependent") and hasattr(N, "amplitude_domain")):
         raise ValueError(f"N must be a DescribingFunction; got {type(N).__name__}")
-    tol = float(tol)
+    tol = finite("tol", tol)
     if not (0 < tol < 1e-3):
         raise ValueError(f"tol must lie in (0, 1e-3); got {tol}")
+    marginal_tol = finite("marginal_tol", marginal_tol)
+    if not (0 <= marginal_tol < 1):
+        raise ValueError(f"marginal_tol must lie in [0, 1); got {marginal_tol}")
     na, nw = _grid_size(grid)
     res = Residual(plant, N)
 
@@ -202,13 +179,17 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     if w_lo < plant.domain[0] * (1 - 1e-12) or w_hi > plant.domain[1] * (1 + 1e-12):
         raise ValueError(f"omega window ({w_lo:g}, {w_hi:g}) leaves the plant's frequency range {plant.domain}")
     v_lo, v_hi = math.log(w_lo), math.log(w_hi)
-    features = np.log(plant.feature_frequencies[(plant.feature_frequencies > w_lo)
-                                                & (plant.feature_frequencies < w_hi)])
-    v = np.unique(np.concatenate([np.linspace(v_lo, v_hi, nw), features]))
+    v = np.linspace(v_lo, v_hi, nw)
+    if not plant.exact:  # rational plants need no hints: their grid is placed from the poles and zeros
+        features = plant.feature_frequencies[(plant.feature_frequencies > w_lo) & (plant.feature_frequencies < w_hi)]
+        v = np.unique(np.concatenate([v, np.log(features)]))
+    v, g, eps_v, n_eval = resolve_plant(plant, v)
+    if not np.any(g):
+        raise ValueError(f"G is zero at every frequency of the window ({w_lo:g}, {w_hi:g}) rad/s: no loop")
 
     dom = _amplitude_domain(N, v)
     if amplitude is None:
-        coarse = np.unique(np.concatenate([np.linspace(v_lo, v_hi, 100), features]))
+        coarse = v[np.unique(np.linspace(0, v.size - 1, min(v.size, 400)).astype(int))]
         (A_lo, A_hi), a_src = _default_amplitude_window(res, coarse, dom)
     else:
         A_lo, A_hi = _window("amplitude", amplitude)
@@ -221,11 +202,26 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
             raise ValueError(f"amplitude window {tuple(amplitude)} lies outside N's amplitude domain {dom}")
     a = np.linspace(math.log(A_lo), math.log(A_hi), na)
 
-    a, v, P = _resolve_grid(res, a, v)
+    if res.frequency_dependent:
+        a, v, P = _resolve_grid(res, a, v)
+        cells, a_rule, eps_a, n_cand = None, "2-D sampled", np.zeros(1), None
+    else:
+        a, n, eps_a, n_n = resolve_sampled(lambda A: res._n(A, None), a, "N along the amplitude")
+        n_eval += n_n
+        check_memory(a.size, v.size)
+        P = n[:, None] * g[None, :]
+        cells = candidate_cells(clog(n), eps_a, clog(g), eps_v)
+        a_rule, n_cand = "sampled", int(cells[0].size)
     if not np.any(P):
         raise ValueError("N is zero everywhere in the amplitude window: no limit cycle is possible")
-    ra, rv, jumps = find_roots(res, a, v, P, tol)
-    cycles = _build(res, ra, rv, (a[0], a[-1], v[0], v[-1]), marginal_tol)
+    report = GridReport(shape=(a.size, v.size), frequency_rule="exact" if plant.exact else "sampled",
+                        amplitude_rule=a_rule, max_step_frequency=largest_step(eps_v),
+                        max_step_amplitude=largest_step(eps_a),
+                        n_jumps=int(np.count_nonzero(eps_v > STEP) + np.count_nonzero(eps_a > STEP)),
+                        candidate_cells=n_cand, n_evaluations=int(n_eval))
+    window = (a[0], a[-1], v[0], v[-1])
+    ra, rv, jumps = find_roots(res, a, v, P, tol, cells)
+    cycles = _build(res, ra, rv, window, marginal_tol)
     crossings = _jump_crossings(res, jumps)
     if crossings:
         where = "; ".join(f"A={c.amplitude:.4g}, omega={c.frequency:.4g} rad/s" for c in crossings[:5])
@@ -233,7 +229,7 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
                       f"{where}{' ...' if len(crossings) > 5 else ''}; no limit cycle of the DF equation there "
                       "(see .jump_crossings)", stacklevel=2)
     return LimitCycles(cycles, (A_lo, A_hi), (w_lo, w_hi), {"amplitude": a_src, "omega": w_src},
-                       (a.size, v.size), res.n_points, crossings)
+                       (a.size, v.size), res.n_points, crossings, report)
 
 
 def _jump_crossings(res: Residual, jumps: np.ndarray) -> list[JumpCrossing]:
@@ -257,7 +253,7 @@ def _jump_crossings(res: Residual, jumps: np.ndarray) -> list[JumpCrossing]:
 def _build(res: Residual, ra, rv, bounds, marginal_tol) -> list[LimitCycle]:
     if ra.size == 0:
         return []
-    det, cond, label = _classify(res, ra, rv, marginal_tol)
+    det, cond, label = classify(res, ra, rv, marginal_tol)
     # a double root may be reached from several seeds: merge marginal roots closer than 1e-4 (log units)
     keep = np.ones(ra.size, bool)
     for i in range(ra.size):

@@ -30,7 +30,9 @@ _MAX_SEGMENTS = 4_000_000  # live edge segments at one level
 _FD_STEP = 1e-6  # central-difference step in log coordinates
 _MAX_LM_ITER = 100
 _POLISH = 1e-4  # refinement continues (while it improves) down to this fraction of the tolerance
-_MAX_ISOLATE_DEPTH = 30
+_MAX_ISOLATE_DEPTH = 40  # quadrisections of a box: 2**-40 of a grid cell, below any resolvable separation
+_MAX_LIVE_BOXES = 4096  # boxes alive at one level of one isolation; more means a curve of zeros, not points
+_MERGE_RADIUS = 1e-12  # refined points closer than this (log units) plus their uncertainty are one root
 _TANGENT_THRESHOLD = 0.1  # local minima of |R|^2 / (1 + |GN|^2) below this are searched for hidden roots
 _MAX_TANGENT_SEEDS = 5000
 _JUMP_LENGTH = 1e-9  # segments shorter than this (log units, i.e. relative in A and w) ...
@@ -93,14 +95,35 @@ class Residual:
             n = self._n(np.exp(a), None)[:, None]
         return n * g[None, :]
 
+    def slopes(self, a, v) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """P = G N and its derivatives dP/da, dP/dv at points (a, v) (1-D arrays, log coordinates).
+
+        dG/dv is exact for rational G (:meth:`Plant.log_slope`), a central difference otherwise; N is
+        differentiated by central differences of step ``_FD_STEP`` (log units).
+        """
+        a, v = np.broadcast_arrays(np.atleast_1d(np.asarray(a, float)), np.atleast_1d(np.asarray(v, float)))
+        k, h = a.size, _FD_STEP
+        A, w = np.exp(a), np.exp(v)
+        up, dn = np.exp(h), np.exp(-h)
+        if self.plant.exact:
+            g = self.plant(w)
+            g_v = g * self.plant.log_slope(w)
+        else:
+            gg = self.plant(np.concatenate([w, w * up, w * dn]))
+            g, g_v = gg[:k], (gg[k:2 * k] - gg[2 * k:]) / (2 * h)
+        if self.frequency_dependent:
+            nn = self._n(np.concatenate([A, A * up, A * dn, A, A]), np.concatenate([w, w, w, w * up, w * dn]))
+            n_v = (nn[3 * k:4 * k] - nn[4 * k:]) / (2 * h)
+        else:
+            nn = self._n(np.concatenate([A, A * up, A * dn]), None)
+            n_v = 0.0
+        self.n_points += nn.size
+        n, n_a = nn[:k], (nn[k:2 * k] - nn[2 * k:3 * k]) / (2 * h)
+        return g * n, g * n_a, g_v * n + g * n_v
+
     def jacobian(self, a: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """dR/da and dR/dv (complex) by central differences in log coordinates."""
-        h = _FD_STEP
-        k = a.size
-        aa = np.concatenate([a + h, a - h, a, a])
-        vv = np.concatenate([v, v, v + h, v - h])
-        p = self.terms(aa, vv)
-        return (p[:k] - p[k:2 * k]) / (2 * h), (p[2 * k:3 * k] - p[3 * k:]) / (2 * h)
+        """dR/da and dR/dv (complex) at points (a, v) (see :meth:`slopes`)."""
+        return self.slopes(a, v)[1:]
 
 
 class Box:
@@ -172,24 +195,43 @@ def edge_phases(res: Residual, a0, v0, a1, v1, P0, P1) -> tuple[np.ndarray, list
     return total, suspects, jumps
 
 
-def grid_windings(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray):
+def grid_windings(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, cells=None):
     """Cells of the tensor grid with non-zero winding of R (counter-clockwise in (a, v)).
 
     Phase steps between neighbouring nodes come from arg R at the nodes; only edges whose step exceeds
-    pi/2 (or touch a zero of R) are followed by adaptive bisection. Returns cell indices (i, j), their
+    pi/2 (or touch a zero of R) are followed by adaptive bisection. ``cells`` = (i, j) restricts the
+    work to those cells (all others are known to hold no root). Returns cell indices (i, j), their
     windings, and suspected roots on edges.
     """
-    R = 1.0 + P
-    ph_a, ph_v, ai, aj, vi, vj = edge_steps(np.angle(R), R, _SPLIT_PHASE)
+    if cells is None:
+        R = 1.0 + P
+        ph_a, ph_v, ai, aj, vi, vj = edge_steps(np.angle(R), R, _SPLIT_PHASE)
+        suspects = []
+        if ai.size:
+            ph_a[ai, aj], s1, _ = edge_phases(res, a[ai], v[aj], a[ai + 1], v[aj], P[ai, aj], P[ai + 1, aj])
+            suspects += s1
+        if vi.size:
+            ph_v[vi, vj], s2, _ = edge_phases(res, a[vi], v[vj], a[vi], v[vj + 1], P[vi, vj], P[vi, vj + 1])
+            suspects += s2
+        ii, jj, wind = nonzero_windings(ph_a, ph_v)
+        return ii, jj, wind, suspects
+    i, j = cells
+    # corners counter-clockwise: (i, j) -> (i+1, j) -> (i+1, j+1) -> (i, j+1) -> (i, j)
+    ci = np.concatenate([i, i + 1, i + 1, i])
+    cj = np.concatenate([j, j, j + 1, j + 1])
+    nxt = np.concatenate([np.arange(i.size, 4 * i.size), np.arange(i.size)])
+    Pc = P[ci, cj]
+    R0, R1 = 1.0 + Pc, 1.0 + Pc[nxt]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = np.angle(R1 / R0)
+    hard = (np.abs(d) > _SPLIT_PHASE) | (R0 == 0) | (R1 == 0)
     suspects = []
-    if ai.size:
-        ph_a[ai, aj], s1, _ = edge_phases(res, a[ai], v[aj], a[ai + 1], v[aj], P[ai, aj], P[ai + 1, aj])
-        suspects += s1
-    if vi.size:
-        ph_v[vi, vj], s2, _ = edge_phases(res, a[vi], v[vj], a[vi], v[vj + 1], P[vi, vj], P[vi, vj + 1])
-        suspects += s2
-    ii, jj, wind = nonzero_windings(ph_a, ph_v)
-    return ii, jj, wind, suspects
+    if hard.any():
+        d[hard], suspects, _ = edge_phases(res, a[ci[hard]], v[cj[hard]], a[ci[nxt][hard]], v[cj[nxt][hard]],
+                                           Pc[hard], Pc[nxt][hard])
+    wind = np.rint(d.reshape(4, i.size).sum(axis=0) / (2 * np.pi)).astype(int)
+    nz = wind != 0
+    return i[nz], j[nz], wind[nz], suspects
 
 
 def box_windings(res: Residual, box: Box) -> tuple[np.ndarray, list, list]:
@@ -205,13 +247,6 @@ def box_windings(res: Residual, box: Box) -> tuple[np.ndarray, list, list]:
     return np.rint(turn / (2 * np.pi)).astype(int), suspects, jumps
 
 
-def _with_slopes(res: Residual, a: np.ndarray, v: np.ndarray):
-    """P at (a, v) and forward-difference slopes dR/da, dR/dv there, in one evaluation."""
-    k, h = a.size, _FD_STEP
-    p = res.terms(np.concatenate([a, a + h, a]), np.concatenate([v, v, v + h]))
-    return p[:k], (p[k:2 * k] - p[:k]) / h, (p[2 * k:] - p[:k]) / h
-
-
 def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Levenberg-Marquardt on (Re R, Im R) from (a, v), each point clipped to its box.
 
@@ -220,7 +255,7 @@ def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.nd
     Bounded by 100 iterations.
     """
     a, v = np.array(a, float), np.array(v, float)
-    P, ra, rv = _with_slopes(res, a, v)
+    P, ra, rv = res.slopes(a, v)
     rel = np.abs(1 + P) / (1 + np.abs(P))
     lam = np.full(a.size, 1e-12)
     polish = tol * _POLISH  # keep going past tol while it pays: flat residuals need it for position
@@ -247,7 +282,7 @@ def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.nd
         da, dv = np.where(ok_step, da, 0.0), np.where(ok_step, dv, 0.0)
         at = np.clip(a[act] + da, box.a_lo[act], box.a_hi[act])
         vt = np.clip(v[act] + dv, box.v_lo[act], box.v_hi[act])
-        Pt, rat, rvt = _with_slopes(res, at, vt)
+        Pt, rat, rvt = res.slopes(at, vt)
         relt = np.abs(1 + Pt) / (1 + np.abs(Pt))
         better = (relt < rel[act]) & ok_step
         pinned = ((at == box.a_lo[act]) | (at == box.a_hi[act]) | (vt == box.v_lo[act]) | (vt == box.v_hi[act]))
@@ -306,6 +341,12 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
         for sa, sv in suspects:
             keep |= kids.contains(sa, sv)
         queue = kids.take(keep)
+        if len(queue) > _MAX_LIVE_BOXES:
+            check_continuum(res, (queue.a_lo + queue.a_hi) / 2, (queue.v_lo + queue.v_hi) / 2, window, tol)
+            raise RuntimeError(f"root isolation kept {len(queue)} boxes alive (bound {_MAX_LIVE_BOXES}) without "
+                               "isolating the roots; narrow the window around "
+                               f"A in [{np.exp(queue.a_lo.min()):.6g}, {np.exp(queue.a_hi.max()):.6g}], omega in "
+                               f"[{np.exp(queue.v_lo.min()):.6g}, {np.exp(queue.v_hi.max()):.6g}] rad/s")
     if len(queue):
         # bound reached: what is left is a multiple (e.g. tangent) root smaller than the box size
         a, v, ok = refine(res, (queue.a_lo + queue.a_hi) / 2, (queue.v_lo + queue.v_hi) / 2,
@@ -313,6 +354,73 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
         found_a.extend(a[ok])
         found_v.extend(v[ok])
     return found_a, found_v, crossings
+
+
+_DEGENERATE_SIN = 1e-4  # |sin| of the crossing angle below which a root is checked for a curve of zeros
+_MAX_WALK = 60  # predictor-corrector steps along a curve of zeros, each way
+_MAX_WALK_ROOTS = 4  # degenerate roots walked from
+
+
+def _null_direction(ra: complex, rv: complex) -> np.ndarray:
+    """Unit vector (da, dv) along which R does not change to first order (smallest singular vector)."""
+    J = np.array([[ra.real, rv.real], [ra.imag, rv.imag]])
+    return np.linalg.svd(J)[2][-1]
+
+
+def check_continuum(res: Residual, a: np.ndarray, v: np.ndarray, window: Box, tol: float,
+                    refined: bool = False) -> None:
+    """Raise ValueError when points near (a, v) lie on a whole curve of zeros of R (a continuum of
+    solutions, where G(jw) lies on -1/N): no isolated limit cycle exists there.
+
+    From up to ``_MAX_WALK_ROOTS`` points whose refined root has a degenerate Jacobian (|sin| of the angle
+    between dR/da and dR/dv below ``_DEGENERATE_SIN``), walk along the null direction of the Jacobian by
+    predictor-corrector steps (each corrected by :func:`refine` in a box that excludes the previous point).
+    Three consecutive successful steps make a curve: an isolated (tangent) root has no neighbour. Bounded
+    by ``_MAX_WALK`` steps each way.
+    """
+    a, v = np.asarray(a, float), np.asarray(v, float)
+    if a.size == 0:
+        return
+    pick = np.unique(np.linspace(0, a.size - 1, min(a.size, 16)).astype(int))
+    ext = max(window.a_hi[0] - window.a_lo[0], window.v_hi[0] - window.v_lo[0])
+    if refined:
+        ra_, rv_ = a[pick], v[pick]
+    else:
+        ra_, rv_, ok = refine(res, a[pick], v[pick], window.take(np.zeros(pick.size, int)), tol)
+        ra_, rv_ = ra_[ok], rv_[ok]
+    if ra_.size == 0:
+        return
+    _, da, dv = res.slopes(ra_, rv_)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sin = np.abs(da.real * dv.imag - dv.real * da.imag) / (np.abs(da) * np.abs(dv))
+    sin = np.where(np.isfinite(sin), sin, 0.0)
+    for k in np.flatnonzero(sin < _DEGENERATE_SIN)[:_MAX_WALK_ROOTS]:
+        visited = [(ra_[k], rv_[k])]
+        for sign in (1.0, -1.0):
+            pos, d, step = np.array([ra_[k], rv_[k]]), sign * _null_direction(da[k], dv[k]), 1e-3 * ext
+            for _ in range(_MAX_WALK):
+                trial = pos + step * d
+                box = Box(trial[0] - step / 2, trial[0] + step / 2, trial[1] - step / 2, trial[1] + step / 2)
+                box = Box(np.maximum(box.a_lo, window.a_lo), np.minimum(box.a_hi, window.a_hi),
+                          np.maximum(box.v_lo, window.v_lo), np.minimum(box.v_hi, window.v_hi))
+                if box.a_lo[0] >= box.a_hi[0] or box.v_lo[0] >= box.v_hi[0]:
+                    break
+                na_, nv_, good = refine(res, trial[:1], trial[1:], box, tol)
+                new = np.array([na_[0], nv_[0]])
+                if not good[0] or np.max(np.abs(new - pos)) < step / 4:
+                    break
+                _, ja, jv = res.slopes(new[:1], new[1:])
+                nd = _null_direction(ja[0], jv[0])
+                d, pos, step = (nd if nd @ d >= 0 else -nd), new, min(2 * step, 0.05 * ext)
+                visited.append(tuple(new))
+        if len(visited) >= 4:
+            pa, pv = np.exp(np.array(visited).T)
+            raise ValueError(
+                "continuum of solutions: 1 + G(jw) N(A, w) = 0 along a whole curve through "
+                f"A in [{pa.min():.6g}, {pa.max():.6g}] and omega in [{pv.min():.6g}, {pv.max():.6g}] rad/s "
+                "(G(jw) lies on the -1/N locus there, so the describing-function equation has no isolated "
+                "limit cycle; the curve may continue beyond the points followed). Exclude it with the "
+                "amplitude= or omega= window, or perturb the loop.")
 
 
 def _merge_crossings(crossings: list) -> np.ndarray:
@@ -327,19 +435,19 @@ def _merge_crossings(crossings: list) -> np.ndarray:
 def merge(res: Residual, a: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Merge refined points that are the same root; sorted by v.
 
-    Two points are the same root when closer (max norm, log coordinates) than 1e-6 plus four times
+    Two points are the same root when closer (max norm, log coordinates) than 1e-12 plus four times
     their position uncertainties |R| / s_min(J), s_min the smaller singular value of the Jacobian.
     """
     order = np.lexsort((a, v))
     a, v = a[order], v[order]
     if a.size < 2:
         return a, v
-    P, ra, rv = _with_slopes(res, a, v)
+    P, ra, rv = res.slopes(a, v)
     jaa, jvv, jav = np.abs(ra) ** 2, np.abs(rv) ** 2, (ra.conj() * rv).real
     half_tr, det = (jaa + jvv) / 2, jaa * jvv - jav ** 2
     s_min = np.sqrt(np.maximum(half_tr - np.sqrt(np.maximum(half_tr ** 2 - det, 0)), 0))
     with np.errstate(divide="ignore", invalid="ignore"):
-        radius = 1e-6 + 4 * np.where(s_min > 0, np.abs(1 + P) / s_min, np.inf)
+        radius = _MERGE_RADIUS + 4 * np.where(s_min > 0, np.abs(1 + P) / s_min, np.inf)
     radius = np.minimum(radius, 1e-2)
     keep: list[int] = []
     for k in range(a.size):
@@ -380,14 +488,22 @@ def _node_boxes(a: np.ndarray, v: np.ndarray, i: np.ndarray, j: np.ndarray, n: i
                v[np.maximum(j - n, 0)], v[np.minimum(j + n, v.size - 1)])
 
 
-def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: float):
+def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: float, cells=None):
     """All roots of R in the window spanned by the grid (a, v) with loop products P = G N on it.
 
+    ``cells`` = (i, j): the only cells that can hold a root (see ``candidate_cells``); None for all.
     Returns arrays (a, v) of refined roots (|R| <= tol (1 + |GN|)), merged and sorted by frequency,
-    and the jump crossings of N as rows (a, v, winding) sorted by frequency.
+    and the jump crossings of N as rows (a, v, winding) sorted by frequency. Raises ValueError when
+    the roots form a continuum (:func:`check_continuum`).
     """
     window = Box(a[0], a[-1], v[0], v[-1])
-    ii, jj, wind, suspects = grid_windings(res, a, v, P)
+    ii, jj, wind, suspects = grid_windings(res, a, v, P, cells)
+    allowed = np.ones(P.shape, bool)
+    if cells is not None:
+        allowed[:] = False
+        for di in (0, 1):
+            for dj in (0, 1):
+                allowed[cells[0] + di, cells[1] + dj] = True
     cells = Box(a[ii], a[ii + 1], v[jj], v[jj + 1])
     single = np.abs(wind) == 1
     roots_a, roots_v, crossings = [], [], []
@@ -415,7 +531,7 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
         roots_a.extend(xa[ok])
         roots_v.extend(xv[ok])
     # tangent-like pairs cancel in a cell's winding: search from local minima of the relative residual
-    si, sj, sm = tangent_seeds(P, ii, jj, _TANGENT_THRESHOLD)
+    si, sj, sm = tangent_seeds(P, ii, jj, _TANGENT_THRESHOLD, allowed)
     if si.size > _MAX_TANGENT_SEEDS:
         best = np.argsort(sm)[:_MAX_TANGENT_SEEDS]
         si, sj = si[best], sj[best]
@@ -435,7 +551,7 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
                 getattr(sbox, name)[retry] = getattr(wide, name)
         known_a, known_v = np.asarray(roots_a), np.asarray(roots_v)
         for k in np.flatnonzero(ok):
-            if known_a.size and np.min(np.maximum(np.abs(known_a - ta[k]), np.abs(known_v - tv[k]))) < 1e-5:
+            if known_a.size and np.min(np.maximum(np.abs(known_a - ta[k]), np.abs(known_v - tv[k]))) < 1e-10:
                 continue
             # a root the windings did not show: isolate everything in its neighbourhood
             fa, fv, fc = _isolate(res, sbox.take([k]), window, tol, hint=(ta[k], tv[k]))
@@ -444,4 +560,5 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
             crossings.extend(fc)
     if not roots_a:
         return np.empty(0), np.empty(0), _merge_crossings(crossings)
+    check_continuum(res, np.asarray(roots_a), np.asarray(roots_v), window, tol, refined=True)
     return (*merge(res, np.asarray(roots_a), np.asarray(roots_v)), _merge_crossings(crossings))
