@@ -247,11 +247,25 @@ def box_windings(res: Residual, box: Box) -> tuple[np.ndarray, list, list]:
     return np.rint(turn / (2 * np.pi)).astype(int), suspects, jumps
 
 
+def at_rounding_level(P, P_a, P_v, a, v) -> np.ndarray:
+    """Whether the Newton step J^-1 R at (a, v) is below the rounding of a and v (64 unit roundoffs):
+    the root is then located as well as double precision allows, even where |1 + G N| cannot reach
+    tol (1 + |G N|) because R turns too steeply (e.g. a resonance of damping 1e-9: |dR/d ln w| ~ 1e9)."""
+    r = 1 + P
+    det = P_a.real * P_v.imag - P_v.real * P_a.imag
+    with np.errstate(divide="ignore", invalid="ignore"):
+        da = (P_v.imag * r.real - P_v.real * r.imag) / det
+        dv = (P_a.real * r.imag - P_a.imag * r.real) / det
+    lim = 64 * np.finfo(float).eps
+    return (np.abs(da) <= lim * (1 + np.abs(a))) & (np.abs(dv) <= lim * (1 + np.abs(v)))
+
+
 def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Levenberg-Marquardt on (Re R, Im R) from (a, v), each point clipped to its box.
 
     Every trial point is evaluated together with its finite-difference neighbours, so an accepted step
-    costs one call. Returns the final (a, v) and a mask of points with |R| <= tol (1 + |G N|).
+    costs one call. Returns the final (a, v) and a mask of points with |R| <= tol (1 + |G N|) or
+    a Newton step at the rounding level of (a, v) (:func:`at_rounding_level`).
     Bounded by 100 iterations.
     """
     a, v = np.array(a, float), np.array(v, float)
@@ -259,7 +273,7 @@ def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.nd
     rel = np.abs(1 + P) / (1 + np.abs(P))
     lam = np.full(a.size, 1e-12)
     polish = tol * _POLISH  # keep going past tol while it pays: flat residuals need it for position
-    done = rel <= polish
+    done = (rel <= polish) | at_rounding_level(P, ra, rv, a, v)
     failed = np.zeros(a.size, bool)
     for _ in range(_MAX_LM_ITER):
         act = np.flatnonzero(~done & ~failed)
@@ -272,8 +286,9 @@ def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.nd
         jav = (ja.conj() * jv).real
         ga = (ja.conj() * r).real
         gv = (jv.conj() * r).real
-        damp = lam[act] * (jaa + jvv)
-        m11, m22 = jaa + damp, jvv + damp
+        # Marquardt's diagonal damping: invariant under rescaling either coordinate (a resonance makes
+        # |dR/dv| 1e9 times |dR/da|, which an isotropic damping would let freeze the a-step)
+        m11, m22 = jaa * (1 + lam[act]), jvv * (1 + lam[act])
         det = m11 * m22 - jav ** 2
         with np.errstate(divide="ignore", invalid="ignore"):
             da = -(m22 * ga - jav * gv) / det
@@ -294,9 +309,9 @@ def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.nd
         ra[acc], rv[acc] = rat[better], rvt[better]
         lam[acc] = np.maximum(lam[acc] / 10, 1e-15)
         lam[rej] *= 100
-        done = rel <= polish
+        done = (rel <= polish) | at_rounding_level(P, ra, rv, a, v)
         failed |= (lam > 1e8) & ~done
-    return a, v, rel <= tol
+    return a, v, (rel <= tol) | at_rounding_level(P, ra, rv, a, v)
 
 
 def _touches(box: Box, points: list) -> np.ndarray:
