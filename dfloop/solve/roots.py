@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..describing.base import DescribingFunction
+from .errors import ContinuumError
 from ._kernels import edge_steps, nonzero_windings, tangent_seeds
 from .plant import Plant
 
@@ -32,6 +33,7 @@ _MAX_LM_ITER = 100
 _POLISH = 1e-4  # refinement continues (while it improves) down to this fraction of the tolerance
 _MAX_ISOLATE_DEPTH = 40  # quadrisections of a box: 2**-40 of a grid cell, below any resolvable separation
 _MAX_LIVE_BOXES = 4096  # boxes alive at one level of one isolation; more means a curve of zeros, not points
+_EARLY_CONTINUUM_CHECK = 64  # edge zeros + multiple windings on the grid beyond which a continuum is sought first
 _MERGE_RADIUS = 1e-12  # refined points closer than this (log units) plus their uncertainty are one root
 _TANGENT_THRESHOLD = 0.1  # local minima of |R|^2 / (1 + |GN|^2) below this are searched for hidden roots
 _MAX_TANGENT_SEEDS = 5000
@@ -353,8 +355,10 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
         keep &= ~crossing
         if hint is not None:
             keep |= (wind == 0) & kids.contains(*hint)
-        for sa, sv in suspects:
-            keep |= kids.contains(sa, sv)
+        if len(suspects) > _MAX_LIVE_BOXES:  # zeros on that many edges: a curve of zeros, not points
+            sa, sv = np.array(suspects).T
+            check_continuum(res, sa, sv, window, tol)
+        keep |= _touches(kids, suspects[:_MAX_LIVE_BOXES])
         queue = kids.take(keep)
         if len(queue) > _MAX_LIVE_BOXES:
             check_continuum(res, (queue.a_lo + queue.a_hi) / 2, (queue.v_lo + queue.v_hi) / 2, window, tol)
@@ -384,7 +388,7 @@ def _null_direction(ra: complex, rv: complex) -> np.ndarray:
 
 def check_continuum(res: Residual, a: np.ndarray, v: np.ndarray, window: Box, tol: float,
                     refined: bool = False) -> None:
-    """Raise ValueError when points near (a, v) lie on a whole curve of zeros of R (a continuum of
+    """Raise :class:`ContinuumError` (a ValueError) when points near (a, v) lie on a whole curve of zeros of R (a continuum of
     solutions, where G(jw) lies on -1/N): no isolated limit cycle exists there.
 
     From up to ``_MAX_WALK_ROOTS`` points whose refined root has a degenerate Jacobian (|sin| of the angle
@@ -430,12 +434,7 @@ def check_continuum(res: Residual, a: np.ndarray, v: np.ndarray, window: Box, to
                 visited.append(tuple(new))
         if len(visited) >= 4:
             pa, pv = np.exp(np.array(visited).T)
-            raise ValueError(
-                "continuum of solutions: 1 + G(jw) N(A, w) = 0 along a whole curve through "
-                f"A in [{pa.min():.6g}, {pa.max():.6g}] and omega in [{pv.min():.6g}, {pv.max():.6g}] rad/s "
-                "(G(jw) lies on the -1/N locus there, so the describing-function equation has no isolated "
-                "limit cycle; the curve may continue beyond the points followed). Exclude it with the "
-                "amplitude= or omega= window, or perturb the loop.")
+            raise ContinuumError((float(pa.min()), float(pa.max())), (float(pv.min()), float(pv.max())))
 
 
 def _merge_crossings(crossings: list) -> np.ndarray:
@@ -513,6 +512,10 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
     """
     window = Box(a[0], a[-1], v[0], v[-1])
     ii, jj, wind, suspects = grid_windings(res, a, v, P, cells)
+    if len(suspects) + np.count_nonzero(np.abs(wind) > 1) > _EARLY_CONTINUUM_CHECK:
+        # many zeros on grid edges or multiple windings: look for a curve of zeros before isolating
+        pts = np.array(suspects + list(zip((a[ii] + a[ii + 1]) / 2, (v[jj] + v[jj + 1]) / 2))).T
+        check_continuum(res, pts[0], pts[1], window, tol)
     allowed = np.ones(P.shape, bool)
     if cells is not None:
         allowed[:] = False
