@@ -60,7 +60,7 @@ def _amplitude_domain(N, v: np.ndarray) -> tuple[float, float]:
 def _default_amplitude_window(res: Residual, v: np.ndarray, dom: tuple[float, float]):
     """Amplitudes where |G N| = 1 can hold for some w of the window (the only place for roots)."""
     lo, hi = dom
-    cand = lo * (1 + np.logspace(-9, 8, 171)) if lo > 0 else np.logspace(-12, 12, 241)
+    cand = lo * (1 + np.logspace(-9, 8, 171)) if lo > 0 else np.logspace(-30, 30, 601)
     if math.isfinite(hi):
         cand = np.concatenate([cand, hi * (1 - np.logspace(-9, -0.3, 88))])
     cand = np.unique(cand[(cand > lo) & (cand < hi)])
@@ -189,8 +189,10 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
 
     dom = _amplitude_domain(N, v)
     if amplitude is None:
-        coarse = v[np.unique(np.linspace(0, v.size - 1, min(v.size, 400)).astype(int))]
-        (A_lo, A_hi), a_src = _default_amplitude_window(res, coarse, dom)
+        # every node of G's resolved grid (|G| changes by at most a factor e^STEP between them), so a
+        # narrow resonance peak is seen; a frequency-dependent N is sampled on a subset
+        sub = v if not res.frequency_dependent else v[np.unique(np.linspace(0, v.size - 1, min(v.size, 400)).astype(int))]
+        (A_lo, A_hi), a_src = _default_amplitude_window(res, sub, dom)
     else:
         A_lo, A_hi = _window("amplitude", amplitude)
         a_src = "given"

@@ -250,7 +250,8 @@ def box_windings(res: Residual, box: Box) -> tuple[np.ndarray, list, list]:
 
 
 def at_rounding_level(P, P_a, P_v, a, v) -> np.ndarray:
-    """Whether the Newton step J^-1 R at (a, v) is below the rounding of a and v (64 unit roundoffs):
+    """Whether the Newton step J^-1 R at (a, v) is below the rounding of a and v (8 float spacings, plus
+    what the rounding of the other coordinate implies through their coupling):
     the root is then located as well as double precision allows, even where |1 + G N| cannot reach
     tol (1 + |G N|) because R turns too steeply (e.g. a resonance of damping 1e-9: |dR/d ln w| ~ 1e9)."""
     r = 1 + P
@@ -258,8 +259,20 @@ def at_rounding_level(P, P_a, P_v, a, v) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         da = (P_v.imag * r.real - P_v.real * r.imag) / det
         dv = (P_a.real * r.imag - P_a.imag * r.real) / det
-    lim = 64 * np.finfo(float).eps
-    return (np.abs(da) <= lim * (1 + np.abs(a))) & (np.abs(dv) <= lim * (1 + np.abs(v)))
+    # the best a for a given v moves by -(Re(conj(R_a) R_v) / |R_a|^2) per unit of v (and symmetrically):
+    # the rounding of one coordinate limits the other through that coupling
+    with np.errstate(divide="ignore", invalid="ignore"):
+        jav = (P_a.conj() * P_v).real
+        ka, kv = np.abs(jav / np.abs(P_a) ** 2), np.abs(jav / np.abs(P_v) ** 2)
+    ua, uv = 8 * _rounding(a), 8 * _rounding(v)
+    ka, kv = np.where(np.isfinite(ka), ka, 0.0), np.where(np.isfinite(kv), kv, 0.0)
+    return (np.abs(da) <= ua + ka * uv) & (np.abs(dv) <= uv + kv * ua)
+
+
+def _rounding(x: np.ndarray) -> np.ndarray:
+    """The rounding unit of log coordinates x: their float spacing, at least one roundoff (exp(x)
+    carries a relative error of that size however small x is)."""
+    return np.maximum(np.spacing(np.abs(x)), np.finfo(float).eps)
 
 
 def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -297,6 +310,15 @@ def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.nd
             dv = -(m11 * gv - jav * ga) / det
         ok_step = np.isfinite(da) & np.isfinite(dv)
         da, dv = np.where(ok_step, da, 0.0), np.where(ok_step, dv, 0.0)
+        # a step below the rounding of its coordinate only flips between neighbouring floats: drop it so
+        # the other coordinate can converge (a root between two adjacent floats of ln w at a resonance)
+        # (then the step of the other coordinate alone is taken)
+        fine_a = np.abs(da) <= 2 * _rounding(a[act])
+        fine_v = np.abs(dv) <= 2 * _rounding(v[act])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            da = np.where(fine_a, 0.0, np.where(fine_v, -ga / jaa, da))
+            dv = np.where(fine_v, 0.0, np.where(fine_a, -gv / jvv, dv))
+        da, dv = np.where(np.isfinite(da), da, 0.0), np.where(np.isfinite(dv), dv, 0.0)
         at = np.clip(a[act] + da, box.a_lo[act], box.a_hi[act])
         vt = np.clip(v[act] + dv, box.v_lo[act], box.v_hi[act])
         Pt, rat, rvt = res.slopes(at, vt)
@@ -304,7 +326,9 @@ def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.nd
         better = (relt < rel[act]) & ok_step
         pinned = ((at == box.a_lo[act]) | (at == box.a_hi[act]) | (vt == box.v_lo[act]) | (vt == box.v_hi[act]))
         # converging to a non-zero minimum, or pressed against the box towards a root outside it
-        stalled = better & ((relt > (1 - 1e-3) * rel[act]) | (pinned & (relt > 0.5 * rel[act])))
+        # (a slow decrease with a sizeable step is not a stall: the other coordinate is still converging)
+        small = (np.abs(da) <= 1e-9 * (1 + np.abs(a[act]))) & (np.abs(dv) <= 1e-9 * (1 + np.abs(v[act])))
+        stalled = better & (((relt > (1 - 1e-3) * rel[act]) & small) | (pinned & (relt > 0.5 * rel[act])))
         acc, rej = act[better], act[~better]
         failed[act[stalled]] = True
         a[acc], v[acc], P[acc], rel[acc] = at[better], vt[better], Pt[better], relt[better]
@@ -567,11 +591,9 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
             ta[retry], tv[retry], ok[retry] = refine(res, a[si[retry]], v[sj[retry]], wide, tol)
             for name in ("a_lo", "a_hi", "v_lo", "v_hi"):
                 getattr(sbox, name)[retry] = getattr(wide, name)
-        known_a, known_v = np.asarray(roots_a), np.asarray(roots_v)
         for k in np.flatnonzero(ok):
-            if known_a.size and np.min(np.maximum(np.abs(known_a - ta[k]), np.abs(known_v - tv[k]))) < 1e-10:
-                continue
-            # a root the windings did not show: isolate everything in its neighbourhood
+            # a root the windings did not show (or showed only on a grid edge, where its partner of opposite
+            # degree may hide in the same cell): isolate everything in its neighbourhood
             fa, fv, fc = _isolate(res, sbox.take([k]), window, tol, hint=(ta[k], tv[k]))
             roots_a.extend(fa + [ta[k]])
             roots_v.extend(fv + [tv[k]])
