@@ -11,7 +11,7 @@ from ._kernels import candidate_cells
 from .grid import STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
 from .plant import as_plant
 from .result import GridReport, JumpCrossing, LimitCycle, LimitCycles
-from .roots import _JUMP_BOX, Residual, dominant_steps, find_roots
+from .roots import _JUMP_BOX, Residual, dominant_steps, find_roots, greedy_unique
 from .stability import MARGINAL_TOL, classify
 
 __all__ = ["predict_limit_cycles"]
@@ -64,13 +64,24 @@ def _default_amplitude_window(res: Residual, v: np.ndarray, dom: tuple[float, fl
     if math.isfinite(hi):
         cand = np.concatenate([cand, hi * (1 - np.logspace(-9, -0.3, 88))])
     cand = np.unique(cand[(cand > lo) & (cand < hi)])
-    P = res.grid(np.log(cand), v)
-    if not np.any(P):
-        raise ValueError("N is zero everywhere in its amplitude domain: no limit cycle is possible")
-    M = np.abs(P)
-    band = np.any((M >= 0.5) & (M <= 2.0), axis=1)
-    cross = np.any((M[1:] - 1) * (M[:-1] - 1) < 0, axis=1)
-    varying = np.any(np.abs(np.diff(P, axis=0)) > 1e-9 * np.abs(P[:-1]), axis=1)
+    if res.frequency_dependent:
+        P = res.grid(np.log(cand), v)
+        if not np.any(P):
+            raise ValueError("N is zero everywhere in its amplitude domain: no limit cycle is possible")
+        M = np.abs(P)
+        band = np.any((M >= 0.5) & (M <= 2.0), axis=1)
+        cross = np.any((M[1:] - 1) * (M[:-1] - 1) < 0, axis=1)
+        varying = np.any(np.abs(np.diff(P, axis=0)) > 1e-9 * np.abs(P[:-1]), axis=1)
+    else:  # |G N| = |N| |G| and |G| takes every value between its extremes over the window
+        n = res.N(cand)
+        if not np.any(n):
+            raise ValueError("N is zero everywhere in its amplitude domain: no limit cycle is possible")
+        g = np.abs(res.plant(np.exp(v)))
+        g_lo, g_hi = g.min(), g.max()
+        m = np.abs(n)
+        band = (m * g_lo <= 2.0) & (m * g_hi >= 0.5)
+        cross = (np.minimum(m[1:], m[:-1]) * g_lo <= 1.0) & (np.maximum(m[1:], m[:-1]) * g_hi >= 1.0)
+        varying = np.abs(np.diff(n)) > 1e-9 * np.abs(n[:-1])
     rows = np.zeros(cand.size, bool)
     rows[:-1] |= (band[:-1] | cross) & varying
     rows[1:] |= (band[1:] | cross) & varying
@@ -189,8 +200,8 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
 
     dom = _amplitude_domain(N, v)
     if amplitude is None:
-        # every node of G's resolved grid (|G| changes by at most a factor e^STEP between them), so a
-        # narrow resonance peak is seen; a frequency-dependent N is sampled on a subset
+        # every node of G's resolved grid (|G| changes by at most a factor e^STEP between them, well inside
+        # the band 1/2..2 used), so a narrow resonance peak is seen; a frequency-dependent N on a subset
         sub = v if not res.frequency_dependent else v[np.unique(np.linspace(0, v.size - 1, min(v.size, 400)).astype(int))]
         (A_lo, A_hi), a_src = _default_amplitude_window(res, sub, dom)
     else:
@@ -258,10 +269,10 @@ def _build(res: Residual, ra, rv, bounds, marginal_tol) -> list[LimitCycle]:
     det, cond, label = classify(res, ra, rv, marginal_tol)
     # a double root may be reached from several seeds: merge marginal roots closer than 1e-4 (log units)
     keep = np.ones(ra.size, bool)
-    for i in range(ra.size):
-        for j in range(i):
-            if keep[j] and label[i] == label[j] == "marginal" and max(abs(ra[i] - ra[j]), abs(rv[i] - rv[j])) < 1e-4:
-                keep[i] = False
+    marg = np.flatnonzero(label == "marginal")
+    if marg.size > 1:
+        keep[marg] = False
+        keep[marg[greedy_unique(ra[marg], rv[marg], 0.5e-4)]] = True
     ra, rv, det, cond, label = ra[keep], rv[keep], det[keep], cond[keep], label[keep]
     A, w = np.exp(ra), np.exp(rv)
     g = res.plant(w)

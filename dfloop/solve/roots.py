@@ -23,7 +23,7 @@ from .errors import ContinuumError
 from ._kernels import edge_steps, nonzero_windings, tangent_seeds
 from .plant import Plant
 
-__all__ = ["Residual", "Box", "find_roots", "dominant_steps"]
+__all__ = ["Residual", "Box", "find_roots", "dominant_steps", "greedy_unique"]
 
 _SPLIT_PHASE = np.pi / 2  # an edge step whose phase change exceeds this is bisected
 _MAX_EDGE_DEPTH = 50  # bisection levels along an edge (2**-50 of its length)
@@ -487,12 +487,23 @@ def merge(res: Residual, a: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.n
     with np.errstate(divide="ignore", invalid="ignore"):
         radius = _MERGE_RADIUS + 4 * np.where(s_min > 0, np.abs(1 + P) / s_min, np.inf)
     radius = np.minimum(radius, 1e-2)
-    keep: list[int] = []
-    for k in range(a.size):
-        if any(max(abs(a[k] - a[m]), abs(v[k] - v[m])) <= radius[k] + radius[m] for m in keep):
-            continue
-        keep.append(k)
+    keep = greedy_unique(a, v, radius)
     return a[keep], v[keep]
+
+
+def greedy_unique(a: np.ndarray, v: np.ndarray, radius) -> np.ndarray:
+    """Indices of points kept in order, dropping each point within radius[k] + radius[m] (max norm) of
+    an earlier kept point m. Vectorised over pairs (the python loop runs only over points with a
+    neighbour)."""
+    radius = np.broadcast_to(np.asarray(radius, float), a.shape)
+    close = (np.maximum(np.abs(a[:, None] - a[None, :]), np.abs(v[:, None] - v[None, :]))
+             <= radius[:, None] + radius[None, :])
+    np.fill_diagonal(close, False)
+    keep = np.ones(a.size, bool)
+    for k in np.flatnonzero(close.any(axis=1)):
+        if keep[k] and close[k, :k][keep[:k]].any():
+            keep[k] = False
+    return np.flatnonzero(keep)
 
 
 def _linear_guess(P: np.ndarray, i: np.ndarray, j: np.ndarray, cells: Box) -> tuple[np.ndarray, np.ndarray]:
