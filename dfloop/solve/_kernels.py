@@ -106,12 +106,17 @@ def tangent_seeds(P, ci, cj, threshold, allowed):
     (8 neighbours) below ``threshold``, excluding nodes within one node of a cell of non-zero winding
     (cells ci, cj) and nodes where ``allowed`` is False."""
     na, nv = P.shape
-    m = np.empty((na, nv))
+    m = np.full((na, nv), np.inf)  # filled only around allowed nodes (all a local-minimum test reads)
     for i in range(na):
         for j in range(nv):
-            pr, pi = P[i, j].real, P[i, j].imag
-            q = pr * pr + pi * pi
-            m[i, j] = (q + 2.0 * pr + 1.0) / (1.0 + q)
+            if not allowed[i, j]:
+                continue
+            for ii in range(max(i - 1, 0), min(i + 2, na)):
+                for jj in range(max(j - 1, 0), min(j + 2, nv)):
+                    if m[ii, jj] == np.inf:
+                        pr, pi = P[ii, jj].real, P[ii, jj].imag
+                        q = pr * pr + pi * pi
+                        m[ii, jj] = (q + 2.0 * pr + 1.0) / (1.0 + q)
     explained = np.zeros((na, nv), dtype=np.bool_)
     for k in range(ci.size):
         for i in range(max(ci[k] - 1, 0), min(ci[k] + 3, na)):

@@ -217,7 +217,7 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
 
     if res.frequency_dependent:
         a, v, P = _resolve_grid(res, a, v)
-        cells, a_rule, eps_a, n_cand = None, "2-D sampled", np.zeros(1), None
+        cells, a_rule, eps_a, n_cand, n = None, "2-D sampled", np.zeros(1), None, None
     else:
         a, n, eps_a, n_n = resolve_sampled(lambda A: res._n(A, None), a, "N along the amplitude")
         n_eval += n_n
@@ -225,7 +225,7 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
         P = n[:, None] * g[None, :]
         cells = candidate_cells(clog(n), eps_a, clog(g), eps_v)
         a_rule, n_cand = "sampled", int(cells[0].size)
-    if not np.any(P):
+    if not (np.any(n) if not res.frequency_dependent else np.any(P)):
         raise ValueError("N is zero everywhere in the amplitude window: no limit cycle is possible")
     report = GridReport(shape=(a.size, v.size), frequency_rule="exact" if plant.exact else "sampled",
                         amplitude_rule=a_rule, max_step_frequency=largest_step(eps_v),
