@@ -16,7 +16,6 @@ excluded by that certificate, so its winding number is exactly 0 (see ``roots.ca
 """
 from __future__ import annotations
 
-import math
 from typing import Callable
 
 import numpy as np

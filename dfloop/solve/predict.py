@@ -18,7 +18,6 @@ __all__ = ["predict_limit_cycles"]
 
 _MAX_REFINE_ROUNDS = 30
 _MAX_GRID = 1_000_000  # points per axis of the initial grid
-_MAX_GRID_POINTS = 20_000_000  # points of the refined tensor grid of a frequency-dependent N
 _MIN_LOG_STEP = 1e-6  # grid intervals narrower than this (in ln A or ln w) are not split further
 _PHASE_STEP = np.pi / 3  # max turn of arg(G N) between neighbours (frequency-dependent N)
 _NEAR_UNIT = math.log(20.0)  # "near 1": 1/20 <= |G N| <= 20
@@ -119,9 +118,7 @@ def _resolve_grid(res: Residual, a: np.ndarray, v: np.ndarray):
             return a, v, P
         a = np.sort(np.concatenate([a, (a[:-1] + a[1:])[split_a] / 2]))
         v = np.sort(np.concatenate([v, (v[:-1] + v[1:])[split_v] / 2]))
-        if a.size * v.size > _MAX_GRID_POINTS:
-            raise RuntimeError(f"grid refinement exceeded {_MAX_GRID_POINTS} points; narrow the omega or "
-                               "amplitude window")
+        check_memory(a.size, v.size)
     raise RuntimeError(f"grid refinement did not settle within max_rounds={_MAX_REFINE_ROUNDS}")
 
 
@@ -130,12 +127,15 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     """Predict the limit cycles of the loop of the paper's Fig. 1 by the describing-function method.
 
     Solves 1 + G(jw) N(A, w) = 0 for all (A, w) in the window, refines each root to
-    |1 + G N| <= tol (1 + |G N|), and classifies it by the Loeb criterion.
+    |1 + G N| <= tol (1 + |G N|) (or to the rounding of ln A, ln w where the root is steeper than that
+    allows), and classifies it by the Loeb criterion. The grid is chosen from G and N themselves so
+    that no root can fall between samples (docs/solver.md).
 
     Parameters
     ----------
     G : python-control tf, ss or frd (SISO), or callable
-        The linear part; a callable gets an array of frequencies (rad/s) and returns G(j omega).
+        The linear part (proper, not zero); a callable gets an array of frequencies (rad/s) and returns
+        G(j omega) of the same shape, finite.
     N : DescribingFunction
         The nonlinear element, amplitude-only or frequency-dependent.
     omega : (float, float), optional
@@ -145,27 +145,42 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
         Amplitude window (N's input unit). Default: the part of N's amplitude domain where |G N| can
         reach 1 for some frequency of the window. Clipped to N's amplitude domain.
     grid : (int, int)
-        Initial log-spaced grid (amplitudes, frequencies); refined where G N varies fast near |G N| = 1.
+        Initial log-spaced grid (amplitudes, frequencies). Each axis is then refined until ln G (along
+        ln w; exactly from the poles and zeros for tf/ss, by sampling with an aliasing check otherwise)
+        and ln N (along ln A) change by at most ``grid.STEP`` per interval; see ``.grid_report``.
     tol : float
-        Residual tolerance relative to 1 + |G N|.
+        Residual tolerance relative to 1 + |G N|, in (0, 1e-3).
     marginal_tol : float
-        Cycles whose normalised Loeb determinant is below this are reported as marginal.
+        Cycles whose crossing-angle sine (``loeb_conditioning``) is below this, or whose Loeb sign changes
+        within their position uncertainty, are reported as marginal. In [0, 1).
 
     Returns
     -------
     LimitCycles
-        List of :class:`LimitCycle` sorted by frequency, with the windows used and the grid size, and
-        ``jump_crossings``: places where G(jw) passes through the gap of a jump of -1/N (a winding of
-        1 + G N that comes from a discontinuity of N, not from a root; a warning names them). Roots
-        where ``N.validity`` is False are kept with ``valid=False``.
+        List of :class:`LimitCycle` sorted by frequency, with the windows used, the grid size, a
+        :class:`GridReport` (``.grid_report``: how the grid was chosen) and ``jump_crossings``: places
+        where G(jw) passes through the gap of a jump of -1/N (a winding of 1 + G N that comes from a
+        discontinuity of N, not from a root; a warning names them). Roots where ``N.validity`` is False
+        are kept with ``valid=False``.
+
+    Raises
+    ------
+    ContinuumError
+        (a ValueError) when 1 + G N = 0 along a whole curve (G lies on -1/N there); it names the
+        amplitude and frequency ranges.
+    ValueError
+        For bad input: improper or zero G, a callable G of wrong shape or non-finite values, windows,
+        grid sizes beyond memory, NaN or out-of-range tolerances.
+    RuntimeError
+        When a work bound is reached (the message says which window to narrow).
 
     Notes
     -----
     Discontinuities of N (regime jumps of a tabulated DF, N = 0 beyond a limit frequency) are resolved
     to a bounded size only: grid steps of G N that dominate their neighbours are not refined, edge
     bisection stops at 1e-9 (relative), and a winding box that shrinks to 1e-7 (relative) next to a
-    discontinuity without a refinable root is a jump crossing. Roots are accepted only at
-    |1 + G N| <= tol (1 + |G N|), which a jump cannot fake.
+    discontinuity without a refinable root is a jump crossing. Roots are accepted only at a small
+    residual, which a jump cannot fake.
     """
     plant = as_plant(G)
     if not (callable(N) and hasattr(N, "frequency_dependent") and hasattr(N, "amplitude_domain")):
