@@ -132,8 +132,8 @@ def _from_tf(sys) -> Plant:
     import control as ct
 
     tf = sys if isinstance(sys, ct.TransferFunction) else ct.tf(sys)
-    num = np.trim_zeros(np.asarray(tf.num[0][0], dtype=float), "f")
-    den = np.trim_zeros(np.asarray(tf.den[0][0], dtype=float), "f")
+    num, den = (np.asarray(x, dtype=float) for x in (tf.num[0][0], tf.den[0][0]))
+    num, den = (x[np.argmax(x != 0):] if np.any(x) else x[:0] for x in (num, den))  # leading zeros off
     if num.size == 0:
         raise ValueError("G is zero (its numerator is 0): no loop, no limit cycle")
     if num.size > den.size:

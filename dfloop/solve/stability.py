@@ -25,7 +25,10 @@ def loeb(res: Residual, a: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.nd
     A, w, G and N, and 0 for a tangent (double) root.
     """
     a, v = np.asarray(a, float), np.asarray(v, float)
-    ra, rv = res.jacobian(a, v)
+    return _loeb_from(a, v, *res.jacobian(a, v))
+
+
+def _loeb_from(a, v, ra, rv):
     det_log = ra.real * rv.imag - rv.real * ra.imag
     scale = np.abs(ra) * np.abs(rv)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -43,8 +46,8 @@ def classify(res: Residual, a: np.ndarray, v: np.ndarray, marginal_tol: float = 
     either sign). Both tests are invariant under rescaling A, w, G and N.
     """
     a, v = np.asarray(a, float), np.asarray(v, float)
-    det, cond = loeb(res, a, v)
     P, ra, rv = res.slopes(a, v)
+    det, cond = _loeb_from(a, v, ra, rv)
     jaa, jvv, jav = np.abs(ra) ** 2, np.abs(rv) ** 2, (ra.conj() * rv).real
     half_tr, dj = (jaa + jvv) / 2, jaa * jvv - jav ** 2
     s_min = np.sqrt(np.maximum(half_tr - np.sqrt(np.maximum(half_tr ** 2 - dj, 0)), 0))
@@ -57,8 +60,10 @@ def classify(res: Residual, a: np.ndarray, v: np.ndarray, marginal_tol: float = 
     ea, ev = np.where(flat, np.where(jaa <= jvv, 1.0, 0.0), ea), np.where(flat, np.where(jaa <= jvv, 0.0, 1.0), ev)
     norm = np.hypot(ea, ev)
     ea, ev = ea / norm, ev / norm
-    d_plus, _ = loeb(res, a + dx * ea, v + dx * ev)
-    d_minus, _ = loeb(res, a - dx * ea, v - dx * ev)
+    k = a.size
+    ap, vp = np.concatenate([a + dx * ea, a - dx * ea]), np.concatenate([v + dx * ev, v - dx * ev])
+    d_pm, _ = _loeb_from(ap, vp, *res.slopes(ap, vp)[1:])
+    d_plus, d_minus = d_pm[:k], d_pm[k:]
     undecided = (np.sign(d_plus) != np.sign(det)) | (np.sign(d_minus) != np.sign(det))
     label = np.where((np.abs(cond) < marginal_tol) | undecided, "marginal", np.where(det > 0, "stable", "unstable"))
     return det, cond, label
