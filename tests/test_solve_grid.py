@@ -9,6 +9,7 @@ import pytest
 from scipy.optimize import brentq
 
 import dfloop as df
+from dfloop.describing.base import DescribingFunction
 from dfloop.solve import ContinuumError, GridReport
 from dfloop.solve.plant import as_plant
 
@@ -153,3 +154,25 @@ def test_tangent_root_stays_marginal_under_rescaling():
 def test_clear_errors(G, kw, match):
     with pytest.raises(ValueError, match=match):
         df.predict_limit_cycles(G, df.Saturation(1.0), **kw)
+
+
+class _DelayedRelay(DescribingFunction):
+    """A frequency-dependent N: a relay followed by a delay T, N(A, w) = 4 / (pi A) exp(-j w T)."""
+
+    frequency_dependent = True
+
+    def __init__(self, T):
+        self.T = T
+
+    def _evaluate(self, A, omega):
+        return df.Relay(1.0)(A) * np.exp(-1j * omega * self.T)
+
+
+@pytest.mark.parametrize("T", [0.5, 2.0])
+def test_delay_inside_a_frequency_dependent_N_every_root(T):
+    # the delay moved from G into N: the same roots (brentq), found although G = 1/(s + 1) is smooth
+    ref = _delay_roots(T, 0.1, 400.0)
+    cycles = df.predict_limit_cycles(lambda w: 1 / (1j * w + 1), _DelayedRelay(T), omega=(0.1, 400.0))
+    assert len(cycles) == ref.size
+    np.testing.assert_allclose([c.frequency for c in cycles], ref, rtol=1e-10)
+    assert all(c.stability == "stable" for c in cycles)

@@ -22,13 +22,14 @@ import numpy as np
 
 from .plant import Plant
 
-__all__ = ["STEP", "resolve_plant", "resolve_sampled", "check_memory", "clog", "largest_step"]
+__all__ = ["STEP", "FD_MIN_WIDTH", "resolve_plant", "resolve_sampled", "check_memory", "clog", "largest_step"]
 
 STEP = 0.35
 """Largest change of the complex log of G (or N) allowed within one grid interval (|d ln| = |d ln|f|| + phase)."""
 _GOLDEN = 0.3819660112501051
 _MAX_ROUNDS = 64  # halvings of an interval; with the minimum width below, never reached on finite windows
 _MIN_WIDTH = 1e-13  # intervals narrower than this (log units, relative to 1 + |x|) are not split (a jump)
+FD_MIN_WIDTH = 1e-6  # the same for a frequency-dependent N, whose jumps move with the amplitude
 _MAX_POINTS = 2_000_000  # nodes per axis
 _MEMORY_BYTES = 2 * 1024 ** 3  # largest tensor grid of complex samples the solver allocates
 
@@ -63,10 +64,14 @@ def _too_many(n: int, name: str) -> None:
                            f"(the factor turns faster than the grid can follow)")
 
 
-def resolve_sampled(f: Callable[[np.ndarray], np.ndarray], x: np.ndarray, name: str, step: float = STEP):
+def resolve_sampled(f: Callable[[np.ndarray], np.ndarray], x: np.ndarray, name: str, step: float = STEP,
+                    min_width: float = 1e-13):
     """Refine the sorted nodes x (log units) until ln f is resolved by sampling; see the module notes.
 
-    Returns (nodes, f at nodes, eps per interval, number of evaluations).
+    ``f(exp(x))`` returns an array of shape (len(x),) or (len(x), m) (m functions resolved together;
+    eps is then the largest over them). Intervals narrower than ``min_width`` (relative to 1 + |x|),
+    and intervals with f = 0 at an end (the edge of a dead band, which no refinement resolves), are not
+    split. Returns (nodes, f at nodes, eps per interval, number of evaluations).
     """
     x = np.asarray(x, float)
     fx = f(np.exp(x))
@@ -85,7 +90,9 @@ def resolve_sampled(f: Callable[[np.ndarray], np.ndarray], x: np.ndarray, name: 
         lm, lg = clog(fm), clog(fg)
         m1, m2, g1, g2 = _dlog(lm, l0), _dlog(l1, lm), _dlog(lg, l0), _dlog(l1, lg)
         eps = np.maximum(m1 + m2, g1 + g2)
-        split = (eps > step) & (dx > _MIN_WIDTH * (1 + np.abs(x0)))
+        if eps.ndim > 1:  # several functions sampled together (rows of a frequency-dependent N)
+            eps = eps.max(axis=1)
+        split = np.isfinite(eps) & (eps > step) & (dx > min_width * (1 + np.abs(x0)))
         keep = ~split
         done_x.append(x1[keep])
         done_f.append(f1[keep])

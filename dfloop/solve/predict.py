@@ -8,7 +8,7 @@ import numpy as np
 
 from .._checks import finite
 from ._kernels import candidate_cells
-from .grid import STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
+from .grid import FD_MIN_WIDTH, STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
 from .plant import as_plant
 from .result import GridReport, JumpCrossing, LimitCycle, LimitCycles
 from .roots import _JUMP_BOX, Residual, dominant_steps, find_roots, greedy_unique
@@ -19,6 +19,7 @@ __all__ = ["predict_limit_cycles"]
 _MAX_REFINE_ROUNDS = 30
 _MAX_GRID = 1_000_000  # points per axis of the initial grid
 _MIN_LOG_STEP = 1e-6  # grid intervals narrower than this (in ln A or ln w) are not split further
+_FD_ROWS = 16  # amplitudes (frequencies) at which a frequency-dependent N is resolved along w (A)
 _PHASE_STEP = np.pi / 3  # max turn of arg(G N) between neighbours (frequency-dependent N)
 _NEAR_UNIT = math.log(20.0)  # "near 1": 1/20 <= |G N| <= 20
 
@@ -231,8 +232,18 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     a = np.linspace(math.log(A_lo), math.log(A_hi), na)
 
     if res.frequency_dependent:
+        # N turns along w too (a delay inside N): resolve G N along w at _FD_ROWS initial amplitudes, then
+        # N along A at _FD_ROWS frequencies, then refine the tensor grid near |G N| = 1
+        A0 = np.exp(a[np.unique(np.linspace(0, a.size - 1, min(a.size, _FD_ROWS)).astype(int))])
+        v, _, eps_v, n_gn = resolve_sampled(lambda w: res.plant(w)[:, None] * res._n(A0[None, :], w[:, None]),
+                                            v, "G N along omega", min_width=FD_MIN_WIDTH)
+        w_sub = np.exp(v[np.unique(np.linspace(0, v.size - 1, min(v.size, _FD_ROWS)).astype(int))])
+        a, _, eps_a, n_n = resolve_sampled(lambda A: res._n(A[:, None], w_sub[None, :]), a, "N along the amplitude",
+                                           min_width=FD_MIN_WIDTH)
+        n_eval += n_gn * A0.size + n_n * w_sub.size
+        check_memory(a.size, v.size)
         a, v, P = _resolve_grid(res, a, v)
-        cells, a_rule, eps_a, n_cand, n = None, "2-D sampled", np.zeros(1), None, None
+        cells, a_rule, n_cand, n = None, f"sampled at {w_sub.size} frequencies, then 2-D near |G N| = 1", None, None
     else:
         a, n, eps_a, n_n = resolve_sampled(lambda A: res._n(A, None), a, "N along the amplitude")
         n_eval += n_n
@@ -242,7 +253,9 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
         a_rule, n_cand = "sampled", int(cells[0].size)
     if not (np.any(n) if not res.frequency_dependent else np.any(P)):
         raise ValueError("N is zero everywhere in the amplitude window: no limit cycle is possible")
-    report = GridReport(shape=(a.size, v.size), frequency_rule="exact" if plant.exact else "sampled",
+    w_rule = f"sampled (G N at {A0.size} amplitudes)" if res.frequency_dependent else (
+        "exact" if plant.exact else "sampled")
+    report = GridReport(shape=(a.size, v.size), frequency_rule=w_rule,
                         amplitude_rule=a_rule, max_step_frequency=largest_step(eps_v),
                         max_step_amplitude=largest_step(eps_a),
                         n_jumps=int(np.count_nonzero(eps_v > STEP) + np.count_nonzero(eps_a > STEP)),

@@ -118,10 +118,12 @@ class GridReport:
         Final (amplitudes, frequencies) grid size.
     frequency_rule, amplitude_rule : str
         How each axis was resolved: ``"exact"`` (bound from G's poles and zeros), ``"sampled"`` (dense
-        scan with midpoint and golden-section aliasing check) or ``"2-D sampled"`` (frequency-dependent N).
+        scan with midpoint and golden-section aliasing check), or for a frequency-dependent N the sampled
+        rules applied to G N along omega and to N along A.
     max_step_frequency, max_step_amplitude : float
-        The largest bound left on |d ln G| (resp. |d ln N|) within one interval of the axis (jumps of N,
-        which no refinement shrinks, excepted: ``n_jumps`` counts those intervals).
+        The largest bound left on |d ln G| (|d ln G N| for a frequency-dependent N) resp. |d ln N| within
+        one interval of the axis (jumps of N, which no refinement shrinks, excepted: ``n_jumps`` counts
+        those intervals).
     n_jumps : int
         Intervals left with an unbounded step (a discontinuity of N or a zero of G or N at a node).
     candidate_cells : int or None
@@ -142,8 +144,8 @@ class GridReport:
 
     def __str__(self) -> str:
         cand = "" if self.candidate_cells is None else f", {self.candidate_cells} candidate cells"
-        return (f"grid {self.shape[0]} x {self.shape[1]} (omega: {self.frequency_rule}, max |d ln G| "
-                f"{self.max_step_frequency:.3g}; A: {self.amplitude_rule}, max |d ln N| "
+        return (f"grid {self.shape[0]} x {self.shape[1]} (omega: {self.frequency_rule}, max step "
+                f"{self.max_step_frequency:.3g}; A: {self.amplitude_rule}, max step "
                 f"{self.max_step_amplitude:.3g}; {self.n_jumps} jump interval(s){cand})")
 
 
