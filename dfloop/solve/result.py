@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["LimitCycle", "LimitCycles", "JumpCrossing"]
+__all__ = ["LimitCycle", "LimitCycles", "JumpCrossing", "GridReport"]
 
 
 @dataclass(frozen=True)
@@ -23,8 +23,8 @@ class LimitCycle:
     loeb_determinant : float
         U_A V_w - U_w V_A with R = U + jV (per unit amplitude, per rad/s); > 0 means stable.
     loeb_conditioning : float
-        The determinant's conditioning in log coordinates, 2 det J / |J|_F^2 in [-1, 1] (0 for a
-        double root), used for the marginal decision.
+        The signed sine of the angle between dR/d(ln A) and dR/d(ln w), in [-1, 1] (0 for a double
+        root); scale-free, used for the marginal decision.
     G : complex
         G(jw) at the answer (the point on the Nyquist plane, equal to -1/N there).
     N : complex
@@ -108,6 +108,47 @@ class JumpCrossing:
                 f"{lo:.4g} -> {hi:.4g}, winding {self.winding:+d})")
 
 
+@dataclass(frozen=True)
+class GridReport:
+    """How the solver's grid was chosen (see docs/solver.md).
+
+    Attributes
+    ----------
+    shape : (int, int)
+        Final (amplitudes, frequencies) grid size.
+    frequency_rule, amplitude_rule : str
+        How each axis was resolved: ``"exact"`` (bound from G's poles and zeros), ``"sampled"`` (dense
+        scan with midpoint and golden-section aliasing check), or for a frequency-dependent N the sampled
+        rules applied to G N along omega and to N along A.
+    max_step_frequency, max_step_amplitude : float
+        The largest bound left on |d ln G| (|d ln G N| for a frequency-dependent N) resp. |d ln N| within
+        one interval of the axis (jumps of N, which no refinement shrinks, excepted: ``n_jumps`` counts
+        those intervals).
+    n_jumps : int
+        Intervals left with an unbounded step (a discontinuity of N or a zero of G or N at a node).
+    candidate_cells : int or None
+        Cells that the variation bounds could not exclude (amplitude-only N); every other cell provably
+        holds no root. None when every cell's winding was computed.
+    n_evaluations : int
+        Points at which G or N was sampled to choose the grid.
+    """
+
+    shape: tuple
+    frequency_rule: str
+    amplitude_rule: str
+    max_step_frequency: float
+    max_step_amplitude: float
+    n_jumps: int
+    candidate_cells: int | None
+    n_evaluations: int
+
+    def __str__(self) -> str:
+        cand = "" if self.candidate_cells is None else f", {self.candidate_cells} candidate cells"
+        return (f"grid {self.shape[0]} x {self.shape[1]} (omega: {self.frequency_rule}, max step "
+                f"{self.max_step_frequency:.3g}; A: {self.amplitude_rule}, max step "
+                f"{self.max_step_amplitude:.3g}; {self.n_jumps} jump interval(s){cand})")
+
+
 class LimitCycles(list):
     """The predicted cycles (a list of :class:`LimitCycle`, sorted by frequency) and how they were found.
 
@@ -123,11 +164,14 @@ class LimitCycles(list):
         Number of (A, w) points at which 1 + G N was evaluated.
     jump_crossings : list of JumpCrossing
         Where the winding of 1 + G N comes from a discontinuity of N, not a root (sorted by frequency).
+    grid_report : GridReport or None
+        How the grid was chosen (sizes, rules, largest step left).
     """
 
     def __init__(self, cycles, amplitude_window, omega_window, window_source, grid_shape, n_evaluations,
-                 jump_crossings=()):
+                 jump_crossings=(), grid_report=None):
         super().__init__(cycles)
+        self.grid_report = grid_report
         self.jump_crossings = list(jump_crossings)
         self.amplitude_window = amplitude_window
         self.omega_window = omega_window
@@ -141,6 +185,8 @@ class LimitCycles(list):
                 f"[{self.omega_window[0]:.4g}, {self.omega_window[1]:.4g}] rad/s ({self.window_source['omega']})")
         if self.jump_crossings:
             head += f"; {len(self.jump_crossings)} jump crossing(s) of N (no cycle there)"
+        if self.grid_report is not None:
+            head += f"\n{self.grid_report}"
         jumps = (["jump crossings (G passes through the gap of a jump of -1/N; not limit cycles):"]
                  + [f"  {j}" for j in self.jump_crossings]) if self.jump_crossings else []
         if not self:
