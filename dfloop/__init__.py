@@ -26,7 +26,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
         "Table1D", "Table2D", "TableSettings", "Samples"),
     "dfloop.solve": (
         "predict_limit_cycles", "LimitCycle", "LimitCycles", "JumpCrossing", "Plant", "as_plant",
-        "graphical_stability"),
+        "graphical_stability", "GridReport", "ContinuumError"),
     "dfloop.verify": ("LoopSimulation", "simulate_loop", "Verification", "verify_cycle"),
     "dfloop.plot": ("case_labels", "curve_with_gaps", "plot_loci", "plot_nyquist", "plot_residual_map",
                     "plot_time_response", "plot_collision_map"),

@@ -1,10 +1,12 @@
 """Errors of the solver that carry data a caller may act on."""
 from __future__ import annotations
 
+from ..errors import DfloopError
+
 __all__ = ["ContinuumError"]
 
 
-class ContinuumError(ValueError):
+class ContinuumError(DfloopError):
     """1 + G(jw) N(A, w) = 0 along a whole curve (G lies on the -1/N locus): no isolated limit cycle.
 
     Attributes

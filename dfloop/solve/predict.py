@@ -1,12 +1,14 @@
 """``predict_limit_cycles``: all roots of 1 + G(jw) N(A, w) = 0 in an (A, w) window, with stability."""
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 
 import numpy as np
 
 from .._checks import finite
+from ..describing.interop import as_element
 from ._kernels import candidate_cells
 from .grid import FD_MIN_WIDTH, STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
 from .plant import as_plant
@@ -124,7 +126,7 @@ def _resolve_grid(res: Residual, a: np.ndarray, v: np.ndarray):
 
 
 def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), tol: float = 1e-10,
-                         marginal_tol: float = MARGINAL_TOL) -> LimitCycles:
+                         marginal_tol: float = MARGINAL_TOL, exact: bool = False) -> LimitCycles:
     """Predict the limit cycles of the loop of the paper's Fig. 1 by the describing-function method.
 
     Solves 1 + G(jw) N(A, w) = 0 for all (A, w) in the window, refines each root to
@@ -137,8 +139,9 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     G : python-control tf, ss or frd (SISO), or callable
         The linear part (proper, not zero); a callable gets an array of frequencies (rad/s) and returns
         G(j omega) of the same shape, finite.
-    N : DescribingFunction
-        The nonlinear element, amplitude-only or frequency-dependent.
+    N : DescribingFunction, python-control nonlinearity or static function
+        The nonlinear element, amplitude-only or frequency-dependent. python-control's nonlinearity objects
+        and plain functions f(x) are converted by :func:`dfloop.as_element`.
     omega : (float, float), optional
         Frequency window in rad/s. Default: two decades beyond the plant's poles and zeros, or the
         frd's own grid. Required for a callable G.
@@ -154,6 +157,9 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     marginal_tol : float
         Cycles whose crossing-angle sine (``loeb_conditioning``) is below this, or whose Loeb sign changes
         within their position uncertainty, are reported as marginal. In [0, 1).
+    exact : bool
+        Also find the true periodic orbit near each prediction (:func:`dfloop.exact_cycle`, attached as
+        ``cycle.exact``). Every cycle carries ``cycle.confidence`` (cheap) whatever this says.
 
     Returns
     -------
@@ -184,8 +190,9 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     residual, which a jump cannot fake.
     """
     plant = as_plant(G)
-    if not (callable(N) and hasattr(N, "frequency_dependent") and hasattr(N, "amplitude_domain")):
-        raise ValueError(f"N must be a DescribingFunction; got {type(N).__name__}")
+    N = as_element(N)
+    if not isinstance(exact, (bool, np.bool_)):
+        raise ValueError(f"exact must be True or False; got {exact!r}")
     tol = finite("tol", tol)
     if not (0 < tol < 1e-3):
         raise ValueError(f"tol must lie in (0, 1e-3); got {tol}")
@@ -269,8 +276,26 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
         warnings.warn(f"{len(crossings)} jump crossing(s): G(jw) passes through the gap of a jump of -1/N at "
                       f"{where}{' ...' if len(crossings) > 5 else ''}; no limit cycle of the DF equation there "
                       "(see .jump_crossings)", stacklevel=2)
-    return LimitCycles(cycles, (A_lo, A_hi), (w_lo, w_hi), {"amplitude": a_src, "omega": w_src},
-                       (a.size, v.size), res.n_points, crossings, report)
+    cycles = _attach_confidence(plant, G, N, cycles, exact)
+    result = LimitCycles(cycles, (A_lo, A_hi), (w_lo, w_hi), {"amplitude": a_src, "omega": w_src},
+                         (a.size, v.size), res.n_points, crossings, report)
+    result.plant, result.element = G, N
+    return result
+
+
+def _attach_confidence(plant, G, N, cycles: list[LimitCycle], exact: bool) -> list[LimitCycle]:
+    """Every cycle with its confidence (cheap, always) and, when asked, its exact orbit."""
+    from ..confidence import cycle_confidence, unavailable
+    from ..exact import exact_cycle
+
+    out = []
+    for c in cycles:
+        try:
+            conf = cycle_confidence(plant, N, c.amplitude, c.frequency)
+        except ValueError as exc:
+            conf = unavailable(str(exc))
+        out.append(dataclasses.replace(c, confidence=conf, exact=exact_cycle(G, N, c) if exact else None))
+    return out
 
 
 def _jump_crossings(res: Residual, jumps: np.ndarray) -> list[JumpCrossing]:

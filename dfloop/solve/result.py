@@ -36,6 +36,13 @@ class LimitCycle:
         is an average over irregular motion: the cycle solves the equation for that average only.
     n_error : float
         N's ``error_estimate`` at the answer (0 for closed forms; inf where N gives no estimate).
+    confidence : dfloop.Confidence or None
+        How far the prediction can be trusted: the harmonic distortion at the element's input that the
+        DF neglects and the estimated errors of amplitude and frequency it implies (always set by
+        :func:`dfloop.predict_limit_cycles`; "unavailable" with a reason for elements without a static
+        time-domain response).
+    exact : dfloop.ExactCycle or None
+        The true periodic orbit near this prediction, when ``predict_limit_cycles(..., exact=True)``.
     """
 
     amplitude: float
@@ -50,6 +57,8 @@ class LimitCycle:
     on_edge: bool = False
     valid: bool = True
     n_error: float = 0.0
+    confidence: object = None
+    exact: object = None
 
     @property
     def stable(self) -> bool:
@@ -70,6 +79,14 @@ class LimitCycle:
     def __str__(self) -> str:
         flags = ("" if self.valid else " [N not valid here: an average over irregular motion]")
         flags += " [on window edge]" if self.on_edge else ""
+        conf = self.confidence
+        if conf is not None and getattr(conf, "available", False):
+            flags += (f" [distortion {100 * conf.distortion:.2g} %, est. DF error A {100 * conf.amplitude_error:+.2g} %, "
+                      f"omega {100 * conf.frequency_error:+.2g} %]")
+        if self.exact is not None:
+            ex = self.exact
+            flags += (f" [exact: A={ex.amplitude:.6g}, omega={ex.frequency:.6g} rad/s, {'stable' if ex.stable else 'unstable'}]"
+                      if ex.success else f" [exact: no orbit ({ex.message})]")
         return (f"LimitCycle(A={self.amplitude:.6g}, omega={self.frequency:.6g} rad/s, {self.stability}, "
                 f"|1+GN|={self.residual:.1e}{flags})")
 
@@ -192,12 +209,22 @@ class LimitCycles(list):
         if not self:
             return "\n".join([head] + jumps)
         rows = [f"{'#':>3} {'amplitude':>12} {'omega [rad/s]':>14} {'stability':>10} {'|1+GN|':>9} "
-                f"{'Loeb det':>10} {'Re G':>11} {'Im G':>11}  notes"]
+                f"{'Loeb det':>10} {'Re G':>11} {'Im G':>11} {'distortion':>10}  notes"]
         for i, c in enumerate(self):
+            conf = c.confidence
+            available = conf is not None and getattr(conf, "available", False)
+            distortion = f"{100 * conf.distortion:.2g} %" if available else "-"
             notes = ", ".join(n for n, on in (("on edge", c.on_edge),
-                                               ("N not valid: average over irregular motion", not c.valid)) if on)
+                                               ("N not valid: average over irregular motion", not c.valid),
+                                               ("DF unreliable (distortion > 5 %)", available and not conf.reliable))
+                              if on)
+            if c.exact is not None:
+                ex = c.exact
+                notes += ("; " if notes else "") + (
+                    f"exact A={ex.amplitude:.6g}, omega={ex.frequency:.6g}, {'stable' if ex.stable else 'unstable'}"
+                    if ex.success else "exact: no orbit")
             rows.append(f"{i:>3} {c.amplitude:>12.6g} {c.frequency:>14.6g} {c.stability:>10} {c.residual:>9.1e} "
-                        f"{c.loeb_determinant:>10.3g} {c.G.real:>11.4g} {c.G.imag:>11.4g}  {notes}")
+                        f"{c.loeb_determinant:>10.3g} {c.G.real:>11.4g} {c.G.imag:>11.4g} {distortion:>10}  {notes}")
         return "\n".join([head] + rows + jumps)
 
     __str__ = __repr__
