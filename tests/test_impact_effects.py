@@ -228,7 +228,7 @@ def test_jit_step_scan_finds_the_closed_form_crossing():
     dt = 2 * math.pi / wn / 32
     amp, phase = math.hypot(x0, v0 / wn), math.atan2(v0 / wn, x0)
     t_cross = (math.pi - math.acos(b / amp) + phase) / wn  # first wn t - phase with cos = -b / amp
-    t, hit = scan_steps(A, expm(A * dt), dt, rows, np.zeros(2, dtype=np.bool_), z, 0.0, 10.0)
+    t, hit = scan_steps(A, expm(A * dt), dt, rows, rows @ A, rows @ A @ A, np.zeros(2, dtype=np.bool_), z, 0.0, 10.0)
     assert hit == 0
     assert abs(t - t_cross) < 1e-14
     assert abs(z[0] + b) < 1e-14 and abs(z[1] - (-amp * wn * math.sin(wn * t - phase))) < 1e-12
@@ -243,7 +243,7 @@ def test_jit_step_scan_takes_the_short_last_step_and_propagate_matches_expm():
     rows[0, 6] = 1.0                          # 1 >= 0 always holds
     dt = 0.1
     z = z0.copy()
-    t, hit = scan_steps(A, expm(A * dt), dt, rows, np.zeros(1, dtype=np.bool_), z, 0.0, 1.05)
+    t, hit = scan_steps(A, expm(A * dt), dt, rows, rows @ A, rows @ A @ A, np.zeros(1, dtype=np.bool_), z, 0.0, 1.05)
     assert hit == -1 and t == 1.05      # ten exact steps, then the short last one on the Taylor series
     assert np.max(np.abs(z - expm(A * t) @ z0)) < 1e-14
     s = np.array([0.0, 0.37, 1.05, 0.099999, 2.5])

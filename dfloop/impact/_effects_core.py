@@ -12,9 +12,10 @@ the step, applies the event (impact law, plastic settle of a converged chatter, 
 the next admissible mode and records the segment in preallocated buffers; it returns when the buffers are full
 (the caller grows them and resumes), when ``t_end`` is reached or when ``max_events`` is exceeded.
 
-Plain float arrays only, so everything also runs (slowly) with NUMBA_DISABLE_JIT=1. Products are taken with
-``np.dot`` (the BLAS gemv/dot calls NumPy makes), so results do not depend on the JIT: this matters in chaotic
-regimes, where rounding-level differences in the event times grow over the transient.
+Plain float arrays only, so everything also runs (slowly) with NUMBA_DISABLE_JIT=1 and gives the same numbers:
+the hot products are explicit loops and the others ``np.dot`` (the BLAS calls NumPy makes), so results do not
+depend on the JIT. This matters in chaotic regimes, where rounding-level differences in the event times grow
+over the transient.
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from numba import njit
 
 TAYLOR_TERMS = 30
 NO_ROOT = -1.0       # first_violation: no violation inside the step
+SUB_PIECES = 8       # pieces of an examined step (one turning point assumed per piece)
 REFINE_ITERATIONS = 200
 
 # state slots
@@ -44,17 +46,35 @@ S_T, S_TEND, S_RECORD_FROM = range(3)
 J_SLOT, J_REF, J_EVENTS, J_MAX_EVENTS, J_RECORDS = range(5)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
+def _matvec(M, x, out):
+    """out = M x with explicit loops (no allocation; the same rounding with or without the JIT)."""
+    for i in range(M.shape[0]):
+        acc = 0.0
+        for k in range(M.shape[1]):
+            acc += M[i, k] * x[k]
+        out[i] = acc
+
+
+@njit(cache=True, nogil=True)
+def taylor_into(A, z, terms):
+    """terms[k] = A^k z / k! for k < TAYLOR_TERMS (Taylor coefficients of exp(A s) z), in place."""
+    terms[0] = z
+    for k in range(1, TAYLOR_TERMS):
+        _matvec(A, terms[k - 1], terms[k])
+        for i in range(z.shape[0]):
+            terms[k, i] /= k
+
+
+@njit(cache=True, nogil=True)
 def taylor(A, z):
     """Rows A^k z / k! for k < TAYLOR_TERMS (Taylor coefficients of exp(A s) z)."""
     terms = np.empty((TAYLOR_TERMS, z.shape[0]))
-    terms[0] = z
-    for k in range(1, TAYLOR_TERMS):
-        terms[k] = np.dot(A, terms[k - 1]) / k
+    taylor_into(A, z, terms)
     return terms
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def poly(terms, s):
     """exp(A s) z from Taylor coefficients (Horner)."""
     out = terms[-1].copy()
@@ -64,76 +84,153 @@ def poly(terms, s):
     return out
 
 
-@njit(cache=True)
-def _value(terms, A, r, s, derivative):
-    """r.z(s) (derivative False) or r.A z(s) (derivative True)."""
-    z = poly(terms, s)
+@njit(cache=True, nogil=True)
+def _pval(c, s, derivative):
+    """Scalar polynomial sum c_k s^k (or its derivative) by Horner."""
+    n = c.shape[0]
     if derivative:
-        return np.dot(r, np.dot(A, z))
-    return np.dot(r, z)
+        acc = (n - 1) * c[n - 1]
+        for k in range(n - 2, 0, -1):
+            acc = acc * s + k * c[k]
+        return acc
+    acc = c[n - 1]
+    for k in range(n - 2, -1, -1):
+        acc = acc * s + c[k]
+    return acc
 
 
-@njit(cache=True)
-def refine(terms, A, r, derivative, lo, hi, flo):
-    """Root of r.z(s) (or of r.A z(s)) with a sign change on [lo, hi] (bisection with secant steps)."""
-    fhi = _value(terms, A, r, hi, derivative)
+@njit(cache=True, nogil=True)
+def _pval2(c, s, derivative):
+    """Value and slope at s of the polynomial c (derivative False) or of its derivative (True)."""
+    n = c.shape[0]
+    if derivative:   # p'(s) and p''(s)
+        f = (n - 1) * c[n - 1]
+        d = 0.0
+        for k in range(n - 2, 0, -1):
+            d = d * s + f
+            f = f * s + k * c[k]
+        return f, d
+    f = c[n - 1]
+    d = 0.0
+    for k in range(n - 2, -1, -1):
+        d = d * s + f
+        f = f * s + c[k]
+    return f, d
+
+
+@njit(cache=True, nogil=True)
+def refine(c, derivative, lo, hi, flo):
+    """Root of the polynomial c (or of its derivative) with a sign change on [lo, hi].
+
+    Newton steps kept inside the bracket, bisection when a step leaves it or fails to halve it; the bracket is
+    narrowed to rounding (relative 4e-16). Returns the end on the far side of the root from ``lo``.
+    """
+    s = 0.5 * (lo + hi)
+    width = hi - lo
     for _ in range(REFINE_ITERATIONS):
         if hi - lo <= 4e-16 * max(hi, 1e-300):
             break
-        s = hi - fhi * (hi - lo) / (fhi - flo) if fhi != flo else 0.5 * (lo + hi)
-        if not (lo < s < hi) or (hi - lo) < 1e-3 * abs(s - 0.5 * (lo + hi)):
-            s = 0.5 * (lo + hi)
-        fs = _value(terms, A, r, s, derivative)
+        fs, ds = _pval2(c, s, derivative)
         if fs == 0.0:
             return s
         if (fs > 0) == (flo > 0):
             lo, flo = s, fs
         else:
-            hi, fhi = s, fs
-        # force a bisection every other step to guarantee progress
-        m = 0.5 * (lo + hi)
-        fm = _value(terms, A, r, m, derivative)
-        if fm == 0.0:
-            return m
-        if (fm > 0) == (flo > 0):
-            lo, flo = m, fm
-        else:
-            hi, fhi = m, fm
+            hi = s
+        s_new = s - fs / ds if ds != 0.0 else 0.5 * (lo + hi)
+        if not (lo < s_new < hi) or hi - lo > 0.5 * width:
+            s_new = 0.5 * (lo + hi)
+        width = hi - lo
+        if abs(s_new - s) <= 2e-16 * max(abs(s), 1e-300):
+            # Newton has converged: close the bracket on the root with one step to either side
+            step = 4e-16 * max(abs(s_new), 1e-300)
+            for probe in (s_new - step, s_new + step):
+                if lo < probe < hi:
+                    fp = _pval(c, probe, derivative)
+                    if fp == 0.0:
+                        return probe
+                    if (fp > 0) == (flo > 0):
+                        lo = probe
+                    else:
+                        hi = probe
+            s_new = 0.5 * (lo + hi)
+        s = s_new
     return hi
 
 
-@njit(cache=True)
-def first_violation(terms, A, r, leaving, dt):
-    """First s in [0, dt] where r.z(s) < 0 given r.z >= 0 before (NO_ROOT if none in the step).
+@njit(cache=True, nogil=True)
+def _surely_positive(c, dt):
+    """True when c0 + c1 s + c2 s^2 + ... > 0 on [0, dt] for sure: the quadratic's minimum exceeds a bound on
+    the remaining terms (a cheap proof that a dip inside the step stays clear of the constraint)."""
+    rest = 0.0
+    p = dt * dt
+    for k in range(3, c.shape[0]):
+        p *= dt
+        rest += abs(c[k]) * p
+    lo = min(c[0], c[0] + c[1] * dt + c[2] * dt * dt)
+    if c[2] > 0.0:
+        s = -c[1] / (2.0 * c[2])
+        if 0.0 < s < dt:
+            lo = min(lo, c[0] + c[1] * s + c[2] * s * s)
+    return lo > 2.0 * rest
 
-    ``leaving``: the step starts on r.z = 0 and moves away; values within rounding of 0 are then not events.
-    One turning point per step is resolved (the step is 1/32 of the fastest time scale).
-    """
-    tol = 1e-12 * np.dot(np.abs(r), np.abs(terms[0])) if leaving else 0.0
-    fa = _value(terms, A, r, 0.0, False)
-    fb = _value(terms, A, r, dt, False)
-    da = _value(terms, A, r, 0.0, True)
-    db = _value(terms, A, r, dt, True)
+
+@njit(cache=True, nogil=True)
+def _piece_violation(c, tol, lo, hi, fa, da):
+    """First s in [lo, hi] with c(s) < -tol given the values at lo, assuming at most one turning point."""
+    fb = _pval(c, hi, False)
+    db = _pval(c, hi, True)
     turns = (da > 0.0 and db < 0.0) or (da < 0.0 and db > 0.0)
-    turn = refine(terms, A, r, True, 0.0, dt, da) if turns else 0.0
+    if fb >= -tol and not (turns and da < 0.0):
+        return NO_ROOT
+    turn = refine(c, True, lo, hi, da) if turns else lo
     if fb < -tol:
         if turns and da > 0.0:  # rises to a maximum, then falls through zero
-            ft = _value(terms, A, r, turn, False)
-            return refine(terms, A, r, False, turn, dt, ft) if ft > 0.0 else turn
-        return refine(terms, A, r, False, 0.0, dt, fa) if fa > 0.0 else 0.0
-    if turns and da < 0.0:      # dips to a minimum inside the step
-        ft = _value(terms, A, r, turn, False)
-        if ft < -tol:
-            return refine(terms, A, r, False, 0.0, turn, fa) if fa > 0.0 else 0.0
+            ft = _pval(c, turn, False)
+            return refine(c, False, turn, hi, ft) if ft > 0.0 else turn
+        return refine(c, False, lo, hi, fa) if fa > 0.0 else lo
+    ft = _pval(c, turn, False)  # dips to a minimum inside the piece
+    if ft < -tol:
+        return refine(c, False, lo, turn, fa) if fa > 0.0 else lo
     return NO_ROOT
 
 
 @njit(cache=True, nogil=True)
-def scan_steps(A, E, dt, rows, leaving, z, t, t_end):
+def first_violation(terms, r, leaving, dt):
+    """First s in [0, dt] where r.z(s) < 0 given r.z >= 0 before (NO_ROOT if none in the step).
+
+    ``leaving``: the step starts on r.z = 0 and moves away; values within rounding of 0 are then not events.
+    The step is examined in SUB_PIECES pieces, each with at most one turning point assumed (the scan examines a
+    step whenever the row's value, rate or curvature changes sign in it), unless a bound on the Taylor series
+    proves the row positive over the whole step.
+    """
+    c = np.empty(terms.shape[0])
+    _matvec(terms, r, c)
+    tol = 0.0
+    if leaving:
+        for i in range(r.shape[0]):
+            tol += abs(r[i]) * abs(terms[0, i])
+        tol *= 1e-12
+    elif _surely_positive(c, dt):
+        return NO_ROOT
+    lo, fa, da = 0.0, c[0], c[1]
+    for k in range(1, SUB_PIECES + 1):
+        hi = dt * k / SUB_PIECES if k < SUB_PIECES else dt
+        s = _piece_violation(c, tol, lo, hi, fa, da)
+        if s != NO_ROOT:
+            return s
+        lo, fa, da = hi, _pval(c, hi, False), _pval(c, hi, True)
+    return NO_ROOT
+
+
+@njit(cache=True, nogil=True)
+def scan_steps(A, E, dt, rows, rows_a, rows_aa, leaving, z, t, t_end):
     """Advance z (in place) by steps exp(A dt) = E from time t until the first event or ``t_end``.
 
-    The last step, shorter than ``dt``, is taken on the Taylor series. ``leaving[j]``: row j starts on 0 and
-    moves away (applies to the first step only).
+    ``rows_a`` = rows @ A and ``rows_aa`` = rows @ A @ A (the rows' rates and curvatures). The last step,
+    shorter than ``dt``, is taken on the Taylor series. ``leaving[j]``: row j starts on 0 and moves away (applies
+    to the first step only). A row is examined closely (Taylor series, root refinement) only when it is negative
+    at the step end or its rate or curvature changes sign in the step (two turning points need the latter).
 
     Returns
     -------
@@ -144,30 +241,44 @@ def scan_steps(A, E, dt, rows, leaving, z, t, t_end):
     """
     n_rows = rows.shape[0]
     first = True
-    db = np.dot(rows, np.dot(A, z))
+    z_next = np.empty_like(z)
+    fa = np.empty(n_rows)
+    fb = np.empty(n_rows)
+    da = np.empty(n_rows)
+    db = np.empty(n_rows)
+    ca = np.empty(n_rows)
+    cb = np.empty(n_rows)
+    terms = np.empty((TAYLOR_TERMS, z.shape[0]))
+    _matvec(rows, z, fb)
+    _matvec(rows_a, z, db)
+    _matvec(rows_aa, z, cb)
     while t < t_end:
         step = dt if t_end - t >= dt else t_end - t
         have_terms = False
-        terms = np.empty((0, 0))
         if step == dt:
-            z_next = np.dot(E, z)
+            _matvec(E, z, z_next)
         else:
-            terms = taylor(A, z)
+            taylor_into(A, z, terms)
             have_terms = True
-            z_next = poly(terms, step)
-        fb = np.dot(rows, z_next)
-        da = db                       # r.A z at the step start = r.A z_next of the previous step
-        db = np.dot(rows, np.dot(A, z_next))
+            z_next[:] = poly(terms, step)
+        da[:] = db                    # r.A z at the step start = r.A z_next of the previous step
+        ca[:] = cb
+        fa[:] = fb
+        _matvec(rows, z_next, fb)
+        _matvec(rows_a, z_next, db)
+        _matvec(rows_aa, z_next, cb)
         best_s = NO_ROOT
         hit = -1
         for j in range(n_rows):
-            r = rows[j]
             lv = first and leaving[j]
-            if fb[j] < 0.0 or da[j] * db[j] < 0.0 or lv:
+            if lv or fb[j] < 0.0 or ((da[j] * db[j] < 0.0 or ca[j] * cb[j] < 0.0)
+                                     and min(fa[j], fb[j]) <= 0.5 * step * step * max(abs(ca[j]), abs(cb[j]))):
+                # (a dip between two positive ends is at most (max curvature) step^2 / 8 deep: with the
+                # curvature allowed to double inside the step, ends above 0.5 step^2 |curvature| are clear)
                 if not have_terms:
-                    terms = taylor(A, z)
+                    taylor_into(A, z, terms)
                     have_terms = True
-                s = first_violation(terms, A, r, lv, step)
+                s = first_violation(terms, rows[j], lv, step)
                 if s != NO_ROOT and (hit < 0 or s < best_s):
                     best_s, hit = s, j
         first = False
@@ -180,10 +291,21 @@ def scan_steps(A, E, dt, rows, leaving, z, t, t_end):
 
 
 @njit(cache=True)
+def _magnitudes(z):
+    """|z| with a floor of 1e-4 max|z|: the rounding scale of a row's value. A component near 0 at an event
+    (cos wt at a zero of the force) was computed from values of the state's size, not from its own."""
+    out = np.abs(z)
+    floor = 1e-4 * out.max()
+    for i in range(out.shape[0]):
+        out[i] += floor
+    return out
+
+
+@njit(cache=True)
 def rows_on_zero(rows, z):
-    """Rows r with r.z = 0 to rounding (|r.z| <= 1e-12 |r|.|z|): constraints that start on their boundary."""
+    """Rows r with r.z = 0 to rounding (|r.z| <= 1e-12 |r|.|z|, |z| floored): constraints on their boundary."""
     out = np.empty(rows.shape[0], dtype=np.bool_)
-    abs_z = np.abs(z)
+    abs_z = _magnitudes(z)
     for j in range(rows.shape[0]):
         r = rows[j]
         out[j] = abs(np.dot(r, z)) <= 1e-12 * (np.dot(np.abs(r), abs_z) + 1e-300)
@@ -196,7 +318,7 @@ def admissible(A, rows, z):
     derivs = np.empty((4, z.shape[0]))
     sizes = np.empty((4, z.shape[0]))   # sizes bound the terms summed in each derivative (rounding scale)
     derivs[0] = z
-    sizes[0] = np.abs(z)
+    sizes[0] = _magnitudes(z)
     abs_a = np.abs(A)
     for k in range(1, 4):
         derivs[k] = np.dot(A, derivs[k - 1])
@@ -273,7 +395,7 @@ def ground_code(slot):
 
 
 @njit(cache=True, nogil=True)
-def run_engine(mats, exps, rows, kinds, nrows, valid, fpar, ipar, z, fst, ist,
+def run_engine(mats, exps, rows, rows_a, rows_aa, kinds, nrows, valid, fpar, ipar, z, fst, ist,
                rec_t, rec_z, rec_slot, rec_ref, rec_cause, rec_vel):
     """Run the event loop from the state (z, fst, ist) until done, the buffers are full or the event bound.
 
@@ -282,7 +404,8 @@ def run_engine(mats, exps, rows, kinds, nrows, valid, fpar, ipar, z, fst, ist,
     mats, exps : (N_SLOTS, n, n)
         Mode matrices A and step exponentials exp(A dt) (dt = ``fpar[P_DT]``).
     rows : (N_SLOTS, 2, n_rows_max, n); kinds : (N_SLOTS, n_rows_max); nrows, valid : (N_SLOTS,)
-        Constraint rows per slot and reference wall, their kinds (HIT_A, ...), counts, and which slots exist.
+        Constraint rows per slot and reference wall, their kinds (HIT_A, ...), counts, and which slots exist;
+        ``rows_a``, ``rows_aa``: the rows times the slot's A and A^2 (their rates and curvatures).
     fpar, ipar : parameter arrays (P_*, I_* slots).
     z : (n,) state, updated in place; fst, ist : run state (S_*, J_* slots), updated in place.
     rec_* : record buffers (segment start time, state, slot, reference wall, cause, [v1, v2 pre, v1, v2 post]).
@@ -307,7 +430,9 @@ def run_engine(mats, exps, rows, kinds, nrows, valid, fpar, ipar, z, fst, ist,
         if n_rec >= capacity:
             status = BUFFER_FULL
             break
-        t, j = scan_steps(mats[slot], exps[slot], dt, rows[slot, ref, :nrows[slot]], leaving, z, t, t_end)
+        nr = nrows[slot]
+        t, j = scan_steps(mats[slot], exps[slot], dt, rows[slot, ref, :nr], rows_a[slot, ref, :nr],
+                          rows_aa[slot, ref, :nr], leaving, z, t, t_end)
         if j < 0:
             break
         ist[J_EVENTS] += 1
@@ -365,3 +490,49 @@ def run_engine(mats, exps, rows, kinds, nrows, valid, fpar, ipar, z, fst, ist,
     fst[S_T] = t
     ist[J_SLOT], ist[J_REF], ist[J_RECORDS] = slot, ref, n_rec
     return status
+
+
+@njit(cache=True)
+def expm_taylor(M):
+    """exp(M) by scaling and squaring of an 18-term Taylor series (||M/2^s||_1 <= 1/4: truncation < 1e-25).
+
+    For the small mode matrices of the engine (real, or complex for the Van Loan blocks of the Fourier
+    integrals); explicit loops, so it costs microseconds and gives the same numbers with or without the JIT.
+    """
+    n = M.shape[0]
+    norm = 0.0
+    for j in range(n):
+        col = 0.0
+        for i in range(n):
+            col += abs(M[i, j])
+        norm = max(norm, col)
+    squarings = 0
+    while norm > 0.25 and squarings < 1000:
+        norm *= 0.5
+        squarings += 1
+    scale = 0.5 ** squarings
+    X = M * scale
+    out = np.zeros_like(M)
+    term = np.zeros_like(M)
+    for i in range(n):
+        out[i, i] = 1.0
+        term[i, i] = 1.0
+    for k in range(1, 18):
+        term = _matmul(term, X) / k
+        out = out + term
+    for _ in range(squarings):
+        out = _matmul(out, out)
+    return out
+
+
+@njit(cache=True)
+def _matmul(P, Q):
+    """P Q with explicit loops."""
+    out = np.zeros_like(P)
+    for i in range(P.shape[0]):
+        for k in range(P.shape[1]):
+            a = P[i, k]
+            if a != 0.0:
+                for j in range(Q.shape[1]):
+                    out[i, j] += a * Q[k, j]
+    return out

@@ -13,8 +13,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.linalg import expm
-
 from . import _effects_core as core
 from ._effects_core import D, FREE, N_SLOTS, STUCK_A, STUCK_B, U, V1, X1
 
@@ -64,8 +62,11 @@ class LinearModeSystem:
             for g in grounds:
                 self._build(3 * contact + g, contact, g)
         self.dt = self._step(extra_scales)
-        self.exps = np.array([expm(A * self.dt) if ok else np.zeros((n, n)) for A, ok in zip(self.mats, self.valid)])
+        self.exps = np.array([core.expm_taylor(A * self.dt) if ok else np.zeros((n, n))
+                              for A, ok in zip(self.mats, self.valid)])
         self.rows, self.kinds, self.nrows = self._constraints()
+        self.rows_a = np.einsum("srjk,skl->srjl", self.rows, self.mats)
+        self.rows_aa = np.einsum("srjk,skl->srjl", self.rows_a, self.mats)
 
     def _unit(self, i):
         e = np.zeros(self.n)
@@ -194,14 +195,54 @@ class EngineRun:
         if np.any(~np.isfinite(t)) or np.any(t < self.t0[0]) or np.any(t > self.t_end):
             raise ValueError(f"t must lie in [{self.t0[0]}, t_end = {self.t_end}]")
         k = np.searchsorted(self.t0, t, side="right") - 1
-        z = np.empty((t.size, self.system.n))
+        z = self.z0[k].copy()              # exact at segment starts
         sysm = self.system
-        for seg in np.unique(k):
-            m = k == seg
+        inside = np.flatnonzero(t != self.t0[k])
+        order = inside[np.argsort(k[inside], kind="stable")]
+        bounds = np.flatnonzero(np.diff(k[order])) + 1
+        for group in np.split(order, bounds) if order.size else ():
+            seg = k[group[0]]
             s = self.slot[seg]
-            z[m] = core.propagate(sysm.mats[s], sysm.exps[s], self.z0[seg], t[m] - self.t0[seg], sysm.dt)
+            z[group] = core.propagate(sysm.mats[s], sysm.exps[s], self.z0[seg], t[group] - self.t0[seg], sysm.dt)
         z[:, D] += self.ref[k] * sysm.h
         return z
+
+    def fourier_integrals(self, starts, ends, w: float, component: int) -> np.ndarray:
+        """Exact integrals of z[component](t) e^{-j w t} dt over pieces [starts, ends] inside segments.
+
+        y = e^{-j w s} z obeys y' = (A - j w) y and its integral Y' = y: one block exponential per mode over the
+        step dt (Van Loan), applied chunk by chunk to all pieces of that mode at once, then the Taylor series of
+        the block matrix over each remainder (shorter than dt).
+        """
+        starts = np.asarray(starts, dtype=float)
+        ends = np.asarray(ends, dtype=float)
+        sysm = self.system
+        n, dt = sysm.n, sysm.dt
+        zs = self.states(starts)
+        zs[:, D] -= self.ref[np.searchsorted(self.t0, starts, side="right") - 1] * sysm.h  # back to the mode's d
+        seg = np.searchsorted(self.t0, starts, side="right") - 1
+        slots = self.slot[seg]
+        out = np.empty(starts.size, complex)
+        for slot in np.unique(slots):
+            m = np.flatnonzero(slots == slot)
+            big = np.zeros((2 * n, 2 * n), complex)
+            big[:n, :n] = sysm.mats[slot] - 1j * w * np.eye(n)
+            big[n:, :n] = np.eye(n)
+            step = core.expm_taylor(big * dt)
+            y = np.zeros((m.size, 2 * n), complex)
+            y[:, :n] = zs[m]
+            length = ends[m] - starts[m]
+            chunks = np.floor(length / dt).astype(np.int64)
+            for c in range(int(chunks.max()) if m.size else 0):
+                todo = chunks > c
+                y[todo] = y[todo] @ step.T
+            rest = (length - chunks * dt)[:, None]
+            term, total = y.copy(), y.copy()
+            for k in range(1, core.TAYLOR_TERMS):
+                term = (term @ big.T) * (rest / k)
+                total += term
+            out[m] = np.exp(-1j * w * starts[m]) * total[:, n + component]
+        return out
 
 
 def run(system: LinearModeSystem, z: np.ndarray, t_end: float, v_stick: float, max_events: int, *,
@@ -223,7 +264,7 @@ def run(system: LinearModeSystem, z: np.ndarray, t_end: float, v_stick: float, m
     bufs[0][0], bufs[1][0], bufs[2][0], bufs[3][0], bufs[4][0] = t_start, z, slot, ref, core.START
     bufs[5][0] = [z[V1], z[V1] + z[U], z[V1], z[V1] + z[U]]
     while True:
-        status = core.run_engine(system.mats, system.exps, system.rows, system.kinds, system.nrows, system.valid,
+        status = core.run_engine(system.mats, system.exps, system.rows, system.rows_a, system.rows_aa, system.kinds, system.nrows, system.valid,
                                  fpar, ipar, z, fst, ist, *bufs)
         if status == core.DONE:
             break

@@ -24,7 +24,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm
 
 from .. import _checks
 from . import _engine
@@ -154,24 +153,7 @@ class EffectsTrajectory(ImpactEvents):
 
     def piece_integrals(self, starts, ends) -> np.ndarray:
         """Exact integrals of x1(t) e^{-j w t} dt over pieces inside segments (Van Loan block exponential)."""
-        starts = np.asarray(starts, dtype=float)
-        ends = np.asarray(ends, dtype=float)
-        run = self._run
-        w = self.params.omega
-        n = run.system.n
-        zs = run.states(starts)
-        zs[:, D] = 0.0        # no row of A reads d: the integrals of x1 do not depend on it
-        k = np.searchsorted(self.t0, starts, side="right") - 1
-        four = np.empty(starts.size, complex)
-        eye = np.eye(n)
-        big = np.zeros((2 * n, 2 * n), complex)
-        big[n:, :n] = eye
-        for i in range(starts.size):
-            # y = e^{-j w s} z obeys y' = (A - j w) y; the lower block accumulates its integral
-            big[:n, :n] = run.system.mats[run.slot[k[i]]] - 1j * w * eye
-            y = expm(big * (ends[i] - starts[i])) @ np.concatenate([zs[i], np.zeros(n)])
-            four[i] = np.exp(-1j * w * starts[i]) * y[n + X1]
-        return four
+        return self._run.fourier_integrals(starts, ends, self.params.omega, X1)
 
     def __repr__(self) -> str:
         p = self.params
