@@ -37,9 +37,10 @@ HIT_A, HIT_B, SEPARATE, STOP, SLIP = 0, 1, 2, 3, 4
 # segment causes
 START, IMPACT_A, IMPACT_B, SEPARATION, GROUND_EVENT = 0, 1, 2, 3, 4
 # run status
-DONE, BUFFER_FULL, EVENT_LIMIT, NO_MODE = 0, 1, 2, 3
-# float parameters: m1, m2, eps, h, v_stick, dt, friction force; int parameters: has friction, friction mass
-P_M1, P_M2, P_EPS, P_H, P_VSTICK, P_DT = range(6)
+DONE, BUFFER_FULL, EVENT_LIMIT, NO_MODE, DIVERGED = 0, 1, 2, 3, 4
+BEYOND_LIMIT = -2    # scan_steps: a state component passed the divergence limit
+# float parameters: m1, m2, eps, h, v_stick, dt, divergence limit; int parameters: has friction, friction mass
+P_M1, P_M2, P_EPS, P_H, P_VSTICK, P_DT, P_LIMIT = range(7)
 I_FRICTION, I_FMASS = range(2)
 # float run state: t, t_end, record_from; int run state: slot, ref, events, max_events, records
 S_T, S_TEND, S_RECORD_FROM = range(3)
@@ -224,20 +225,21 @@ def first_violation(terms, r, leaving, dt):
 
 
 @njit(cache=True, nogil=True)
-def scan_steps(A, E, dt, rows, rows_a, rows_aa, leaving, z, t, t_end):
+def scan_steps(A, E, dt, rows, rows_a, rows_aa, leaving, z, t, t_end, limit=np.inf):
     """Advance z (in place) by steps exp(A dt) = E from time t until the first event or ``t_end``.
 
     ``rows_a`` = rows @ A and ``rows_aa`` = rows @ A @ A (the rows' rates and curvatures). The last step,
     shorter than ``dt``, is taken on the Taylor series. ``leaving[j]``: row j starts on 0 and moves away (applies
     to the first step only). A row is examined closely (Taylor series, root refinement) only when it is negative
     at the step end or its rate or curvature changes sign in the step (two turning points need the latter).
+    A state component beyond ``limit`` in magnitude stops the scan (a diverging closed loop).
 
     Returns
     -------
     t : float
         Time reached (s): the event time, or ``t_end``.
     hit : int
-        Index of the violated row, or -1 when no event occurred.
+        Index of the violated row, -1 when no event occurred, BEYOND_LIMIT past ``limit``.
     """
     n_rows = rows.shape[0]
     first = True
@@ -287,6 +289,9 @@ def scan_steps(A, E, dt, rows, rows_a, rows_aa, leaving, z, t, t_end):
             return t + best_s, hit
         z[:] = z_next
         t = t + step if step == dt else t_end
+        for i in range(z.shape[0]):
+            if not abs(z[i]) <= limit:
+                return t, BEYOND_LIMIT
     return t, -1
 
 
@@ -432,7 +437,10 @@ def run_engine(mats, exps, rows, rows_a, rows_aa, kinds, nrows, valid, fpar, ipa
             break
         nr = nrows[slot]
         t, j = scan_steps(mats[slot], exps[slot], dt, rows[slot, ref, :nr], rows_a[slot, ref, :nr],
-                          rows_aa[slot, ref, :nr], leaving, z, t, t_end)
+                          rows_aa[slot, ref, :nr], leaving, z, t, t_end, fpar[P_LIMIT])
+        if j == BEYOND_LIMIT:
+            status = DIVERGED
+            break
         if j < 0:
             break
         ist[J_EVENTS] += 1

@@ -161,9 +161,9 @@ class LinearModeSystem:
                 nrows[slot] = len(out)
         return rows, kinds, nrows
 
-    def parameters(self, v_stick):
+    def parameters(self, v_stick, limit=np.inf):
         """Float and int parameter arrays of :func:`dfloop.impact._effects_core.run_engine`."""
-        fpar = np.array([self.m1, self.m2, self.eps, self.h, v_stick, self.dt])
+        fpar = np.array([self.m1, self.m2, self.eps, self.h, v_stick, self.dt, limit])
         ipar = np.array([self.friction is not None, 0 if self.friction is None else self.friction[1]],
                         dtype=np.int64)
         return fpar, ipar
@@ -180,8 +180,8 @@ class LinearModeSystem:
 class EngineRun:
     """Recorded segments of one run: segment k starts at ``t0[k]`` in state ``z0[k]`` and mode ``slot[k]``."""
 
-    def __init__(self, system, t_end, t0, z0, slot, ref, cause, vel, n_events):
-        self.system, self.t_end = system, t_end
+    def __init__(self, system, t_end, t0, z0, slot, ref, cause, vel, n_events, diverged=False):
+        self.system, self.t_end, self.diverged = system, t_end, diverged
         self.t0, self.z0, self.slot, self.ref, self.cause, self.vel = t0, z0, slot, ref, cause, vel
         self.n_events = n_events
 
@@ -246,27 +246,33 @@ class EngineRun:
 
 
 def run(system: LinearModeSystem, z: np.ndarray, t_end: float, v_stick: float, max_events: int, *,
-        ref: int = 0, t_start: float = 0.0, record_from: float = 0.0, what: str = "simulation") -> EngineRun:
+        ref: int = 0, t_start: float = 0.0, record_from: float = 0.0, limit: float = np.inf,
+        what: str = "simulation") -> EngineRun:
     """Run the compiled event loop from state ``z`` (d relative to wall ``ref``) over [t_start, t_end].
 
     Records before ``record_from`` (s) are dropped except the segment running at that time (bounded memory).
+    A state component beyond ``limit`` ends the run early (``diverged``; ``t_end`` is then the time reached).
     Raises :class:`dfloop.impact.kernel.EventLimitError` past ``max_events`` events, naming how to raise it.
     """
     from .kernel import EventLimitError
 
     z = np.array(z, dtype=float)
     slot = system.first_slot(z, ref, v_stick)
-    fpar, ipar = system.parameters(v_stick)
+    fpar, ipar = system.parameters(v_stick, limit)
     fst = np.array([t_start, t_end, record_from])
     ist = np.array([slot, ref, 0, max_events, 1], dtype=np.int64)
     capacity = int(min(max_events + 1, _INITIAL_CAPACITY)) + 1
     bufs = _buffers(capacity, system.n)
     bufs[0][0], bufs[1][0], bufs[2][0], bufs[3][0], bufs[4][0] = t_start, z, slot, ref, core.START
     bufs[5][0] = [z[V1], z[V1] + z[U], z[V1], z[V1] + z[U]]
+    diverged = False
     while True:
         status = core.run_engine(system.mats, system.exps, system.rows, system.rows_a, system.rows_aa, system.kinds, system.nrows, system.valid,
                                  fpar, ipar, z, fst, ist, *bufs)
         if status == core.DONE:
+            break
+        if status == core.DIVERGED:
+            diverged, t_end = True, float(fst[0])
             break
         if status == core.EVENT_LIMIT:
             rate = ist[2] / max(fst[0] - t_start, 1e-300)
@@ -283,7 +289,7 @@ def run(system: LinearModeSystem, z: np.ndarray, t_end: float, v_stick: float, m
         bufs, capacity = new, new_capacity
     n = int(ist[4])
     t0, z0, sl, rf, cause, vel = (b[:n].copy() for b in bufs)
-    return EngineRun(system, t_end, t0, z0, sl, rf, cause, vel, int(ist[2]))
+    return EngineRun(system, t_end, t0, z0, sl, rf, cause, vel, int(ist[2]), diverged)
 
 
 def _buffers(capacity, n):
