@@ -26,6 +26,7 @@ TAYLOR_TERMS = 30
 NO_ROOT = -1.0       # first_violation: no violation inside the step
 SUB_PIECES = 8       # pieces of an examined step (one turning point assumed per piece)
 REFINE_ITERATIONS = 200
+NEWTON_STEPS = 12    # refine: Newton steps before pure bisection
 
 # state slots
 X1, V1, D, U = 0, 1, 2, 3
@@ -58,13 +59,30 @@ def _matvec(M, x, out):
 
 
 @njit(cache=True, nogil=True)
-def taylor_into(A, z, terms):
-    """terms[k] = A^k z / k! for k < TAYLOR_TERMS (Taylor coefficients of exp(A s) z), in place."""
+def taylor_into(A, z, terms, span=0.0):
+    """terms[k] = A^k z / k! for k < TAYLOR_TERMS (Taylor coefficients of exp(A s) z), in place.
+
+    With ``span`` > 0 (the longest s used), terms are set to 0 once two consecutive terms are below 1e-30 of
+    max|z| over the span (their contribution is far below rounding).
+    """
     terms[0] = z
+    n = z.shape[0]
+    size = 0.0
+    for i in range(n):
+        size = max(size, abs(z[i]))
+    small = 0
+    power = 1.0
     for k in range(1, TAYLOR_TERMS):
+        if small >= 2:
+            terms[k:] = 0.0
+            return
         _matvec(A, terms[k - 1], terms[k])
-        for i in range(z.shape[0]):
+        big = 0.0
+        for i in range(n):
             terms[k, i] /= k
+            big = max(big, abs(terms[k, i]))
+        power *= span
+        small = small + 1 if span > 0.0 and big * power <= 1e-30 * size else 0
 
 
 @njit(cache=True, nogil=True)
@@ -123,12 +141,13 @@ def _pval2(c, s, derivative):
 def refine(c, derivative, lo, hi, flo):
     """Root of the polynomial c (or of its derivative) with a sign change on [lo, hi].
 
-    Newton steps kept inside the bracket, bisection when a step leaves it or fails to halve it; the bracket is
-    narrowed to rounding (relative 4e-16). Returns the end on the far side of the root from ``lo``.
+    Newton steps kept inside the bracket (bisection when a step leaves it, and only bisection after
+    NEWTON_STEPS steps without convergence); once a Newton step is at rounding level the bracket is closed
+    with one probe to either side. Returns the end on the far side of the root from ``lo`` (the violated
+    side), at relative distance <= 4e-16 from the root.
     """
     s = 0.5 * (lo + hi)
-    width = hi - lo
-    for _ in range(REFINE_ITERATIONS):
+    for it in range(REFINE_ITERATIONS):
         if hi - lo <= 4e-16 * max(hi, 1e-300):
             break
         fs, ds = _pval2(c, s, derivative)
@@ -138,22 +157,23 @@ def refine(c, derivative, lo, hi, flo):
             lo, flo = s, fs
         else:
             hi = s
-        s_new = s - fs / ds if ds != 0.0 else 0.5 * (lo + hi)
-        if not (lo < s_new < hi) or hi - lo > 0.5 * width:
-            s_new = 0.5 * (lo + hi)
-        width = hi - lo
-        if abs(s_new - s) <= 2e-16 * max(abs(s), 1e-300):
-            # Newton has converged: close the bracket on the root with one step to either side
-            step = 4e-16 * max(abs(s_new), 1e-300)
-            for probe in (s_new - step, s_new + step):
-                if lo < probe < hi:
-                    fp = _pval(c, probe, derivative)
-                    if fp == 0.0:
-                        return probe
-                    if (fp > 0) == (flo > 0):
-                        lo = probe
-                    else:
-                        hi = probe
+        if it < NEWTON_STEPS and ds != 0.0:
+            s_new = s - fs / ds
+            if abs(s_new - s) <= 2e-16 * max(abs(s), 1e-300):
+                step = 4e-16 * max(abs(s_new), 1e-300)   # converged: close the bracket around s_new
+                for probe in (s_new - step, s_new + step):
+                    if lo < probe < hi:
+                        fp = _pval(c, probe, derivative)
+                        if fp == 0.0:
+                            return probe
+                        if (fp > 0) == (flo > 0):
+                            lo, flo = probe, fp
+                        else:
+                            hi = probe
+                s_new = 0.5 * (lo + hi)
+            elif not (lo < s_new < hi):
+                s_new = 0.5 * (lo + hi)
+        else:
             s_new = 0.5 * (lo + hi)
         s = s_new
     return hi
@@ -201,9 +221,10 @@ def first_violation(terms, r, leaving, dt):
     """First s in [0, dt] where r.z(s) < 0 given r.z >= 0 before (NO_ROOT if none in the step).
 
     ``leaving``: the step starts on r.z = 0 and moves away; values within rounding of 0 are then not events.
-    The step is examined in SUB_PIECES pieces, each with at most one turning point assumed (the scan examines a
-    step whenever the row's value, rate or curvature changes sign in it), unless a bound on the Taylor series
-    proves the row positive over the whole step.
+    When the curvature keeps its sign over the step the slope is monotone (one turning point at most);
+    otherwise the step is examined in SUB_PIECES pieces, each with at most one turning point assumed (the scan
+    examines a step whenever the row's value, rate or curvature changes sign in it). A bound on the Taylor
+    series that proves the row positive over the whole step ends the search first.
     """
     c = np.empty(terms.shape[0])
     _matvec(terms, r, c)
@@ -214,9 +235,12 @@ def first_violation(terms, r, leaving, dt):
         tol *= 1e-12
     elif _surely_positive(c, dt):
         return NO_ROOT
+    # the slope is monotone (one turning point at most) when the curvature keeps its sign over the step
+    _, curvature_b = _pval2(c, dt, True)
+    pieces = 1 if c[2] * curvature_b > 0.0 else SUB_PIECES
     lo, fa, da = 0.0, c[0], c[1]
-    for k in range(1, SUB_PIECES + 1):
-        hi = dt * k / SUB_PIECES if k < SUB_PIECES else dt
+    for k in range(1, pieces + 1):
+        hi = dt * k / pieces if k < pieces else dt
         s = _piece_violation(c, tol, lo, hi, fa, da)
         if s != NO_ROOT:
             return s
@@ -260,7 +284,7 @@ def scan_steps(A, E, dt, rows, rows_a, rows_aa, leaving, z, t, t_end, limit=np.i
         if step == dt:
             _matvec(E, z, z_next)
         else:
-            taylor_into(A, z, terms)
+            taylor_into(A, z, terms, step)
             have_terms = True
             z_next[:] = poly(terms, step)
         da[:] = db                    # r.A z at the step start = r.A z_next of the previous step
@@ -272,13 +296,15 @@ def scan_steps(A, E, dt, rows, rows_a, rows_aa, leaving, z, t, t_end, limit=np.i
         best_s = NO_ROOT
         hit = -1
         for j in range(n_rows):
-            lv = first and leaving[j]
+            # a row leaving its boundary with a positive, increasing slope all through the step (curvature of
+            # one sign) cannot come back within it
+            lv = first and leaving[j] and not (fb[j] > 0.0 and da[j] > 0.0 and db[j] > 0.0 and ca[j] * cb[j] > 0.0)
             if lv or fb[j] < 0.0 or ((da[j] * db[j] < 0.0 or ca[j] * cb[j] < 0.0)
                                      and min(fa[j], fb[j]) <= 0.5 * step * step * max(abs(ca[j]), abs(cb[j]))):
                 # (a dip between two positive ends is at most (max curvature) step^2 / 8 deep: with the
                 # curvature allowed to double inside the step, ends above 0.5 step^2 |curvature| are clear)
                 if not have_terms:
-                    taylor_into(A, z, terms)
+                    taylor_into(A, z, terms, step)
                     have_terms = True
                 s = first_violation(terms, rows[j], lv, step)
                 if s != NO_ROOT and (hit < 0 or s < best_s):
@@ -312,28 +338,35 @@ def rows_on_zero(rows, z):
     out = np.empty(rows.shape[0], dtype=np.bool_)
     abs_z = _magnitudes(z)
     for j in range(rows.shape[0]):
-        r = rows[j]
-        out[j] = abs(np.dot(r, z)) <= 1e-12 * (np.dot(np.abs(r), abs_z) + 1e-300)
+        val = 0.0
+        size = 1e-300
+        for i in range(z.shape[0]):
+            val += rows[j, i] * z[i]
+            size += abs(rows[j, i]) * abs_z[i]
+        out[j] = abs(val) <= 1e-12 * size
     return out
 
 
 @njit(cache=True)
 def admissible(A, rows, z):
     """All rows hold at z (r.z >= 0), ties broken by the first non-negligible derivative r.A^k z, k <= 3."""
-    derivs = np.empty((4, z.shape[0]))
-    sizes = np.empty((4, z.shape[0]))   # sizes bound the terms summed in each derivative (rounding scale)
+    n = z.shape[0]
+    derivs = np.empty((4, n))
+    sizes = np.empty((4, n))   # sizes bound the terms summed in each derivative (rounding scale)
     derivs[0] = z
     sizes[0] = _magnitudes(z)
     abs_a = np.abs(A)
     for k in range(1, 4):
-        derivs[k] = np.dot(A, derivs[k - 1])
-        sizes[k] = np.dot(abs_a, sizes[k - 1])
+        _matvec(A, derivs[k - 1], derivs[k])
+        _matvec(abs_a, sizes[k - 1], sizes[k])
     for j in range(rows.shape[0]):
-        r = rows[j]
-        abs_r = np.abs(r)
         for k in range(4):
-            val = np.dot(r, derivs[k])
-            tol = 1e-12 * np.dot(abs_r, sizes[k])
+            val = 0.0
+            tol = 0.0
+            for i in range(n):
+                val += rows[j, i] * derivs[k, i]
+                tol += abs(rows[j, i]) * sizes[k, i]
+            tol *= 1e-12
             if val > tol:
                 break
             if val < -tol:

@@ -16,7 +16,7 @@ import numpy as np
 from . import _effects_core as core
 from ._effects_core import D, FREE, N_SLOTS, STUCK_A, STUCK_B, U, V1, X1
 
-STEPS_PER_SCALE = 32
+STEPS_PER_SCALE = 16
 _INITIAL_CAPACITY = 256
 
 
