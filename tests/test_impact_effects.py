@@ -270,3 +270,45 @@ def test_engine_gives_the_same_events_with_jit_disabled():
     assert plain["cause"] == tr.cause.tolist()
     assert np.allclose(plain["t"], tr.t0, rtol=1e-13, atol=1e-15)
     assert np.allclose(plain["x1"], tr.evaluate([0.3, 0.9])["x1"], rtol=1e-12, atol=1e-15)
+
+
+def test_scene_damping_case_settles_its_chatter_and_keeps_momentum_balance():
+    """models/dynamic_backlash_pd.toml's suggested ViscousDamping(5) at F = 42 N, w = 5 rad/s: chatter on a wall
+    with nanometre bounces must converge into sticking (it used to run away in the rounding of x2 - x1), and
+    M1 v1 + M2 v2 = (F/w) sin wt - c x1 must hold at every impact."""
+    c, F42, w = 5.0, 42.07, 5.0
+    tr = simulate(M1, M2, H, 0.5, F42, w, 20 * 2 * math.pi / w, effects=(ViscousDamping(c),), max_events=200_000)
+    assert tr.n_events < 200 * 20 and tr.stuck_intervals.shape[0] >= 10
+    imp = tr.impacts
+    p = M1 * imp["v1_post"] + M2 * imp["v2_post"]
+    x1 = tr.evaluate(imp["t"])["x1"]
+    assert np.max(np.abs(p - (F42 / w * np.sin(w * imp["t"]) - c * x1))) < 1e-10 * F42 / w
+
+
+def test_record_from_bounds_the_records_and_keeps_the_df():
+    p = ImpactParameters(M1, M2, H, 0.5, F, 10.0)
+    tp = 2 * math.pi / 10.0
+    effects = (ViscousDamping(1.0),)
+    full = simulate_with_effects(p, 40 * tp, effects, 10 ** 6, 1e-9)
+    tail = simulate_with_effects(p, 40 * tp, effects, 10 ** 6, 1e-9, record_from=30 * tp)
+    assert tail.t0[0] <= 30 * tp < tail.t0[1] and tail.t0.size < 0.4 * full.t0.size
+    assert tail.n_events == full.n_events
+    a = describing_function_from_trajectory(full, 30, 10)
+    b = describing_function_from_trajectory(tail, 30, 10)
+    assert a.N == b.N and a.n_impacts == b.n_impacts
+    with pytest.raises(ValueError, match="t must lie"):
+        tail.evaluate([tp])
+
+
+def test_zero_damping_and_zero_spring_are_the_paper_model():
+    p = ImpactParameters(M1, M2, H, 0.8, F, 35.0)
+    t_end = 4 * 2 * math.pi / 35.0
+    plain = simulate_with_effects(p, t_end, (), 10 ** 6, 1e-9)
+    zero = simulate_with_effects(p, t_end, (ViscousDamping(0.0), LoadSpring(0.0)), 10 ** 6, 1e-9)
+    assert np.array_equal(plain.t0, zero.t0) and np.array_equal(plain.post, zero.post)
+
+
+def test_event_limit_error_says_how_to_raise_it():
+    from dfloop.impact.kernel import EventLimitError
+    with pytest.raises(EventLimitError, match="larger max_events"):
+        simulate(M1, M2, H, 0.5, F, 10.0, 2.0, effects=(ViscousDamping(1.0),), max_events=10)

@@ -577,3 +577,39 @@ def _matmul(P, Q):
                 for j in range(Q.shape[1]):
                     out[i, j] += a * Q[k, j]
     return out
+
+
+@njit(cache=True)
+def van_loan_pieces(step, big, y0, lengths, dt, component):
+    """Component ``component`` of exp(big L) y0 for every piece (rows of y0, lengths L), complex.
+
+    ``step`` = exp(big dt): whole steps first, then the Taylor series of big over the remainder (< dt).
+    """
+    m, n = y0.shape
+    out = np.empty(m, dtype=np.complex128)
+    y = np.empty(n, dtype=np.complex128)
+    tmp = np.empty(n, dtype=np.complex128)
+    term = np.empty(n, dtype=np.complex128)
+    for p in range(m):
+        y[:] = y0[p]
+        chunks = int(np.floor(lengths[p] / dt))
+        for _ in range(chunks):
+            for i in range(n):
+                acc = 0j
+                for k in range(n):
+                    acc += step[i, k] * y[k]
+                tmp[i] = acc
+            y[:] = tmp
+        rest = lengths[p] - chunks * dt
+        term[:] = y
+        total = y[component]
+        for k in range(1, TAYLOR_TERMS):
+            for i in range(n):
+                acc = 0j
+                for j in range(n):
+                    acc += big[i, j] * term[j]
+                tmp[i] = acc * (rest / k)
+            term[:] = tmp
+            total += term[component]
+        out[p] = total
+    return out

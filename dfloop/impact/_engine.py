@@ -211,8 +211,8 @@ class EngineRun:
         """Exact integrals of z[component](t) e^{-j w t} dt over pieces [starts, ends] inside segments.
 
         y = e^{-j w s} z obeys y' = (A - j w) y and its integral Y' = y: one block exponential per mode over the
-        step dt (Van Loan), applied chunk by chunk to all pieces of that mode at once, then the Taylor series of
-        the block matrix over each remainder (shorter than dt).
+        step dt (Van Loan), applied step by step to every piece of that mode, then the Taylor series of the block
+        matrix over each remainder (shorter than dt), compiled (:func:`_effects_core.van_loan_pieces`).
         """
         starts = np.asarray(starts, dtype=float)
         ends = np.asarray(ends, dtype=float)
@@ -231,27 +231,19 @@ class EngineRun:
             step = core.expm_taylor(big * dt)
             y = np.zeros((m.size, 2 * n), complex)
             y[:, :n] = zs[m]
-            length = ends[m] - starts[m]
-            chunks = np.floor(length / dt).astype(np.int64)
-            for c in range(int(chunks.max()) if m.size else 0):
-                todo = chunks > c
-                y[todo] = y[todo] @ step.T
-            rest = (length - chunks * dt)[:, None]
-            term, total = y.copy(), y.copy()
-            for k in range(1, core.TAYLOR_TERMS):
-                term = (term @ big.T) * (rest / k)
-                total += term
-            out[m] = np.exp(-1j * w * starts[m]) * total[:, n + component]
+            total = core.van_loan_pieces(step, big, y, ends[m] - starts[m], dt, n + component)
+            out[m] = np.exp(-1j * w * starts[m]) * total
         return out
 
 
 def run(system: LinearModeSystem, z: np.ndarray, t_end: float, v_stick: float, max_events: int, *,
         ref: int = 0, t_start: float = 0.0, record_from: float = 0.0, limit: float = np.inf,
-        what: str = "simulation") -> EngineRun:
+        capacity: int = _INITIAL_CAPACITY, what: str = "simulation") -> EngineRun:
     """Run the compiled event loop from state ``z`` (d relative to wall ``ref``) over [t_start, t_end].
 
     Records before ``record_from`` (s) are dropped except the segment running at that time (bounded memory).
     A state component beyond ``limit`` ends the run early (``diverged``; ``t_end`` is then the time reached).
+    ``capacity``: initial record buffers (they double as needed, up to ``max_events`` + 2).
     Raises :class:`dfloop.impact.kernel.EventLimitError` past ``max_events`` events, naming how to raise it.
     """
     from .kernel import EventLimitError
@@ -261,7 +253,7 @@ def run(system: LinearModeSystem, z: np.ndarray, t_end: float, v_stick: float, m
     fpar, ipar = system.parameters(v_stick, limit)
     fst = np.array([t_start, t_end, record_from])
     ist = np.array([slot, ref, 0, max_events, 1], dtype=np.int64)
-    capacity = int(min(max_events + 1, _INITIAL_CAPACITY)) + 1
+    capacity = int(min(max_events + 1, max(capacity, 16))) + 1
     bufs = _buffers(capacity, system.n)
     bufs[0][0], bufs[1][0], bufs[2][0], bufs[3][0], bufs[4][0] = t_start, z, slot, ref, core.START
     bufs[5][0] = [z[V1], z[V1] + z[U], z[V1], z[V1] + z[U]]

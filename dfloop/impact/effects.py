@@ -197,6 +197,8 @@ def simulate_with_effects(p, t_end: float, effects: tuple, max_events: int, chat
     record_from = _checks.nonnegative("record_from", record_from)
     system = open_loop_system(p, effects)
     z = np.array([0.0, 0.0, 0.5 * p.h, 0.0, 1.0, 0.0, 1.0])
+    periods = max(t_end - record_from, 0.0) / p.period
     run = _engine.run(system, z, t_end, v_stick, max_events, record_from=record_from,
+                      capacity=int(4 * periods) + 16,   # two impacts per period, twice: rarely regrown
                       what=f"forced motion F = {p.force:g} N, w = {p.omega:g} rad/s")
     return EffectsTrajectory(p, effects, run)
