@@ -312,3 +312,18 @@ def test_event_limit_error_says_how_to_raise_it():
     from dfloop.impact.kernel import EventLimitError
     with pytest.raises(EventLimitError, match="larger max_events"):
         simulate(M1, M2, H, 0.5, F, 10.0, 2.0, effects=(ViscousDamping(1.0),), max_events=10)
+
+
+def test_friction_stop_at_a_wall_with_elastic_impacts_settles_without_penetration():
+    """eps = 1, friction on M1, strong damping: a Zeno sequence of impacts and friction stops ends with the pair
+    resting against wall B on the ground (the stop leaves a relative speed below the chatter threshold, which
+    must be settled, not left to drift through the wall)."""
+    effects = (ViscousDamping(4.976344254909839), LoadSpring(0.21923888400854755),
+               CoulombFriction(1.379172144107993, "m1"))
+    tr = simulate(0.3720301234082074, 1.0, 1.0, 1.0, 5.260012043419313, 1.0, 4 * 2 * math.pi, effects=effects,
+                  max_events=200_000)
+    assert tr.stuck_intervals.shape[0] >= 1
+    ends = tr.segment_ends
+    t = np.minimum((tr.t0[:, None] + (ends - tr.t0)[:, None] * np.linspace(0, 1, 9)).ravel(), tr.t_end)
+    g = tr.evaluate(t)["gap"]
+    assert g.min() >= -1e-12 and g.max() <= 1 + 1e-12

@@ -433,6 +433,24 @@ def ground_code(slot):
 
 
 @njit(cache=True, nogil=True)
+def _impact(z, side, eps, mu2, v_stick):
+    """Impact law (8a/8b) on wall ``side`` (d -> 0): v1 += (1 + eps) M2/M u, u -> -eps u; below v_stick the
+    converged chatter settles plastically (momentum kept, u = 0). A pair found on the wall while already moving
+    away from it (a micro-flight whose apex lies below the rounding of the gap) settles plastically too."""
+    z[D] = 0.0
+    u = z[U]
+    if (side == 0 and u > 0.0) or (side == 1 and u < 0.0):
+        z[V1] = z[V1] + mu2 * u
+        z[U] = 0.0
+        return
+    z[V1] = z[V1] + (1.0 + eps) * mu2 * u
+    z[U] = -eps * u
+    if abs(z[U]) <= v_stick:
+        z[V1] = z[V1] + mu2 * z[U]
+        z[U] = 0.0
+
+
+@njit(cache=True, nogil=True)
 def run_engine(mats, exps, rows, rows_a, rows_aa, kinds, nrows, valid, fpar, ipar, z, fst, ist,
                rec_t, rec_z, rec_slot, rec_ref, rec_cause, rec_vel):
     """Run the event loop from the state (z, fst, ist) until done, the buffers are full or the event bound.
@@ -485,13 +503,7 @@ def run_engine(mats, exps, rows, rows_a, rows_aa, kinds, nrows, valid, fpar, ipa
         v1_pre, v2_pre = z[V1], z[V1] + z[U]
         if kind == HIT_A or kind == HIT_B:
             ref = 0 if kind == HIT_A else 1
-            z[D] = 0.0
-            u = z[U]
-            z[V1] = z[V1] + (1.0 + eps) * m2 * u / M
-            z[U] = -eps * u
-            if abs(z[U]) <= v_stick:  # converged chatter: plastic settle (momentum kept)
-                z[V1] = z[V1] + m2 * z[U] / M
-                z[U] = 0.0
+            _impact(z, ref, eps, m2 / M, v_stick)
             cause = IMPACT_A if kind == HIT_A else IMPACT_B
         elif kind == SEPARATE:
             cause = SEPARATION
@@ -516,8 +528,31 @@ def run_engine(mats, exps, rows, rows_a, rows_aa, kinds, nrows, valid, fpar, ipa
                 z[U] = -z[V1]
         slot = choose_mode(mats, rows, nrows, valid, ipar, fpar, z, ref)
         if slot < 0:
+            # two events at one instant: the event left the pair on a wall moving into it (e.g. a friction stop
+            # as the gap closes): the impact happens now
+            gap = z[D] + ref * fpar[P_H]
+            side = -1
+            if abs(gap) <= 1e-12 * fpar[P_H] and z[U] < 0.0:
+                side = 0
+            elif abs(gap - fpar[P_H]) <= 1e-12 * fpar[P_H] and z[U] > 0.0:
+                side = 1
+            if side >= 0:
+                v1_pre, v2_pre = z[V1], z[V1] + z[U]
+                ref = side
+                _impact(z, side, eps, m2 / M, v_stick)
+                cause = IMPACT_A if side == 0 else IMPACT_B
+                slot = choose_mode(mats, rows, nrows, valid, ipar, fpar, z, ref)
+        if slot < 0:
             status = NO_MODE
             break
+        if slot // 3 != FREE and (z[U] != 0.0 or z[D] != 0.0):
+            # stuck chosen with a relative speed below v_stick left by a non-impact event: settle exactly
+            z[D] = 0.0
+            if ipar[I_FRICTION] and slot % 3 == 0:
+                z[V1] = 0.0           # the pair rests on the ground
+            else:
+                z[V1] = z[V1] + m2 * z[U] / M
+            z[U] = 0.0
         leaving = rows_on_zero(rows[slot, ref, :nrows[slot]], z)
         k = 0 if t <= record_from else n_rec
         rec_t[k] = t
