@@ -179,10 +179,8 @@ def test_zero_damping_effect_is_the_undamped_loop():
 
 
 @pytest.fixture(scope="module")
-def pd_orbit(tmp_path_factory):
-    import os
-    os.environ.setdefault("DFLOOP_CACHE_DIR", str(tmp_path_factory.mktemp("cache")))
-    element = DynamicBacklash(1.0, 1.0, 0.1, 0.5)
+def pd_orbit():
+    element = DynamicBacklash(1.0, 1.0, 0.1, 0.5, cache=False)
     return element, impact_loop_orbit(PD, element, F0, W0)
 
 
