@@ -259,8 +259,8 @@ def run(system: LinearModeSystem, z: np.ndarray, t_end: float, v_stick: float, m
     bufs[5][0] = [z[V1], z[V1] + z[U], z[V1], z[V1] + z[U]]
     diverged = False
     while True:
-        status = core.run_engine(system.mats, system.exps, system.rows, system.rows_a, system.rows_aa, system.kinds, system.nrows, system.valid,
-                                 fpar, ipar, z, fst, ist, *bufs)
+        status = core.run_engine(system.mats, system.exps, system.rows, system.rows_a, system.rows_aa,
+                                 system.kinds, system.nrows, system.valid, fpar, ipar, z, fst, ist, *bufs)
         if status == core.DONE:
             break
         if status == core.DIVERGED:
