@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import warnings
 
@@ -276,26 +277,29 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
         warnings.warn(f"{len(crossings)} jump crossing(s): G(jw) passes through the gap of a jump of -1/N at "
                       f"{where}{' ...' if len(crossings) > 5 else ''}; no limit cycle of the DF equation there "
                       "(see .jump_crossings)", stacklevel=2)
-    cycles = _attach_confidence(plant, G, N, cycles, exact)
+    cycles = _attach_confidence(G, N, cycles, exact)
     result = LimitCycles(cycles, (A_lo, A_hi), (w_lo, w_hi), {"amplitude": a_src, "omega": w_src},
                          (a.size, v.size), res.n_points, crossings, report)
     result.plant, result.element = G, N
     return result
 
 
-def _attach_confidence(plant, G, N, cycles: list[LimitCycle], exact: bool) -> list[LimitCycle]:
-    """Every cycle with its confidence (cheap, always) and, when asked, its exact orbit."""
-    from ..confidence import cycle_confidence, unavailable
+def _attach_confidence(G, N, cycles: list[LimitCycle], exact: bool) -> list[LimitCycle]:
+    """Every cycle with its confidence (computed on first access) and, when asked, its exact orbit."""
     from ..exact import exact_cycle
 
-    out = []
-    for c in cycles:
-        try:
-            conf = cycle_confidence(plant, N, c.amplitude, c.frequency)
-        except ValueError as exc:
-            conf = unavailable(str(exc))
-        out.append(dataclasses.replace(c, confidence=conf, exact=exact_cycle(G, N, c) if exact else None))
-    return out
+    return [dataclasses.replace(c, _confidence=functools.partial(_confidence, G, N, c.amplitude, c.frequency),
+                                exact=exact_cycle(G, N, c) if exact else None) for c in cycles]
+
+
+def _confidence(G, N, amplitude: float, frequency: float):
+    """cycle_confidence, or an unavailable Confidence that says why it could not be computed."""
+    from ..confidence import cycle_confidence, unavailable
+
+    try:
+        return cycle_confidence(G, N, amplitude, frequency)
+    except ValueError as exc:
+        return unavailable(str(exc))
 
 
 def _jump_crossings(res: Residual, jumps: np.ndarray) -> list[JumpCrossing]:

@@ -1,7 +1,7 @@
 """Result objects of :func:`dfloop.predict_limit_cycles`."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 __all__ = ["LimitCycle", "LimitCycles", "JumpCrossing", "GridReport"]
 
@@ -38,9 +38,9 @@ class LimitCycle:
         N's ``error_estimate`` at the answer (0 for closed forms; inf where N gives no estimate).
     confidence : dfloop.Confidence or None
         How far the prediction can be trusted: the harmonic distortion at the element's input that the
-        DF neglects and the estimated errors of amplitude and frequency it implies (always set by
-        :func:`dfloop.predict_limit_cycles`; "unavailable" with a reason for elements without a static
-        time-domain response).
+        DF neglects and the estimated errors of amplitude and frequency it implies (always available on
+        cycles from :func:`dfloop.predict_limit_cycles`, computed on first access; "unavailable" with a
+        reason for elements without a static time-domain response).
     exact : dfloop.ExactCycle or None
         The true periodic orbit near this prediction, when ``predict_limit_cycles(..., exact=True)``.
     """
@@ -57,8 +57,17 @@ class LimitCycle:
     on_edge: bool = False
     valid: bool = True
     n_error: float = 0.0
-    confidence: object = None
     exact: object = None
+    _confidence: object = field(default=None, repr=False, compare=False)
+
+    @property
+    def confidence(self):
+        """The cycle's :class:`dfloop.Confidence`, computed on first access (a few ms) and kept."""
+        conf = self._confidence
+        if callable(conf):
+            conf = conf()
+            object.__setattr__(self, "_confidence", conf)
+        return conf
 
     @property
     def stable(self) -> bool:
