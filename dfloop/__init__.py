@@ -34,6 +34,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
                      "build", "find_scene", "shipped_scenes", "scene_reference"),
     "dfloop.cache_admin": ("CacheFile", "CacheInfo", "cache_info", "clear_cache"),
     "dfloop.errors": ("DfloopError", "CacheWarning"),
+    "dfloop.impact.loop": ("simulate_impact_loop", "impact_loop_orbit", "ImpactLoopOrbit"),
     "dfloop.exact": ("exact_cycle", "ExactCycle"),
     "dfloop.confidence": ("cycle_confidence", "Confidence"),
 }

@@ -46,3 +46,26 @@ def test_python_control_nonlinearity_gives_the_same_cycle_as_the_dfloop_element(
 def test_exact_must_be_a_bool(bad):
     with pytest.raises(ValueError, match="exact must be True or False"):
         df.predict_limit_cycles(G_RELAY, df.Relay(1.0), exact=bad)
+
+
+def test_dynamic_backlash_exact_cycle_is_where_a_long_run_of_the_engine_settles():
+    from dfloop.harmonics import fundamental
+
+    G = ct.tf([33.028, 425.06], [1.11979e-4, 2.11640e-2, 1.0])      # PD + roll-off of models/dynamic_backlash_pd
+    N = df.DynamicBacklash(m1=1.0, m2=1.0, h=0.1, restitution=0.5)
+    ex = df.exact_cycle(G, N, (31.75, 31.5))                         # a pair: no table is needed
+    assert ex.success, ex.message
+    assert np.all(np.abs(ex.multipliers) < 1) and ex.stable
+    run = df.simulate_impact_loop(G, N, 31.75, 31.5, periods=300, steps_per_period=400)
+    T = ex.period
+    last = run.t >= run.t[-1] - 40 * T                               # 40 periods of the exact period, settled
+    t, x = run.t[last], run.x[last]
+    n = int((t[-1] - t[0]) / T)
+    keep = t <= t[0] + n * T
+    A_run = abs(fundamental(t[keep], x[keep], ex.frequency))
+    assert A_run == pytest.approx(ex.amplitude, rel=2e-3)            # sampled run: rectangle-rule fundamental
+    # the settled run repeats with the exact period, to the error of linear interpolation between its samples
+    # (dt^2 / 8 |x''| <= (2 pi / 400)^2 / 8 * max|x| * (1 + harmonics) ~ 1e-4 max|x|)
+    inside = t[keep] + T <= run.t[-1]
+    shifted = np.interp(t[keep][inside] + T, run.t, run.x)
+    assert np.max(np.abs(shifted - x[keep][inside])) < 1e-3 * np.max(np.abs(x))

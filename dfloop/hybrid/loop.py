@@ -227,15 +227,8 @@ class HybridLoop:
         leaving = rows_on_zero(self.rows[mode], z)
         while t < t_end:
             A, E, dt, rows = self.matrices[mode], self.exps[mode], self.steps[mode], self.rows[mode]
-            t_scan = t
-            t, j = scan_steps(A, E, dt, rows, leaving, z, t, t_end)
-            if j < 0 and t < t_end:   # the last, shorter step before t_end
-                if t != t_scan:
-                    leaving[:] = False
-                d = t_end - t
-                t, j = scan_steps(A, expm(A * d), d, rows, leaving, z, t, t_end)
-                if j < 0:
-                    t = t_end
+            rows_a = rows @ A
+            t, j = scan_steps(A, E, dt, rows, rows_a, rows_a @ A, leaving, z, t, t_end)  # to t_end, or an event
             if j < 0:
                 leaving[:] = False
                 continue

@@ -133,7 +133,8 @@ def simulate_impact_loop(G, element, amplitude: float, frequency: float, *, peri
                       what=f"closed loop ({periods:g} periods of {w:g} rad/s; max_events of simulate_impact_loop)")
     grid = np.arange(0.0, run.t_end, period / int(steps_per_period))
     zs = run.states(grid)
-    return LoopSimulation(grid, zs @ loop.x_row, zs[:, X1], run.diverged)
+    return LoopSimulation(grid, zs @ loop.x_row, zs[:, X1], run.diverged,
+                          method="exact linear-mode engine (events located to rounding)")
 
 
 def _event_bound(max_events, periods):
@@ -484,7 +485,7 @@ def _divides(pm, xi, k, scale, tol):
 def _orbit_result(loop, pm, xi, J, T, run, end, k, residual, iterations, samples) -> ImpactLoopOrbit:
     multipliers = np.linalg.eigvals(J)
     multipliers = multipliers[np.argsort(-np.abs(multipliers))]
-    t = np.linspace(0.0, T, samples)
+    t = np.linspace(0.0, T, samples, endpoint=False)  # one period, without its endpoint
     zs = run.states(np.minimum(t, run.t_end))
     imp = (run.cause[:end] == IMPACT_A) | (run.cause[:end] == IMPACT_B)
     imp[0] = True
