@@ -35,8 +35,8 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     "dfloop.cache_admin": ("CacheFile", "CacheInfo", "cache_info", "clear_cache"),
     "dfloop.errors": ("DfloopError", "CacheWarning"),
     "dfloop.impact.loop": ("simulate_impact_loop", "impact_loop_orbit", "ImpactLoopOrbit"),
-    "dfloop.exact": ("exact_cycle", "ExactCycle"),
-    "dfloop.confidence": ("cycle_confidence", "Confidence"),
+    "dfloop.exact": ("ExactCycle", "exact_cycle"),
+    "dfloop.confidence": ("Confidence", "cycle_confidence"),
 }
 _SUBMODULES = ("describing", "impact", "solve", "verify", "plot", "harmonics", "progress", "scene", "cli", "cache_admin", "errors", "exact", "confidence", "hybrid")
 

@@ -583,6 +583,15 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
         xa, xv, ok = refine(res, sa, sv, sbox, tol)
         roots_a.extend(xa[ok])
         roots_v.extend(xv[ok])
+        # a root on a grid edge leaves the windings of the cells around it undefined, so a partner of opposite
+        # degree next to it (a clustered pair) shows in no winding: isolate each such root's neighbourhood
+        # (distinct roots only: several suspects usually refine to the same one)
+        _, first = np.unique(np.round(np.column_stack([xa[ok], xv[ok]]), 12), axis=0, return_index=True)
+        for k in np.flatnonzero(ok)[np.sort(first)]:
+            fa, fv, fc = _isolate(res, sbox.take([k]), window, tol, hint=(xa[k], xv[k]))
+            roots_a.extend(fa)
+            roots_v.extend(fv)
+            crossings.extend(fc)
     # tangent-like pairs cancel in a cell's winding: search from local minima of the relative residual
     si, sj, sm = tangent_seeds(P, ii, jj, _TANGENT_THRESHOLD, allowed)
     if si.size > _MAX_TANGENT_SEEDS:
