@@ -9,7 +9,8 @@ from dfloop.impact.dynamic_backlash import DynamicBacklash, prepare_many
 from dfloop.impact.extract import impact_describing_function
 
 M1, M2, H, EPS = 1.0, 1.0, 0.1, 0.5
-KW = dict(transient_periods=100, periods=20)
+KW = dict(periods=20)                                   # adaptive transient (the default)
+REF = dict(transient_periods=600, periods=20)           # direct reference: a long fixed transient
 
 
 @pytest.fixture(autouse=True)
@@ -19,7 +20,7 @@ def tmp_cache(tmp_path, monkeypatch):
 
 
 def direct(F, w, eps=EPS, m1=M1, m2=M2, h=H, **kw):
-    return impact_describing_function(m1, m2, h, eps, F, w, **(kw or KW))
+    return impact_describing_function(m1, m2, h, eps, F, w, **(kw or REF))
 
 
 def test_table_matches_direct_simulation_off_grid():

@@ -35,8 +35,10 @@ MAX_DETECTED_PERIOD = 12
 PERIODICITY_TOL = 1e-6  # relative mismatch of the stroboscopic state that still counts as periodic
 _ROUNDING_MISMATCH = 1e-11   # stroboscopic mismatch at rounding level: periodic whatever its trend
 _MAX_CONTRACTION = 0.9995    # a candidate contracting slower than this per period is not extrapolated
+_EXTRAPOLATE_BELOW = 1e-2    # ... nor one whose mismatch is still this large
+_GROWTH = 4                  # adaptive transient: at most x4 per step, each step needing new evidence
 MIN_TRANSIENT_PERIODS = 25   # first transient of the adaptive extraction
-CHAOS_TRANSIENT_PERIODS = 200  # adaptive: a motion not contracting towards any period by then is irregular
+CHAOS_TRANSIENT_PERIODS = 100  # adaptive: a motion not contracting towards any period by then is irregular
 DEFAULT_MAX_TRANSIENT_PERIODS = 4000
 
 
@@ -144,7 +146,8 @@ def _assess_period(state: np.ndarray, tol: float = PERIODICITY_TOL) -> tuple[int
     converging motion has a small mismatch per period but is still far from its orbit). Mismatches at
     rounding level are accepted as they are. When no period has converged, ``extra_periods`` is the number
     of further periods after which the best candidate should meet the criterion if it keeps contracting at
-    rate r (``inf`` when it does not contract: irregular so far).
+    rate r (``inf`` when it does not clearly contract, see :func:`_extra_periods`, or its mismatch is still
+    above 1e-2: irregular so far).
     """
     n = state.shape[0] - 1
     best = (math.inf, math.inf)       # (end mismatch, extra periods) of the best non-converged candidate
@@ -158,11 +161,25 @@ def _assess_period(state: np.ndarray, tol: float = PERIODICITY_TOL) -> tuple[int
         if max(a, b) < tol and rate < 1.0 and b * rate / (1.0 - rate) < tol:
             return period, 0.0
         if b < best[0]:
-            extra = math.inf
-            if rate < _MAX_CONTRACTION and b > 0:
-                extra = max(math.log(tol * (1.0 - rate) / (4.0 * b)) / math.log(rate), 0.0)
-            best = (b, extra)
+            best = (b, _extra_periods(m, tol) if b < _EXTRAPOLATE_BELOW else math.inf)
     return 0, best[1]
+
+
+def _extra_periods(m: np.ndarray, tol: float) -> float:
+    """Periods until the mismatch sequence m (one per period) falls to tol (1 - r) / 4, if it contracts.
+
+    The contraction must be clear: a least-squares line through log m with slope log r < log 0.9995 and
+    residuals below 0.5 (a factor 1.6); otherwise inf (an irregular motion's mismatch does not line up).
+    """
+    if m.size < 4 or np.any(m <= 0):
+        return math.inf
+    j = np.arange(m.size)
+    y = np.log(m)
+    slope, icept = np.polyfit(j, y, 1)
+    if slope >= math.log(_MAX_CONTRACTION) or np.std(y - (slope * j + icept)) > 0.5:
+        return math.inf
+    rate = math.exp(slope)
+    return max(math.log(tol * (1.0 - rate) / (4.0 * m[-1])) / slope, 0.0)
 
 
 def describing_function_from_trajectory(traj: Trajectory, transient_periods: int, periods: int) -> ImpactDF:
@@ -188,14 +205,18 @@ def describing_function_from_trajectory(traj: Trajectory, transient_periods: int
     return _df_over_window(traj, t_a, periods, period)
 
 
+def _no_impact(traj: Trajectory, t_a: float) -> bool:
+    """True when the motion after t_a is free flight throughout (no impact, no stuck phase)."""
+    first = np.searchsorted(traj.t0, t_a, side="right") - 1
+    return bool(np.all(traj.mode[first:] == 0) and not np.any(traj.impact_mask[first + 1:]))
+
+
 def _df_over_window(traj: Trajectory, t_a: float, periods: int, period: int) -> ImpactDF:
     """The DF of x1 over ``periods`` forcing periods from t_a, for a motion of the given period (0: none)."""
     p = traj.params
     w = p.omega
     tp = 2.0 * math.pi / w
-    in_window = (traj.t0 > t_a) & (traj.t0 < t_a + periods * tp)
-    no_impact = not np.any(in_window & ((traj.cause == IMPACT_A) | (traj.cause == IMPACT_B)))
-    if no_impact and np.all(traj.mode[np.searchsorted(traj.t0, t_a, side="right") - 1:] == 0):
+    if _no_impact(traj, t_a):
         # free flight throughout: x1 is exactly linear in t, its fundamental exactly 0 (whatever the gap does)
         return ImpactDF(N=0j, X1=0j, periodicity=0.0, period=1, impacts_per_period=0.0, max_run_A=0,
                         max_run_B=0, runs_A=np.zeros(0, np.int64), runs_B=np.zeros(0, np.int64),
@@ -321,7 +342,7 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
     run = KernelRun(scaled, chatter_tol, initial)
 
     def window(t_a: float, t_b: float) -> Trajectory:
-        run.advance(t_a, max_events)
+        run.advance(t_a, max_events, keep=False)
         run.forget()
         run.advance(t_b, max_events)
         return run.trajectory()
@@ -340,15 +361,14 @@ def _describe(p: ImpactParameters, window, transient: int | None, periods: int, 
     for _ in range(max_transient // periods + 2):     # t_skip grows by >= periods every pass
         traj = window(t_skip * tp, (t_skip + periods) * tp)
         period, extra = _assess_period(_stroboscopic_states(traj, t_skip * tp, periods))
-        df = replace(_df_over_window(traj, t_skip * tp, periods, period), transient_periods=t_skip)
-        if df.period > 0 or t_skip >= max_transient:
-            return df
         if math.isfinite(extra):
-            target = t_skip + periods + math.ceil(1.5 * extra)
+            target = min(t_skip + periods + math.ceil(1.5 * extra), _GROWTH * t_skip + periods)
         elif t_skip < CHAOS_TRANSIENT_PERIODS:
             target = 2 * t_skip + periods
         else:
-            return df
+            target = None
+        if period > 0 or t_skip >= max_transient or target is None or _no_impact(traj, t_skip * tp):
+            return replace(_df_over_window(traj, t_skip * tp, periods, period), transient_periods=t_skip)
         t_skip = max(min(target, max_transient), t_skip + periods)
     raise AssertionError("unreachable: the adaptive transient grows by at least one window per pass")
 
@@ -407,7 +427,8 @@ def impact_describing_function_batch(m1: float, m2: float, h: float, restitution
     Runs in a thread pool of ``workers`` threads (default: the CPU count); the JIT kernel releases the GIL.
     ``on_event_limit``: 'raise' (default) lets an :class:`~dfloop.impact.kernel.EventLimitError` through;
     'record' marks that point failed (``failure`` holds the reason) and goes on. ``callback()``, if given,
-    is called once per finished point (from the worker threads).
+    is called once per finished point (from the worker threads). ``initial`` is one start state for all
+    points or a callable ``initial(force, omega)`` returning the start state of each point.
     """
     if on_event_limit not in ("raise", "record"):
         raise ValueError(f"on_event_limit must be 'raise' or 'record', got {on_event_limit!r}")
@@ -423,7 +444,8 @@ def impact_describing_function_batch(m1: float, m2: float, h: float, restitution
             r = impact_describing_function(m1, m2, h, restitution, fw[0], fw[1], effects=effects,
                                            transient_periods=transient_periods, periods=periods,
                                            max_events=max_events, chatter_tol=chatter_tol,
-                                           max_transient_periods=max_transient_periods, initial=initial)
+                                           max_transient_periods=max_transient_periods,
+                                           initial=initial(*fw) if callable(initial) else initial)
             out = ({k: getattr(r, k) for k in _BATCH_FIELDS}, "")
         except EventLimitError as exc:
             if on_event_limit == "raise":

@@ -305,13 +305,14 @@ class KernelRun:
         Free-flight state at t = 0 (m, m/s); default rest with a centred gap.
     """
 
-    def __init__(self, params: ImpactParameters, chatter_tol: float = DEFAULT_CHATTER_TOL, initial=None):
+    def __init__(self, params: ImpactParameters, chatter_tol: float = DEFAULT_CHATTER_TOL, initial=None,
+                 capacity: int = 256):
         p = self.params = params
         x1, v1, gap, u = (0.0, 0.0, 0.5 * p.h, 0.0) if initial is None else _initial_state(initial, p.h)
         v_stick = chatter_tol * max(p.h * p.omega, p.force / (p.m2 * p.omega))
         self._kernel_params = np.array([p.m1, p.m2, p.h, p.force, p.omega, p.restitution, v_stick])
         self._state = np.array([0.0, 0.0, x1, v1, gap, u, float(FREE), -1.0])
-        self._seg, self._mode, self._cause = _core.empty_buffers(64)
+        self._seg, self._mode, self._cause = _core.empty_buffers(max(int(capacity), 2))
         self._seg[0] = [0.0, 0.0, x1, v1, gap, u, v1, u, v1, u]
         self._mode[0] = FREE
         self._cause[0] = _core.START
@@ -320,8 +321,11 @@ class KernelRun:
         self.t = 0.0                # time reached (s); the kernel state holds the last event
 
 
-    def advance(self, t_end: float, max_events: int) -> None:
-        """Run on to ``t_end`` (s); raises EventLimitError when the events since t = 0 would exceed max_events."""
+    def advance(self, t_end: float, max_events: int, keep: bool = True) -> None:
+        """Run on to ``t_end`` (s); raises EventLimitError when the events since t = 0 would exceed max_events.
+
+        ``keep=False`` drops stored segments whenever the buffer fills (memory bounded by its capacity).
+        """
         while True:
             cap = self._seg.shape[0]
             limit = min(cap, self._n + max(max_events - self.n_events, 0))
@@ -336,8 +340,11 @@ class KernelRun:
             t_now = float(self._state[0])
             if self.n_events >= max_events:
                 raise EventLimitError(_event_limit_message(max_events, t_now, t_end, self.params.period))
-            expected = 4 * (t_end - t_now) / self.params.period + 16
-            self._grow(int(min(2 * cap, cap + max(64, expected))))
+            if keep:
+                expected = 4 * (t_end - t_now) / self.params.period + 16
+                self._grow(int(max(2 * cap, cap + expected)))
+            else:
+                self.forget()
 
     def _grow(self, capacity: int) -> None:
         seg, mode, cause = _core.empty_buffers(capacity)
