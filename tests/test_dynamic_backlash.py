@@ -241,3 +241,30 @@ def test_effects_make_the_table_two_dimensional_and_enter_the_key():
     assert a.parameters()["h"] == H and "mass_ratio" not in a.parameters()
     with pytest.raises(ValueError, match="2-D"):
         a.similarity_table(1.0)
+
+
+@pytest.mark.parametrize("effects", [("damping",), "damping", [3.0], 5])
+def test_effects_that_are_not_effect_objects_are_rejected_at_construction(effects):
+    with pytest.raises(ValueError, match="effects"):
+        DynamicBacklash(M1, M2, H, EPS, effects=effects)
+
+
+def test_eps_is_an_alias_of_restitution_and_the_label_uses_restitution(monkeypatch):
+    a = DynamicBacklash(M1, M2, H, eps=0.5, cache=False)
+    assert a.restitution == 0.5 and a.parameters() == DynamicBacklash(M1, M2, H, 0.5, cache=False).parameters()
+    with pytest.raises(ValueError, match="restitution"):
+        DynamicBacklash(M1, M2, H, 0.5, eps=0.5)
+    with pytest.raises(ValueError, match="restitution"):
+        DynamicBacklash(M1, M2, H)
+    labels = []
+    from dfloop.impact import dynamic_backlash as mod
+
+    real = mod.progress_bar
+
+    def spy(label, total=None, **kw):
+        labels.append(label)
+        return real(label, total, **kw)
+
+    monkeypatch.setattr(mod, "progress_bar", spy)
+    DynamicBacklash(M1, M2, H, eps=0.5, cache=False, starts=0, base_dx=0.025)(50.0, 40.0)
+    assert labels == ["DynamicBacklash(restitution=0.5) table"]

@@ -236,16 +236,22 @@ class DynamicBacklash(DescribingFunction):
                  "transient_periods": np.asarray(r.transient_periods, dtype=float),
                  "failed": failed.astype(float)}
         branches = np.ones(force.shape)
-        for k in range(self.starts if not self.effects else 0):
+        # other starts only where rest settled on a periodic motion (elsewhere the value is invalid anyway)
+        probe = np.flatnonzero(regular) if not self.effects else np.empty(0, dtype=np.int64)
+        for k in range(self.starts):
             gap, u_rel = _STARTS[k]
-            alt = self._extract(force, omega, lambda f, w, gap=gap, u_rel=u_rel:
-                                (0.0, 0.0, gap * self.h, u_rel * f / (self.m2 * w)))
-            _, alt_label, alt_regular, _ = self._labels(alt)
-            alt_value = np.nan_to_num(np.asarray(alt.N, dtype=complex)) * self.m2 * omega ** 2
-            differ = alt_regular & ((alt_label != label) | (np.abs(alt_value - value)
-                                                            > _BRANCH_REL * np.maximum(np.abs(value), 1e-12)))
+            alt_value = np.full(force.shape, np.nan, dtype=complex)
+            alt_label = np.full(force.shape, FAILED, dtype=np.int64)
+            if probe.size:
+                alt = self._extract(force[probe], omega[probe], lambda f, w, gap=gap, u_rel=u_rel:
+                                    (0.0, 0.0, gap * self.h, u_rel * f / (self.m2 * w)))
+                _, lab, alt_regular, _ = self._labels(alt)
+                alt_value[probe] = np.nan_to_num(np.asarray(alt.N, dtype=complex)) * self.m2 * omega[probe] ** 2
+                alt_label[probe] = np.where(alt_regular, lab, FAILED)
+            differ = (alt_label != FAILED) & ((alt_label != label) | (np.abs(alt_value - value)
+                                                                      > _BRANCH_REL * np.abs(value)))
             branches += differ
-            spread = np.where(differ & ~failed, np.maximum(spread, np.abs(alt_value - value)), spread)
+            spread = np.where(differ, np.maximum(spread, np.abs(alt_value - value)), spread)
             extra[f"start{k}.re"], extra[f"start{k}.im"] = alt_value.real, alt_value.imag
             extra[f"start{k}.regime"] = alt_label.astype(float)
         extra["branches"] = branches

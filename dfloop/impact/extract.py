@@ -33,7 +33,7 @@ DEFAULT_TRANSIENT_PERIODS = 200
 DEFAULT_PERIODS = 40
 MAX_DETECTED_PERIOD = 12
 PERIODICITY_TOL = 1e-6  # relative mismatch of the stroboscopic state that still counts as periodic
-_ROUNDING_MISMATCH = 1e-11   # stroboscopic mismatch at rounding level: periodic whatever its trend
+_ROUNDING_MISMATCH = 1e-11   # stroboscopic mismatch at rounding level (x max(1, beta)): periodic whatever its trend
 _MAX_CONTRACTION = 0.9995    # a candidate contracting slower than this per period is not extrapolated
 _EXTRAPOLATE_BELOW = 1e-2    # ... nor one whose mismatch is still this large
 _GROWTH = 4                  # adaptive transient: at most x4 per step, each step needing new evidence
@@ -137,14 +137,15 @@ def _stroboscopic_states(traj: Trajectory, t_start: float, n_periods: int) -> np
     return np.column_stack([st["v1"] / v_scale, st["v2"] / v_scale, st["gap"] / p.h])
 
 
-def _assess_period(state: np.ndarray, tol: float = PERIODICITY_TOL) -> tuple[int, float]:
+def _assess_period(state: np.ndarray, tol: float = PERIODICITY_TOL, floor: float = _ROUNDING_MISMATCH
+                   ) -> tuple[int, float]:
     """(period, extra_periods): the smallest converged period p, else 0 with the periods still needed.
 
     For a candidate p the mismatches m_j = |S_{j+p} - S_j| (max norm) over the window must stay below
     ``tol`` *and* the distance to the periodic orbit they imply must too: with the contraction rate r per
     period estimated from the two halves of the window, that distance is about m_end r / (1 - r) (a slowly
     converging motion has a small mismatch per period but is still far from its orbit). Mismatches at
-    rounding level are accepted as they are. When no period has converged, ``extra_periods`` is the number
+    rounding level (below ``floor``, see :func:`_rounding_floor`) are accepted as they are. When no period has converged, ``extra_periods`` is the number
     of further periods after which the best candidate should meet the criterion if it keeps contracting at
     rate r (``inf`` when it does not clearly contract, see :func:`_extra_periods`, or its mismatch is still
     above 1e-2: irregular so far).
@@ -155,7 +156,7 @@ def _assess_period(state: np.ndarray, tol: float = PERIODICITY_TOL) -> tuple[int
         m = np.max(np.abs(state[period:] - state[:-period]), axis=1)
         half = m.size // 2
         a, b = float(np.max(m[:half])), float(np.max(m[half:]))
-        if b <= _ROUNDING_MISMATCH and a <= tol:
+        if b <= floor and a <= tol:
             return period, 0.0
         rate = (b / a) ** (1.0 / max(m.size - half, 1)) if a > 0 else 1.0
         if max(a, b) < tol and rate < 1.0 and b * rate / (1.0 - rate) < tol:
@@ -163,6 +164,12 @@ def _assess_period(state: np.ndarray, tol: float = PERIODICITY_TOL) -> tuple[int
         if b < best[0]:
             best = (b, _extra_periods(m, tol) if b < _EXTRAPOLATE_BELOW else math.inf)
     return 0, best[1]
+
+
+def _rounding_floor(beta: float) -> float:
+    """Stroboscopic mismatch of an exactly periodic motion in floating point: the gap h is computed from
+    forcing terms of size ~ beta h, so rounding grows with beta (measured ~3e-13 beta in chattering motion)."""
+    return _ROUNDING_MISMATCH * max(1.0, beta)
 
 
 def _extra_periods(m: np.ndarray, tol: float) -> float:
@@ -201,7 +208,7 @@ def describing_function_from_trajectory(traj: Trajectory, transient_periods: int
     if t_a + periods * tp > traj.t_end * (1.0 + 1e-12):
         raise ValueError(f"periods: the trajectory ends at {traj.t_end:g} s, before the window end "
                          f"{t_a + periods * tp:g} s")
-    period, _ = _assess_period(_stroboscopic_states(traj, t_a, periods))
+    period, _ = _assess_period(_stroboscopic_states(traj, t_a, periods), floor=_rounding_floor(p.beta))
     return _df_over_window(traj, t_a, periods, period)
 
 
@@ -329,13 +336,13 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
                             max_events=max_events, chatter_tol=chatter_tol)
 
         return _describe(p, window, transient, periods, max_transient)
-    with np.errstate(over="ignore", under="ignore"):
-        beta = math.exp(math.log(p.force) - math.log(p.m2) - math.log(p.h) - 2.0 * math.log(p.omega))
-    if not math.isfinite(beta) or beta > 1e300:
-        raise ValueError(f"force: beta = F/(M2 h w^2) = exp({math.log(p.force) - math.log(p.m2 * p.h) - 2 * math.log(p.omega):.6g}) "
-                         f"overflows (F = {p.force!r} N, h = {p.h!r} m, omega = {p.omega!r} rad/s); the masses then "
-                         f"move as one body, N = -1/((M1 + M2) w^2)")
-    scaled = ImpactParameters(p.m1 / p.m2, 1.0, 1.0, p.restitution, max(beta, 1e-300), 1.0)
+    log_beta = math.log(p.force) - math.log(p.m2) - math.log(p.h) - 2.0 * math.log(p.omega)
+    if log_beta > math.log(1e300):
+        raise ValueError(f"force: beta = F/(M2 h w^2) = exp({log_beta:.6g}) overflows (F = {p.force!r} N, "
+                         f"h = {p.h!r} m, omega = {p.omega!r} rad/s); the masses then move as one body, "
+                         f"N = -1/((M1 + M2) w^2)")
+    beta = math.exp(log_beta) if log_beta > -690.0 else 1e-300
+    scaled = ImpactParameters(p.m1 / p.m2, 1.0, 1.0, p.restitution, beta, 1.0)
     if initial is not None:
         x1, v1, gap, u = initial
         initial = (x1 / p.h, v1 / (p.h * p.omega), gap / p.h, u / (p.h * p.omega))
@@ -360,7 +367,8 @@ def _describe(p: ImpactParameters, window, transient: int | None, periods: int, 
     t_skip = min(MIN_TRANSIENT_PERIODS, max_transient)
     for _ in range(max_transient // periods + 2):     # t_skip grows by >= periods every pass
         traj = window(t_skip * tp, (t_skip + periods) * tp)
-        period, extra = _assess_period(_stroboscopic_states(traj, t_skip * tp, periods))
+        period, extra = _assess_period(_stroboscopic_states(traj, t_skip * tp, periods),
+                                       floor=_rounding_floor(p.beta))
         if math.isfinite(extra):
             target = min(t_skip + periods + math.ceil(1.5 * extra), _GROWTH * t_skip + periods)
         elif t_skip < CHAOS_TRANSIENT_PERIODS:
