@@ -9,7 +9,7 @@ from dfloop.impact.dynamic_backlash import DynamicBacklash, prepare_many
 from dfloop.impact.extract import impact_describing_function
 
 M1, M2, H, EPS = 1.0, 1.0, 0.1, 0.5
-KW = dict(periods=20)                                   # adaptive transient (the default)
+KW = dict(periods=20, starts=0)     # adaptive transient (the default); coexistence probes: tests/test_table_trust.py
 REF = dict(transient_periods=600, periods=20)           # direct reference: a long fixed transient
 
 
