@@ -199,3 +199,16 @@ def test_coexisting_branches_are_kept_and_make_N_not_unique(eps08):
         assert abs(other.N - rest.N) > 1e-3 * abs(rest.N)      # two attractors indeed
         w = math.sqrt(F / (M2 * H * math.exp(t.x[i])))
         assert not db.validity(F, w) and db.error_estimate(F, w) * M2 * w ** 2 >= t.spread[i]
+
+
+def test_adjacent_blocks_join_without_a_gap_for_any_origin_and_width():
+    """Block edges are computed once per edge, so adjacent blocks share their edge exactly and every
+    point between them is served (regression: rounding of a + block_dx once left a 1-ulp 'gap')."""
+    for origin, dx in ((math.log(0.25) + 1e-9, 0.8), (0.1, 0.3), (-0.7, 0.7)):
+        t = Table1D.build(smooth_sampler, origin, origin + 12 * dx, TableSettings(block_dx=dx, base_dx=dx / 4,
+                                                                                   origin=origin))
+        seam = np.flatnonzero(t.seams())
+        assert seam.size == 11 and np.all(t.x[seam] == t.x[seam + 1])
+        q = np.linspace(origin, origin + 12 * dx, 5001)
+        tv = t.evaluate(q)
+        assert np.all(np.abs(tv.value - smooth_sampler(q).value)[tv.valid] <= tv.error[tv.valid])

@@ -200,10 +200,11 @@ class Table1D:
         st = self.settings
         n_base = max(1, int(round(st.block_dx / st.base_dx)))
         for k in self.missing_blocks(lo, hi):
-            a = st.origin + k * st.block_dx
+            a, b = st.origin + k * st.block_dx, st.origin + (k + 1) * st.block_dx   # shared edges, exactly
             part = Table1D(st)
             part.n_sampled = self.n_sampled
-            x = np.linspace(a, a + st.block_dx, n_base + 1)
+            x = np.linspace(a, b, n_base + 1)
+            x[0], x[-1] = a, b
             part._insert(x, part._sample(sampler, x, progress, f"block {k}: base grid", self.x.size))
             part._refine(sampler, progress, self.x.size)
             part.block = np.full(part.x.size, k, dtype=np.int64)
@@ -448,7 +449,7 @@ class Table1D:
             raise ValueError(f"table query [{flat.min():.6g}, {flat.max():.6g}] outside the table window "
                              f"[{self.x[0]:.6g}, {self.x[-1]:.6g}]: extend the table first")
         i = np.clip(np.searchsorted(self.x, flat, side="right") - 1, 0, self.x.size - 2)
-        gap = self.seams() & (np.diff(self.x) > 0)
+        gap = np.diff(self.block) > 1                  # two blocks with missing ones between them
         if np.any(gap[i]):
             raise ValueError(f"table query at x = {flat[gap[i]][0]:.6g} falls between two blocks that were "
                              f"built apart: extend the table over it first")
