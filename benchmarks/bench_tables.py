@@ -126,7 +126,7 @@ def main(argv: list[str]) -> None:
     settings = [("cubic, tol 1e-5, adaptive transient (default)", {}),
                 ("cubic, tol 1e-4", dict(tol=1e-4)),
                 ("linear, tol 1e-5", dict(method="linear")),
-                ("probe_dx inf (no regime probes)", dict(probe_dx=math.inf)),
+                ("probe_dx 10 (no regime probes)", dict(probe_dx=10.0)),
                 ("starts 0 (no coexistence search)", dict(starts=0)),
                 ("fixed transient 100", dict(transient_periods=100))]
     for label, kw in settings:
