@@ -220,8 +220,7 @@ class Verification:
         ax.set_xticks([0.0, 1.0], ["start", "steady state"])
         ax.set_xlim(-0.15, 1.15)
         ax.set_ylabel(quantity("Amplitude of x", unit))
-        ax.set_title(f"Verification: {self.verdict} ({self.method})" if self.method else
-                     f"Verification: {self.verdict}", fontsize=9)
+        ax.set_title(f"Verification: {self.verdict}", fontsize=9)
         legend(ax, fontsize=8)
         return ax
 
