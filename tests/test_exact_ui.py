@@ -119,6 +119,8 @@ def test_nyquist_marks_each_exact_cycle_on_g_at_the_exact_frequency(cycles):
         g = complex(ct.evalfr(G, 1j * c.exact.frequency))  # python-control's own G(j w_exact)
         (x,), (y,) = marker.get_data()
         assert abs(complex(x, y) - g) <= 1e-9 * max(1.0, abs(g))
+        (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+        assert x0 < x < x1 and y0 < y < y1  # framed in view
         assert marker.get_marker() != cplt.lines[2][0].get_marker()  # distinct from the predicted markers
     labels = [t.get_text() for t in ax.get_legend().get_texts()]
     assert labels.count(EXACT_LABEL) == 1

@@ -45,11 +45,12 @@ def _cycles_and_windows(G, N, cycles, omega, amplitude):
     return cycles, tuple(map(float, w_win)), tuple(map(float, a_win))
 
 
-def _view_limits(ax, points: np.ndarray, cycles) -> None:
-    """Frame the part of the plane where the cycles are (the -1/N locus may run off to infinity)."""
+def _view_limits(ax, points: np.ndarray, marks: np.ndarray) -> None:
+    """Frame the part of the plane where the marked points (cycles, exact cycles) are (the -1/N locus may run
+    off to infinity)."""
     pts = points[np.isfinite(points)]
-    if cycles:
-        ref = max(abs(c.G) for c in cycles)
+    if marks.size:
+        ref = float(np.max(np.abs(marks)))
     else:
         ref = float(np.median(np.abs(pts))) if pts.size else 1.0
     near = pts[np.abs(pts) <= 3 * ref]
@@ -124,7 +125,7 @@ def plot_nyquist(G, N, cycles=None, ax=None, *, omega=None, amplitude=None, n_lo
     exact_markers = [ax.plot([p.real], [p.imag], label=EXACT_LABEL if k == 0 else None, **_EXACT)[0]
                      for k, p in enumerate(g_exact)]
     critical = ax.plot([-1.0], [0.0], "r+", ms=10, mew=1.5, zorder=4, label="-1")
-    _view_limits(ax, np.concatenate(points), cycles)
+    _view_limits(ax, np.concatenate(points + [g_exact]), np.array([c.G for c in cycles] + list(g_exact)))
     ax.axhline(0, color="0.8", lw=0.5)
     ax.axvline(0, color="0.8", lw=0.5)
     ax.set_xlabel(REAL)
