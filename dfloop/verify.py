@@ -186,6 +186,44 @@ class Verification:
     def stable(self) -> bool:
         return self.verdict == "stable"
 
+    def plot(self, ax=None, *, unit: str = ""):
+        """Draw where each run started and where it settled, against the predicted amplitude.
+
+        A verification keeps the steady states of its two runs, not their signals: each run is drawn as a line
+        from its start amplitude (1 -/+ ``perturbation``) A (at "start") to the amplitude it settled at (at
+        "steady state"; the largest |x| reached for a diverged run, the residual |x| for one that decayed),
+        the prediction as a dashed horizontal line. Both runs ending on the line: a stable cycle.
+
+        Parameters
+        ----------
+        ax : matplotlib Axes, optional
+        unit : str
+            The unit of x (the element's ``input_unit``) for the axis label.
+
+        Returns
+        -------
+        matplotlib Axes
+            ``ax.lines`` [run from inside, run from outside, predicted amplitude] (as for
+            :meth:`dfloop.ExactCycle.plot`); each run's ``get_ydata()`` is (start amplitude, settled amplitude).
+        """
+        from .plot._labels import axes_or_new, legend, quantity
+
+        ax = axes_or_new(ax)
+        for name, run, factor, color in (("inside", self.inside, 1 - self.perturbation, "C0"),
+                                         ("outside", self.outside, 1 + self.perturbation, "C1")):
+            end = (f"A={run.amplitude:.4g}, ω={run.frequency:.4g} rad/s" if run.oscillating
+                   else f"no oscillation (|x| {run.amplitude:.3g})")
+            ax.plot([0.0, 1.0], [factor * self.amplitude, run.amplitude], marker="o", color=color,
+                             label=f"from {name}: {end}")
+        ax.axhline(self.amplitude, color="C3", ls="--", lw=1,
+                   label=f"predicted A={self.amplitude:.4g}, ω={self.frequency:.4g} rad/s")
+        ax.set_xticks([0.0, 1.0], ["start", "steady state"])
+        ax.set_xlim(-0.15, 1.15)
+        ax.set_ylabel(quantity("Amplitude of x", unit))
+        ax.set_title(f"Verification: {self.verdict}", fontsize=9)
+        legend(ax, fontsize=8)
+        return ax
+
     def __repr__(self) -> str:
         return (f"Verification({self.verdict}: predicted A={self.amplitude:.4g}, w={self.frequency:.4g}; "
                 f"from inside -> A={self.inside.amplitude:.4g}, w={self.inside.frequency:.4g}; "

@@ -25,6 +25,20 @@ def amplitude_label(N) -> str:
     return quantity(f"Amplitude {N.input_name}", N.input_unit)
 
 
+def axes_or_new(ax, name: str = "ax"):
+    """The given matplotlib Axes, or a new figure's axes when ``ax`` is None; ``ValueError`` naming ``name``
+    for anything else (a figure, an array of axes, a python-control ControlPlot)."""
+    from matplotlib.axes import Axes
+
+    if ax is None:
+        import matplotlib.pyplot as plt
+
+        return plt.figure().add_subplot()
+    if not isinstance(ax, Axes):
+        raise ValueError(f"{name} must be a matplotlib Axes or None, got {type(ax).__name__} {ax!r:.60}")
+    return ax
+
+
 def legend(ax, **kwargs):
     """A legend with one entry per distinct label (the first handle drawn with it); None if no labels."""
     seen = {}
@@ -74,12 +88,13 @@ def _overlaps(box, boxes) -> bool:
     return any(box.x0 < b.x1 and b.x0 < box.x1 and box.y0 < b.y1 and b.y0 < box.y1 for b in boxes)
 
 
-def place_labels(ax, anchors, texts, colors=None, *, fontsize: float = 8.0):
+def place_labels(ax, anchors, texts, colors=None, *, fontsize: float = 8.0, avoid=()):
     """Annotate each anchor point (data coordinates) with its text where it overlaps no other label.
 
     Offsets are tried from close to far in eight directions (a thin leader line joins distant labels to
     their point); a label must lie inside the axes and keep clear of every anchor's marker. ``colors`` gives
-    one text colour per label (default black). Labels that
+    one text colour per label (default black); ``avoid`` lists further points (data coordinates) whose
+    markers no label may cover (unlabelled markers, e.g. the exact cycles). Labels that
     find no free place are listed in one block to the right of the axes instead (never drawn on top of
     each other).
 
@@ -91,7 +106,8 @@ def place_labels(ax, anchors, texts, colors=None, *, fontsize: float = 8.0):
     renderer = _renderer(ax.figure)
     scale = ax.figure.dpi / 72.0
     frame = ax.get_window_extent(renderer)
-    screen = ax.transData.transform(np.asarray(anchors, dtype=float).reshape(-1, 2)) if len(anchors) else []
+    points = list(anchors) + list(avoid)
+    screen = ax.transData.transform(np.asarray(points, dtype=float).reshape(-1, 2)) if points else []
     from matplotlib.text import Text
     from matplotlib.transforms import Bbox
 

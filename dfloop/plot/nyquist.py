@@ -19,6 +19,8 @@ __all__ = ["plot_nyquist", "plot_residual_map"]
 _STYLE = {"stable": dict(marker="o", mfc="C3", mec="C3"),
           "unstable": dict(marker="o", mfc="none", mec="C3"),
           "marginal": dict(marker="D", mfc="none", mec="C1")}
+_EXACT = dict(marker="*", ms=11, mfc="C4", mec="k", mew=0.6, ls="none", zorder=4)
+EXACT_LABEL = "exact cycle"
 
 
 def _control_plot(groups, ax, leg=None):
@@ -43,11 +45,12 @@ def _cycles_and_windows(G, N, cycles, omega, amplitude):
     return cycles, tuple(map(float, w_win)), tuple(map(float, a_win))
 
 
-def _view_limits(ax, points: np.ndarray, cycles) -> None:
-    """Frame the part of the plane where the cycles are (the -1/N locus may run off to infinity)."""
+def _view_limits(ax, points: np.ndarray, marks: np.ndarray) -> None:
+    """Frame the part of the plane where the marked points (cycles, exact cycles) are (the -1/N locus may run
+    off to infinity)."""
     pts = points[np.isfinite(points)]
-    if cycles:
-        ref = max(abs(c.G) for c in cycles)
+    if marks.size:
+        ref = float(np.max(np.abs(marks)))
     else:
         ref = float(np.median(np.abs(pts))) if pts.size else 1.0
     near = pts[np.abs(pts) <= 3 * ref]
@@ -69,7 +72,9 @@ def plot_nyquist(G, N, cycles=None, ax=None, *, omega=None, amplitude=None, n_lo
         Result of ``predict_limit_cycles``; computed here when omitted. Stable cycles are drawn
         filled, unstable hollow, marginal as diamonds, each labelled with amplitude and frequency
         (labels never overlap: crowded ones are listed beside the axes); jump crossings of a
-        discontinuous N (not cycles) as orange crosses.
+        discontinuous N (not cycles) as orange crosses. A cycle carrying a converged exact orbit
+        (``predict_limit_cycles(..., exact=True)``) gets a second marker, a purple star at G(j w_exact) on
+        G's curve (one "exact cycle" legend entry; labels keep clear of it).
     ax : matplotlib Axes, optional
     omega, amplitude : (lo, hi), optional
         Windows to draw (default: those of ``cycles``).
@@ -81,7 +86,8 @@ def plot_nyquist(G, N, cycles=None, ax=None, *, omega=None, amplitude=None, n_lo
     -------
     control.ControlPlot
         ``lines`` is a 1-D array of lists of Line2D: [G(jw)], [-1/N loci], [cycle markers],
-        [jump-crossing markers], [the -1 marker]; ``axes[0, 0]`` the axes, ``figure`` the figure.
+        [jump-crossing markers], [exact-cycle markers], [the -1 marker]; ``axes[0, 0]`` the axes, ``figure``
+        the figure.
     """
     import matplotlib.pyplot as plt
 
@@ -114,8 +120,12 @@ def plot_nyquist(G, N, cycles=None, ax=None, *, omega=None, amplitude=None, n_lo
     jumps = list(getattr(cycles, "jump_crossings", ()))
     jump_markers = [ax.plot([j.G.real], [j.G.imag], ls="none", marker="x", ms=8, mew=1.5, color="C1", zorder=3)[0]
                     for j in jumps]
+    exact = [c.exact for c in cycles if getattr(c, "exact", None) is not None and c.exact.success]
+    g_exact = plant(np.array([e.frequency for e in exact], dtype=float)) if exact else np.empty(0, complex)
+    exact_markers = [ax.plot([p.real], [p.imag], label=EXACT_LABEL if k == 0 else None, **_EXACT)[0]
+                     for k, p in enumerate(g_exact)]
     critical = ax.plot([-1.0], [0.0], "r+", ms=10, mew=1.5, zorder=4, label="-1")
-    _view_limits(ax, np.concatenate(points), cycles)
+    _view_limits(ax, np.concatenate(points + [g_exact]), np.array([c.G for c in cycles] + list(g_exact)))
     ax.axhline(0, color="0.8", lw=0.5)
     ax.axvline(0, color="0.8", lw=0.5)
     ax.set_xlabel(REAL)
@@ -127,8 +137,9 @@ def plot_nyquist(G, N, cycles=None, ax=None, *, omega=None, amplitude=None, n_lo
     place_labels(ax, [(c.G.real, c.G.imag) for c in cycles] + [(j.G.real, j.G.imag) for j in jumps],
                  [f"A={c.amplitude:.3g}, ω={c.frequency:.3g} rad/s\n{c.stability}" for c in cycles]
                  + [f"jump of N at A={j.amplitude:.3g}, ω={j.frequency:.3g} rad/s\n(no cycle)" for j in jumps],
-                 ["black"] * len(cycles) + ["C1"] * len(jumps))
-    return _control_plot([g_lines, loci, markers, jump_markers, critical], ax, leg)
+                 ["black"] * len(cycles) + ["C1"] * len(jumps),
+                 avoid=[(p.real, p.imag) for p in g_exact])
+    return _control_plot([g_lines, loci, markers, jump_markers, exact_markers, critical], ax, leg)
 
 
 def plot_residual_map(G, N, cycles=None, ax=None, *, omega=None, amplitude=None, shape=(200, 200)):

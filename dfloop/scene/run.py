@@ -1,7 +1,6 @@
 """Running scenes: predict the cycles, then only the stages the scene asks for, each timed and reported."""
 from __future__ import annotations
 
-import inspect
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -9,7 +8,6 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .errors import Problem, SceneError
 from .load import Scene
 
 __all__ = ["SceneReport", "run_scene", "predict_cycles"]
@@ -18,19 +16,45 @@ __all__ = ["SceneReport", "run_scene", "predict_cycles"]
 def predict_cycles(scene: Scene) -> Any:
     """The one call that predicts a scene's cycles: ``predict_limit_cycles`` on the scene's loop and windows.
 
-    ``[analysis] exact = true`` is passed through here as ``exact=True`` (exact cycles attached to the
-    predicted ones); a dfloop whose solver does not take ``exact`` says so instead of ignoring the request.
+    ``[analysis] exact = true`` is passed through as ``exact=True``: each predicted cycle carries its exact
+    orbit (``cycle.exact``, :func:`dfloop.exact_cycle`) besides its confidence (``cycle.confidence``).
     """
     from dfloop.solve import predict_limit_cycles
 
-    options: dict[str, Any] = {}
-    if scene.exact:
-        if "exact" not in inspect.signature(predict_limit_cycles).parameters:
-            raise SceneError(scene.source, Problem("analysis.exact", "this dfloop's predict_limit_cycles has no "
-                                                   "exact option"))
-        options["exact"] = True
     return predict_limit_cycles(scene.plant, scene.element, omega=scene.omega, amplitude=scene.amplitude,
-                                **options)
+                                exact=bool(scene.exact))
+
+
+def _percent(value: float | None) -> str:
+    return "-" if value is None else f"{100 * value:+.3g} %"
+
+
+def comparison_table(cycles: Any) -> list[str]:
+    """Markdown rows, one per cycle: predicted A and w, the confidence (distortion, estimated errors) and, for
+    cycles carrying an exact orbit, its A, w, Floquet stability (largest non-trivial |multiplier|) and the
+    DF's relative errors (predicted - exact) / exact. Amplitudes in the element's input unit, w in rad/s."""
+    rows = ["| # | predicted A | predicted w [rad/s] | distortion | est. error A | est. error w | exact A | "
+            "exact w [rad/s] | exact stability (max non-trivial abs multiplier) | DF error A | DF error w |",
+            "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for i, c in enumerate(cycles):
+        conf = c.confidence
+        if conf is not None and conf.available:
+            confidence = [f"{100 * conf.distortion:.3g} %", _percent(conf.amplitude_error),
+                          _percent(conf.frequency_error)]
+        else:
+            confidence = ["unavailable", "-", "-"]
+        ex = c.exact
+        if ex is None:
+            exact = ["-"] * 5
+        elif not ex.success:
+            exact = ["no orbit: " + ex.message.replace("|", "\\|").replace("\n", " "), "-", "-", "-", "-"]
+        else:
+            exact = [f"{ex.amplitude:.8g}", f"{ex.frequency:.8g}",
+                     f"{'stable' if ex.stable else 'unstable'} ({ex.largest_multiplier:.4g})",
+                     _percent(ex.amplitude_error), _percent(ex.frequency_error)]
+        rows.append("| " + " | ".join([str(i), f"{c.amplitude:.6g}", f"{c.frequency:.6g}", *confidence, *exact])
+                    + " |")
+    return rows
 
 
 def run_sweep(scene: Scene) -> Any:
@@ -57,6 +81,8 @@ class SceneReport:
         lines = [f"# {self.scene.title}", "", f"Scene `{self.scene.source}`; element `{self.scene.element!r}`.", ""]
         if self.cycles is not None:
             lines += ["## Predicted limit cycles", "", "```", repr(self.cycles), "```", ""]
+            if len(self.cycles):
+                lines += ["## Prediction, confidence and exact orbit", "", *comparison_table(self.cycles), ""]
         if self.verifications:
             lines += ["## Closed-loop verification", "", "```"]
             lines += [repr(v) for v in self.verifications]
