@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._blas import single_threaded_blas
 from ._checks import positive
 
 __all__ = ["ExactCycle", "exact_cycle"]
@@ -197,6 +198,7 @@ def _failure(message, predicted, method, residual=math.inf, iterations=0) -> Exa
     return ExactCycle(False, message, predicted, method, residual=residual, iterations=iterations)
 
 
+@single_threaded_blas
 def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, tol: float = 1e-11,
                 max_iterations: int = 40, settle_periods: float = 0.0, max_events: int = 10_000,
                 max_deviation: float = 0.5, nodes: int = 8) -> ExactCycle:

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm
 
+from ._blas import single_threaded_blas
 from .harmonics import SteadyState, steady_state
 
 __all__ = ["LoopSimulation", "simulate_loop", "Verification", "verify_cycle"]
@@ -44,6 +45,7 @@ def _run_options(periods, steps_per_period) -> tuple[float, int]:
     return periods, int(steps)
 
 
+@single_threaded_blas
 def simulate_loop(G, N, amplitude: float, frequency: float, *, periods: float = 80,
                   steps_per_period: int = 400) -> LoopSimulation:
     """Run the loop from the harmonic-balance state of a cycle of the given amplitude and frequency.
@@ -241,6 +243,7 @@ def _describe(run: SteadyState, diverged: bool, A0: float, w: float, d: float) -
             f"({'periodic' if run.periodicity < 1e-3 else f'periodicity {run.periodicity:.2g}'})")
 
 
+@single_threaded_blas
 def verify_cycle(G, N, cycle, *, perturbation: float = 0.3, periods: float = 80, steps_per_period: int = 400,
                  measure_periods: int = 10) -> Verification:
     """Simulate the loop from inside and outside a predicted cycle and report whether it attracts.

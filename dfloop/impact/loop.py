@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import _checks
+from .._blas import single_threaded_blas
 from . import _effects_core as core
 from . import _engine
 from ._effects_core import D, IMPACT_A, IMPACT_B, SEPARATION, U, V1, X1
@@ -90,6 +91,7 @@ def _validated(element, amplitude, frequency, periods):
     return A0, w, periods
 
 
+@single_threaded_blas
 def simulate_impact_loop(G, element, amplitude: float, frequency: float, *, periods: float = 80,
                          steps_per_period: int = 400, max_events: int | None = None,
                          chatter_tol: float = DEFAULT_CHATTER_TOL):
@@ -359,6 +361,7 @@ def _event_row(loop: _Loop, run, i: int) -> np.ndarray:
     return sysm.rows[s, ref, j]
 
 
+@single_threaded_blas
 def impact_loop_orbit(G, element, amplitude: float, frequency: float, *, max_period_multiple: int = 4,
                       transient_periods: float = 200, tol: float = 1e-10, max_iterations: int = 30,
                       samples: int = 400, max_events: int | None = None,
