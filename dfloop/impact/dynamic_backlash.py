@@ -434,7 +434,10 @@ class DynamicBacklash(DescribingFunction):
         hi is infinite for the paper's model (beyond ``beta_max`` the rigid-body value with its exact bound
         is returned, flagged not valid) and ``beta_max`` M2 h w^2 with effects (beyond it: ValueError).
         """
-        w = np.asarray(omega if omega is not None else np.nan, dtype=float)
+        if omega is None:
+            raise _checks.DfloopError("omega is required: the amplitude domain of DynamicBacklash depends on "
+                                      "frequency (rad/s), got omega=None")
+        w = _checks.frequency_array(omega)
         base = self.m2 * self.h * w ** 2
         hi = np.full(np.shape(base), np.inf) if self.similarity else self.beta_max * base
         return BETA_NO_IMPACT * base, hi

@@ -443,9 +443,7 @@ def impact_describing_function_batch(m1: float, m2: float, h: float, restitution
     f, w = np.broadcast_arrays(np.asarray(force, dtype=float), np.asarray(omega, dtype=float))
     if f.size == 0:
         raise ValueError("force, omega: empty grid")
-    workers = int(workers or os.cpu_count() or 1)
-    if workers < 1:
-        raise ValueError(f"workers must be >= 1, got {workers}")
+    workers = (os.cpu_count() or 1) if workers is None else _checks.integer_at_least("workers", workers, 1)
 
     def one(fw):
         try:

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import in_closed_interval, positive
+from .._checks import in_closed_interval, positive, real_array
+from ..errors import DfloopError
 
 __all__ = ["static_limit_frequency", "lower_limit_frequency", "no_impact_frequency", "jump_frequency",
            "beta_of", "omega_of", "beta_lower_limit", "BETA_NO_IMPACT", "BETA_JUMP",
@@ -23,9 +24,10 @@ BETA_JUMP = 1.0         # eq. (12), approximate
 
 
 def _arr(name, value):
-    a = np.asarray(value, dtype=float)
-    if np.any(np.isnan(a)) or np.any(~np.isfinite(a)) or np.any(a <= 0):
-        raise ValueError(f"{name} must be finite and > 0")
+    a = real_array(value, name)
+    bad = ~np.isfinite(a) | (a <= 0)
+    if np.any(bad):
+        raise DfloopError(f"{name} must be finite and > 0, got {float(a[bad].ravel()[0])!r}")
     return a
 
 
