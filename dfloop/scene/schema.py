@@ -106,8 +106,8 @@ class Analysis(_Table):
     verify_perturbation: float = Field(0.3, ge=1e-3, le=0.95, description="Relative offset of the simulation's "
                                                                          "starts inside and outside each cycle.")
     plots: list[Literal["nyquist", "residual"]] = Field(["nyquist"], description="Plots to draw.")
-    exact: bool = Field(False, description="Attach exact cycles (harmonic-balance correction) to the predicted "
-                                           "ones.")
+    exact: bool = Field(False, description="Attach the exact periodic orbit (`dfloop.exact_cycle`: shooting on "
+                                           "the exact flow, Floquet multipliers) to each predicted cycle.")
     predict: bool = Field(True, description="Predict the loop's limit cycles; false for a study of the element "
                                             "alone (a `[figure]`), which then skips prediction, verification "
                                             "and plots.")
