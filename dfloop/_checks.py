@@ -66,3 +66,14 @@ def frequency_array(omega, name: str = "omega") -> np.ndarray:
         if np.any(w <= 0):
             raise ValueError(f"{name} (frequency, rad/s) must be > 0; got a non-positive entry")
     return w
+
+
+def window(name: str, value) -> tuple[float, float]:
+    """A window (lo, hi) of positive finite floats with lo < hi (frequencies in rad/s, amplitudes)."""
+    try:
+        lo, hi = (float(x) for x in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} window must be a pair (lo, hi); got {value!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
+        raise ValueError(f"{name} window must satisfy 0 < lo < hi, both finite; got ({lo}, {hi})")
+    return lo, hi

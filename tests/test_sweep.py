@@ -1,0 +1,207 @@
+"""Parameter sweeps (dfloop.sweep): branches, folds and window edges against closed forms and independent
+root finding."""
+import csv
+import math
+
+import control as ct
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+import dfloop
+from dfloop.sweep import sweep
+
+G0 = ct.tf([1], [1, 3, 2, 0])  # 1/(s (s+1)(s+2)): phase crossover sqrt(2) rad/s, |G0| = 1/6 there
+W_PC, G_PC = math.sqrt(2.0), 1.0 / 6.0
+M, D = 1.0, 0.1  # relay level and dead zone
+K_STAR = math.pi * D / (2 * M * G_PC)  # N's maximum 2M/(pi d) equals 1/(K |G0|): the two cycles merge
+H = 0.2  # backlash clearance
+
+
+def relay_loop(K):
+    return K * G0, dfloop.Relay(M=M, dead_zone=D)
+
+
+def backlash_loop(K):
+    return K * G0, dfloop.Backlash(H)
+
+
+def relay_amplitudes(K):
+    """Closed-form roots of 4M/(pi A) sqrt(1 - (d/A)^2) = 1/(K |G0|): (unstable small, stable large)."""
+    q = (math.pi * D / (4 * M * K * G_PC)) ** 2  # u (1 - u) with u = (d/A)^2
+    u = np.array([(1 + math.sqrt(1 - 4 * q)) / 2, (1 - math.sqrt(1 - 4 * q)) / 2])
+    return D / np.sqrt(u)
+
+
+# independent computation for the backlash loop: the DF condition along the Nyquist curve of G0. At each
+# w below the phase crossover, arg(-1/N(X)) = arg G0(jw) fixes X (arg(-1/N) is monotone in X), and the gain
+# that makes it a cycle is K(w) = 1/(|G0(jw)| |N(X)|). Two cycles exist for K above min K(w); they merge at
+# the minimum (the tangency), found here by brentq on dK/dw = 0.
+_BL = dfloop.Backlash(H)
+
+
+def _g0(w):
+    return 1.0 / ((1j * w) * (1j * w + 1) * (1j * w + 2))
+
+
+def _x_of_w(w):
+    target = np.angle(_g0(w))
+    return brentq(lambda x: float(np.angle(-1.0 / _BL(x))) - target, H / 2 * (1 + 1e-13), 1e9, xtol=1e-15,
+                  rtol=1e-15, maxiter=500)
+
+
+def _k_of_w(w):
+    return 1.0 / (abs(_g0(w)) * abs(complex(_BL(_x_of_w(w)))))
+
+
+def _dk_dw(w, h=1e-5):
+    return (_k_of_w(w * (1 + h)) - _k_of_w(w * (1 - h))) / (2 * w * h)
+
+
+W_FOLD = brentq(_dk_dw, 0.4, 0.9, xtol=1e-13)
+K_FOLD = _k_of_w(W_FOLD)
+
+
+def _cycles_at(K):
+    """The two backlash cycles (w, X) at gain K, from K(w) = K on each side of the tangency."""
+    ws = [brentq(lambda w: _k_of_w(w) - K, lo, hi, xtol=1e-14) for lo, hi in ((0.05, W_FOLD), (W_FOLD, 1.41))]
+    return [(w, _x_of_w(w)) for w in ws]
+
+
+def test_relay_dead_zone_fold_and_branches_match_closed_form():
+    values = np.linspace(0.7, 2.5, 10) * K_STAR  # the fold lies between two values
+    res = sweep(relay_loop, values, parameter="K", progress=False)
+    folds = res.folds()
+    assert len(folds) == 1 and len(res.events) == 1
+    f = folds[0]
+    assert abs(f.parameter / K_STAR - 1) < 1e-6
+    assert abs(f.amplitude / (D * math.sqrt(2)) - 1) < 1e-5  # N is maximal at A = d sqrt(2)
+    assert abs(f.frequency / W_PC - 1) < 1e-9
+    assert len(res.branches) == 2 and set(f.branches) == {0, 1}
+    kinds = {b.kind: b for b in res.branches}
+    assert set(kinds) == {"stable", "unstable"}
+    for kind, col in (("unstable", 0), ("stable", 1)):  # the classical result: the larger cycle is stable
+        b = kinds[kind]
+        p, A, w = b.at_values()
+        assert np.array_equal(p, values[values > K_STAR])  # a point at every value past the fold, none before
+        ref = np.array([relay_amplitudes(K)[col] for K in p])
+        np.testing.assert_allclose(A, ref, rtol=1e-9)
+        np.testing.assert_allclose(w, W_PC, rtol=1e-9)
+        np.testing.assert_allclose(b.frequency, W_PC, rtol=1e-9)  # every continuation step is a root too
+        assert b.start == "fold" and b.end == "sweep end"
+        assert np.all(np.diff(b.parameter) >= 0)
+    assert np.all(kinds["stable"].amplitude[1:] > D * math.sqrt(2))
+    assert np.all(kinds["unstable"].amplitude[1:] < D * math.sqrt(2))
+    assert not res.notes
+
+
+def test_branches_born_between_two_values_are_traced_back_to_their_fold():
+    # only two values, no cycle at the first: the completeness check at the second finds the pair, and
+    # continuation backwards finds where it is born; decreasing values give the same fold
+    for values in ([0.5 * K_STAR, 3 * K_STAR], [3 * K_STAR, 0.5 * K_STAR]):
+        res = sweep(relay_loop, values, parameter="K", progress=False)
+        (f,) = res.folds()
+        assert abs(f.parameter / K_STAR - 1) < 1e-6
+        assert "exists for K > " in f.detail
+        for b in res.branches:  # arrays follow the order of the sweep
+            assert np.all(np.diff(b.parameter) * np.sign(values[1] - values[0]) >= 0)
+
+
+def test_backlash_gain_fold_matches_independent_tangency():
+    values = np.linspace(2.5, 5.5, 7)
+    res = sweep(backlash_loop, values, parameter="K", progress=False)
+    (f,) = res.folds()
+    assert abs(f.parameter / K_FOLD - 1) < 1e-6
+    assert abs(f.frequency / W_FOLD - 1) < 1e-4  # the root moves as sqrt(K - K_fold) near the fold
+    assert abs(f.amplitude / _x_of_w(W_FOLD) - 1) < 1e-4
+    assert len(res.branches) == 2
+    for b in res.branches:
+        p, A, w = b.at_values()
+        assert np.array_equal(p, values[values > K_FOLD])
+        side = 0 if b.frequency[-1] < W_FOLD else 1  # low-frequency cycle or high-frequency cycle
+        ref = np.array([_cycles_at(K)[side] for K in p])
+        np.testing.assert_allclose(w, ref[:, 0], rtol=1e-8)
+        np.testing.assert_allclose(A, ref[:, 1], rtol=1e-8)
+        # stability against the classical graphical rule (a different criterion from Loeb's)
+        for K, Ak, wk in zip(p, A, w):
+            assert dfloop.graphical_stability(K * G0, _BL, Ak, wk) == (b.kind == "stable")
+    assert {b.kind for b in res.branches} == {"stable", "unstable"}
+
+
+def test_window_entry_is_located_on_the_edge():
+    # as K falls from 5.9 the stable backlash cycle's amplitude falls through X = 10: there the gain is
+    # K = 1/(|G0(jw)| |N(10)|) with arg G0(jw) = arg(-1/N(10))
+    x_edge = 10.0
+    n_edge = complex(_BL(x_edge))
+    w_edge = brentq(lambda w: np.angle(_g0(w)) - np.angle(-1 / n_edge), 0.5, 1.414, xtol=1e-15)
+    k_edge = 1 / (abs(_g0(w_edge)) * abs(n_edge))
+    res = sweep(backlash_loop, [5.9, 3.0], amplitude=(0.1001, x_edge), parameter="K", progress=False)
+    (entry,) = [e for e in res.events if e.kind == "entry"]
+    assert abs(entry.amplitude / x_edge - 1) < 1e-12
+    assert abs(entry.parameter / k_edge - 1) < 1e-9
+    assert abs(entry.frequency / w_edge - 1) < 1e-9
+    b = res.branches[entry.branches[0]]
+    assert b.kind == "stable" and b.start.startswith("enters the amplitude window's upper edge")
+    assert b.amplitude[0] == pytest.approx(x_edge, rel=1e-12)
+    (f,) = res.folds()
+    assert abs(f.parameter / K_FOLD - 1) < 1e-6
+
+
+def test_csv_plot_and_repr(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    res = sweep(relay_loop, np.linspace(0.9, 1.6, 4) * K_STAR, parameter="K", unit="V/V", progress=False)
+    path = tmp_path / "sweep.csv"
+    res.to_csv(path)
+    with open(path) as fh:
+        rows = list(csv.reader(fh))
+    assert rows[0] == ["branch", "K [V/V]", "amplitude A", "frequency [rad/s]", "stability", "point"]
+    body = rows[1:]
+    assert len(body) == sum(b.parameter.size for b in res.branches)
+    for b in res.branches:
+        mine = [r for r in body if int(r[0]) == b.index]
+        np.testing.assert_array_equal([float(r[1]) for r in mine], b.parameter)  # repr round-trips exactly
+        np.testing.assert_array_equal([float(r[2]) for r in mine], b.amplitude)
+        assert mine[0][5] == "fold" and mine[-1][5] == "sweep end"
+        assert sum(r[5] == "value" for r in mine) == 3 - 1  # values past the fold, the last one is the end
+    text = repr(res)
+    assert "fold at p=0.942477" in text and "stable and an unstable" in text
+    ax_a, ax_w = res.plot()
+    styles = {line.get_linestyle() for line in ax_a.get_lines() if line.get_label() in ("stable cycles",
+                                                                                         "unstable cycles")}
+    assert styles == {"-", "--"}
+    assert "fold" in [line.get_label() for line in ax_a.get_lines()]
+    assert ax_w.get_xlabel() == "K [V/V]" and "[rad/s]" in ax_w.get_ylabel()
+    matplotlib.pyplot.close("all")
+
+
+def test_executor_gives_the_serial_result():
+    from concurrent.futures import ThreadPoolExecutor
+
+    values = np.linspace(1.2, 2.0, 3) * K_STAR
+    serial = sweep(relay_loop, values, progress=False)
+    with ThreadPoolExecutor(2) as ex:
+        threaded = sweep(relay_loop, values, progress=False, executor=ex)
+    assert len(serial.branches) == len(threaded.branches)
+    for a, b in zip(serial.branches, threaded.branches):
+        np.testing.assert_array_equal(a.amplitude, b.amplitude)
+        np.testing.assert_array_equal(a.parameter, b.parameter)
+    assert [list(c) for c in serial.cycles] == [list(c) for c in threaded.cycles]
+
+
+def test_bad_input():
+    with pytest.raises(ValueError, match="values must be strictly"):
+        sweep(relay_loop, [1.0, 2.0, 1.5])
+    with pytest.raises(ValueError, match="at least 2"):
+        sweep(relay_loop, [1.0])
+    with pytest.raises(ValueError, match="values must be finite"):
+        sweep(relay_loop, [1.0, np.nan])
+    with pytest.raises(ValueError, match="omega window"):
+        sweep(relay_loop, [1.0, 2.0], omega=(2.0, 1.0))
+    with pytest.raises(ValueError, match="max_steps"):
+        sweep(relay_loop, [1.0, 2.0], max_steps=0)
+    with pytest.raises(ValueError, match=r"loop_at\(1.0\) must return a pair"):
+        sweep(lambda K: K * G0, [1.0, 2.0], progress=False)
+    with pytest.raises(RuntimeError, match="max_steps=2"):
+        sweep(relay_loop, [1.2 * K_STAR, 2 * K_STAR], max_steps=2, progress=False)
