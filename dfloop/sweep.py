@@ -4,7 +4,8 @@ The cycles of a one-parameter family of loops form curves in (ln A, ln w, p). :f
 curve by pseudo-arclength continuation (tangent predictor, Newton corrector on the arclength hyperplane,
 step control), so a cycle is followed from value to value instead of being re-solved and matched by eye.
 A fold (turning point in p, where a stable and an unstable cycle meet) is passed, not lost, and is located
-by bisection along the curve; leaving the window ends a branch at the exact crossing of its edge.
+by a bracketing root search (Illinois regula falsi) on dp/ds along the curve; leaving the window ends a
+branch at the exact crossing of its edge.
 
 The tangent of the curve is the cross product of the gradients of Re R and Im R (R = 1 + G N) in
 (ln A, ln w, q); its q component is U_a V_v - U_v V_a, the Loeb determinant in log coordinates. So dp/ds
@@ -41,7 +42,7 @@ _XTOL = 1e-11  # Newton converged when the update is below this (max norm)
 _MAX_NEWTON = 12
 _H0, _HMAX, _HMIN = 0.02, 0.1, 1e-9  # arclength steps in (ln A, ln w, q)
 _COS_TURN = math.cos(math.radians(30))  # a step may turn the tangent by at most 30 degrees
-_BISECT = 60  # bisection levels when locating an event inside a step
+_BISECT = 80  # bound on the probes that locate an event inside a step
 _MATCH = 1e-6  # a solver's cycle lies on a traced curve when within this (ln A, ln w)
 _MATCH_MARGINAL = 1e-3  # ... or within this for a cycle the solver called marginal (a double root)
 _SAME_Q = 1e-12  # a point this close to a given value (in q) lies on it
@@ -371,18 +372,16 @@ class _Family:
         return True
 
     def jacobian(self, X: np.ndarray) -> tuple[complex, np.ndarray]:
-        """R at X and the real 2 x 3 Jacobian of (Re R, Im R) in (ln A, ln w, q) by central differences
-        (second-order one-sided in q at the ends of the range, so no loop outside it is built)."""
+        """R at X and the real 2 x 3 Jacobian of (Re R, Im R) in (ln A, ln w, q): central differences in
+        ln A, ln w; a one-sided difference in q (towards the inside of the range, so no loop outside it is
+        built). The q column only steers Newton and the predictor: the roots, the Loeb determinant and so
+        the folds do not depend on its accuracy."""
         a, v, q = X
         q = min(max(q, 0.0), 1.0)
         h = _FD
         r = self.residual(q, a + np.array([0, h, -h, 0, 0]), v + np.array([0, 0, 0, h, -h]))
-        if q - h >= 0 and q + h <= 1:
-            rq = (self.residual(q + h, a, v) - self.residual(q - h, a, v)) / (2 * h)
-        elif q + 2 * h <= 1:
-            rq = (-3 * r[0] + 4 * self.residual(q + h, a, v) - self.residual(q + 2 * h, a, v)) / (2 * h)
-        else:
-            rq = (3 * r[0] - 4 * self.residual(q - h, a, v) + self.residual(q - 2 * h, a, v)) / (2 * h)
+        hq = h if q + h <= 1 else -h  # one-sided: one more loop per Jacobian (see the docstring)
+        rq = (self.residual(q + hq, a, v)[()] - r[0]) / hq
         ra, rv = (r[1] - r[2]) / (2 * h), (r[3] - r[4]) / (2 * h)
         J = np.array([[ra.real, rv.real, rq.real], [ra.imag, rv.imag, rq.imag]])
         return complex(r[0]), J
@@ -441,21 +440,49 @@ class _Tracer:
         s = (q - P.X[2]) / dq if dq != 0 else 0.5
         return self.f.correct(P.X + s * (Q.X - P.X), _EQ, q)
 
-    def _bisect(self, P: _Point, t: np.ndarray, Q: _Point, after: Callable[[_Point], bool]) -> _Point:
-        """The first point between P and Q (along t) where ``after`` holds; ``after(Q)`` is True."""
-        lo, hi, Xhi = 0.0, float(t @ (Q.X - P.X)), Q
+    def _locate(self, P: _Point, t: np.ndarray, Q: _Point, g: Callable[[_Point], float]) -> tuple:
+        """Bracket the sign change of ``g`` between P and Q along t (Illinois regula falsi, bisection when a
+        probe fails); returns the points just before and just after it. Stops at a bracket of 1e-12 (in
+        arclength) or when the corrector fails or lands on a crossing curve (next to a branch point)."""
+        lo, hi, Xlo, Xhi = 0.0, float(t @ (Q.X - P.X)), P, Q
+        sgn = np.sign(g(Q))
+        glo, ghi = g(P) * sgn, g(Q) * sgn  # glo < 0 < ghi
+        side = 0
         for _ in range(_BISECT):
-            if hi - lo <= 1e-15 * max(1.0, hi):
+            if hi - lo <= 1e-12 * max(1.0, hi):
                 break
-            mid = 0.5 * (lo + hi)
+            mid = (lo * ghi - hi * glo) / (ghi - glo) if ghi > glo else 0.5 * (lo + hi)
+            if not lo < mid < hi:
+                mid = 0.5 * (lo + hi)
             M = self.f.correct(P.X + mid * t, t, float(t @ P.X) + mid)
-            if M is None:
-                break
-            if after(M):
-                hi, Xhi = mid, M
+            if M is None or abs(M.tangent @ t) < _COS_TURN:  # no solution, or one on a crossing curve
+                mid = 0.5 * (lo + hi)
+                M = self.f.correct(P.X + mid * t, t, float(t @ P.X) + mid)
+                if M is None or abs(M.tangent @ t) < _COS_TURN:
+                    break
+            gm = g(M) * sgn
+            if gm > 0:
+                hi, ghi, Xhi = mid, gm, M
+                glo, side = (glo / 2 if side == 1 else glo), 1
+            elif gm < 0:
+                lo, glo, Xlo = mid, gm, M
+                ghi, side = (ghi / 2 if side == -1 else ghi), -1
             else:
-                lo = mid
-        return Xhi
+                return M, M
+        return Xlo, Xhi
+
+    def _fold(self, P: _Point, t: np.ndarray, Q: _Point) -> _Point:
+        """The turning point in p between P and Q: where the oriented dp/ds changes sign."""
+        lo, hi = self._locate(P, t, Q, lambda M: float(M.tangent @ t) * M.tangent[2])
+        return lo if abs(lo.det) < abs(hi.det) else hi
+
+    def _branch_point(self, P: _Point, t: np.ndarray, Q: _Point) -> _Point:
+        """Where the Loeb determinant changes sign without a fold: the corrector degenerates at the crossing of
+        two curves, so the bracket is closed by linear interpolation of the determinant."""
+        lo, hi = self._locate(P, t, Q, lambda M: M.det)
+        w = lo.det / (lo.det - hi.det)
+        X = lo.X + w * (hi.X - lo.X)
+        return _Point(X, self.f.jacobian(X)[1])
 
     def _edge_crossing(self, P: _Point, Q: _Point):
         """(edge name, point) where the segment P -> Q first leaves the (ln A, ln w) window, or None."""
@@ -536,14 +563,12 @@ class _Tracer:
                 end_node = _Node(Q, "range", self._value_index(Q.X[2]))
             start = P
             if np.sign(tq[2]) != np.sign(t[2]) and tq[2] != 0 and t[2] != 0:  # dp/ds changes sign: a fold
-                sgn = np.sign(tq[2])
-                F = self._bisect(P, t, Q, lambda M: np.sign(M.tangent @ t * M.tangent[2]) == sgn)
+                F = self._fold(P, t, Q)
                 self._values_between(start, F, out)
                 out.append(_Node(F, "fold", self._value_index(F.X[2])))
                 start = F
             elif np.sign(Q.det) != np.sign(P.det) and Q.det != 0 and P.det != 0:  # branch point
-                sgn = np.sign(Q.det)
-                S = self._bisect(P, t, Q, lambda M: np.sign(M.det) == sgn)
+                S = self._branch_point(P, t, Q)
                 self._values_between(start, S, out)
                 out.append(_Node(S, "stability change", self._value_index(S.X[2])))
                 start = S
@@ -588,8 +613,7 @@ class _Tracer:
         if (b.X[2] - seed.X[2]) * (f.X[2] - seed.X[2]) > 0:  # the seed is (next to) a fold: locate it
             tb = seed.X - b.X
             tb /= np.linalg.norm(tb)
-            sgn = np.sign(f.X[2] - seed.X[2])
-            Fd = self._bisect(b, tb, f, lambda M: np.sign(M.tangent @ tb * M.tangent[2]) == sgn)
+            Fd = self._fold(b, tb, f)
             head = _Node(Fd, "fold", self._value_index(Fd.X[2]))
         return back[::-1] + [head] + fwd
 
@@ -739,7 +763,7 @@ def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=No
     Returns
     -------
     SweepResult
-        Branches (arrays of parameter, amplitude, frequency, stability), events (folds located by bisection
+        Branches (arrays of parameter, amplitude, frequency, stability), events (folds located by bracketing
         along the curve, window entries/exits at the exact edge, stability changes), per-value solver results.
 
     Notes

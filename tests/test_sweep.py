@@ -205,3 +205,45 @@ def test_bad_input():
         sweep(lambda K: K * G0, [1.0, 2.0], progress=False)
     with pytest.raises(RuntimeError, match="max_steps=2"):
         sweep(relay_loop, [1.2 * K_STAR, 2 * K_STAR], max_steps=2, progress=False)
+
+
+def _relay_roots(c):
+    """Closed-form amplitudes (small, large) where the dead-zone relay's N(A) equals c <= 2M/(pi d)."""
+    q = (math.pi * D * c / (4 * M)) ** 2
+    r = math.sqrt(max(1 - 4 * q, 0.0))
+    return D / math.sqrt((1 + r) / 2), D / math.sqrt((1 - r) / 2)
+
+
+def test_isola_is_closed_by_two_folds():
+    # K(p) = K*(0.9 + p(1 - p)) exceeds K* for p(1 - p) > 0.1: a closed curve of cycles (an isola) born and
+    # dying at the folds p = (1 -+ sqrt(0.6))/2
+    res = sweep(lambda p: (K_STAR * (0.9 + p * (1 - p)) * G0, dfloop.Relay(M=M, dead_zone=D)),
+                np.linspace(0, 1, 6), progress=False)
+    folds = res.folds()
+    ref = [(1 - math.sqrt(0.6)) / 2, (1 + math.sqrt(0.6)) / 2]
+    assert len(folds) == 2 and len(res.events) == 2
+    np.testing.assert_allclose([f.parameter for f in folds], ref, rtol=1e-10)
+    assert sorted(b.kind for b in res.branches) == ["stable", "unstable"]
+    for b in res.branches:
+        assert b.start == b.end == "fold"
+        p, A, _ = b.at_values()
+        col = 1 if b.kind == "stable" else 0
+        np.testing.assert_allclose(A, [_relay_roots(1 / ((0.9 + x * (1 - x)) * K_STAR * G_PC))[col] for x in p],
+                                   rtol=1e-9)
+
+
+def test_stability_change_at_a_branch_point():
+    # K(p) = K*/(1 - (p - 1/2)^2 / 2): N(A) = N_max (1 - (p - 1/2)^2 / 2) has two roots that cross at p = 1/2,
+    # A = d sqrt(2) (two curves in an X); each changes stability there
+    res = sweep(lambda p: (K_STAR / (1 - 0.5 * (p - 0.5) ** 2) * G0, dfloop.Relay(M=M, dead_zone=D)),
+                np.linspace(0, 1, 6), progress=False)
+    changes = [e for e in res.events if e.kind == "stability change"]
+    assert len(changes) == 2 and not res.folds()
+    for e in changes:
+        assert abs(e.parameter - 0.5) < 1e-5 and abs(e.amplitude / (D * math.sqrt(2)) - 1) < 1e-5
+    assert len(res.branches) == 4
+    for b in res.branches:
+        p, A, _ = b.at_values()
+        n_max = 2 * M / (math.pi * D)
+        col = 1 if b.kind == "stable" else 0  # the larger root is the stable one on either side
+        np.testing.assert_allclose(A, [_relay_roots(n_max * (1 - 0.5 * (x - 0.5) ** 2))[col] for x in p], rtol=1e-9)
