@@ -247,3 +247,20 @@ def test_stability_change_at_a_branch_point():
         n_max = 2 * M / (math.pi * D)
         col = 1 if b.kind == "stable" else 0  # the larger root is the stable one on either side
         np.testing.assert_allclose(A, [_relay_roots(n_max * (1 - 0.5 * (x - 0.5) ** 2))[col] for x in p], rtol=1e-9)
+
+
+def test_frequency_dependent_element_has_the_same_fold():
+    # force -> mass 1/(2 s^2) -> backlash, under the controller C = 2K s/((s+1)(s+2)): C G_m = K/(s(s+1)(s+2)),
+    # so the loop is the backlash loop above with X = F/(2 w^2), seen through a frequency-dependent N(F, w)
+    res = sweep(lambda K: (ct.tf([2 * K, 0], [1, 3, 2]), dfloop.MassBacklash(1.0, 1.0, H)), [5.5, 3.0, 2.5],
+                parameter="K", progress=False)
+    (f,) = res.folds()
+    assert abs(f.parameter / K_FOLD - 1) < 1e-10
+    assert abs(f.frequency / W_FOLD - 1) < 1e-7
+    assert abs(f.amplitude / (2 * W_FOLD**2 * _x_of_w(W_FOLD)) - 1) < 1e-7
+    for b in res.branches:
+        p, F, w = b.at_values()
+        side = 0 if b.frequency[0] < W_FOLD else 1
+        ref = np.array([_cycles_at(K)[side] for K in p])
+        np.testing.assert_allclose(w, ref[:, 0], rtol=1e-8)
+        np.testing.assert_allclose(F, 2 * ref[:, 0] ** 2 * ref[:, 1], rtol=1e-8)
