@@ -361,7 +361,7 @@ class _Family:
             return False
         plant, N = self.loop(min(max(q, 0.0), 1.0))
         w = math.exp(v)
-        if not plant.domain[0] < w * (1 - 2 * _FD) and w * (1 + 2 * _FD) < plant.domain[1]:
+        if not (plant.domain[0] < w * (1 - 2 * _FD) and w * (1 + 2 * _FD) < plant.domain[1]):
             self.last_failure = "left the plant's frequency range"
             return False
         lo, hi = N.amplitude_domain(w) if N.frequency_dependent else N.amplitude_domain()
@@ -775,7 +775,8 @@ def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=No
     more than 30 degrees. Derivatives are central differences (1e-6 in each coordinate).
     """
     vals = _check_values(values)
-    max_steps = int(_checks.positive("max_steps", max_steps))
+    if not (isinstance(max_steps, (int, np.integer)) and max_steps >= 1):
+        raise ValueError(f"max_steps must be a positive integer; got {max_steps!r}")
     if omega is not None:
         omega = _checks.window("omega", omega)
     if amplitude is not None:

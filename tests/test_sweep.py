@@ -264,3 +264,28 @@ def test_frequency_dependent_element_has_the_same_fold():
         ref = np.array([_cycles_at(K)[side] for K in p])
         np.testing.assert_allclose(w, ref[:, 0], rtol=1e-8)
         np.testing.assert_allclose(F, 2 * ref[:, 0] ** 2 * ref[:, 1], rtol=1e-8)
+
+
+def test_delay_sweep_exits_through_the_frequency_edge_and_folds_in_closed_form():
+    # relay with dead zone d = 0.05 around e^{-sT}/(s(s+1)), T swept: cycles sit on phase crossovers,
+    # w T + pi/2 + atan w = (2m + 1) pi. The first crossover leaves the window's lower edge w = 0.5 at
+    # T = (pi/2 - atan 0.5)/0.5; a pair is born at the second crossover (m = 1) when 1/|G| = w sqrt(1 + w^2)
+    # reaches max N = 2M/(pi d), i.e. at w^2 = (sqrt(1 + 4 c^2) - 1)/2, c = 2M/(pi d), T = (5pi/2 - atan w)/w
+    d = 0.05
+
+    def loop_at(T):
+        return (lambda w: np.exp(-1j * w * T) / (1j * w * (1j * w + 1))), dfloop.Relay(M=M, dead_zone=d)
+
+    res = sweep(loop_at, [0.5, 3.0], omega=(0.5, 5.0), progress=False, parameter="T", unit="s")
+    exits = [e for e in res.events if e.kind == "exit"]
+    assert len(exits) == 2  # the stable and the unstable cycle of the first crossover leave together
+    for e in exits:
+        assert e.frequency == pytest.approx(0.5, rel=1e-12)
+        assert abs(e.parameter / ((math.pi / 2 - math.atan(0.5)) / 0.5) - 1) < 1e-10
+    (f,) = res.folds()
+    c = 2 * M / (math.pi * d)
+    w_f = math.sqrt((math.sqrt(1 + 4 * c * c) - 1) / 2)
+    assert abs(f.frequency / w_f - 1) < 1e-8
+    assert abs(f.parameter / ((2.5 * math.pi - math.atan(w_f)) / w_f) - 1) < 1e-10
+    assert abs(f.amplitude / (d * math.sqrt(2)) - 1) < 1e-7
+    assert sorted(b.kind for b in res.branches) == ["stable", "stable", "unstable", "unstable"]
