@@ -236,7 +236,7 @@ class SweepResult:
         style = {"stable": dict(color="C0", ls="-"), "unstable": dict(color="C3", ls="--"),
                  "marginal": dict(color="C1", ls=":")}
         seen = set()
-        for b in self.branches:
+        for b in sorted(self.branches, key=lambda b: ("stable", "unstable", "marginal").index(b.kind)):
             k = b.kind
             label = None if k in seen else f"{k} cycles"
             seen.add(k)
