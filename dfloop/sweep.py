@@ -172,7 +172,9 @@ class SweepResult:
                 f"[{self.amplitude_window[0]:.4g}, {self.amplitude_window[1]:.4g}], omega in "
                 f"[{self.omega_window[0]:.4g}, {self.omega_window[1]:.4g}] rad/s")
         rows = [head]
-        if self.branches:
+        if not self.branches:
+            rows.append("no limit cycle in the window at the given values")
+        else:
             rows.append(f"{'#':>3} {'stability':>10} {p + ' from':>16} {'to':>12} {'A from':>12} {'to':>12} "
                         f"{'omega from':>11} {'to':>11}  start -> end")
             for b in self.branches:

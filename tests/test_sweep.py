@@ -289,3 +289,11 @@ def test_delay_sweep_exits_through_the_frequency_edge_and_folds_in_closed_form()
     assert abs(f.parameter / ((2.5 * math.pi - math.atan(w_f)) / w_f) - 1) < 1e-10
     assert abs(f.amplitude / (d * math.sqrt(2)) - 1) < 1e-7
     assert sorted(b.kind for b in res.branches) == ["stable", "stable", "unstable", "unstable"]
+
+
+def test_no_cycle_below_the_fold_gives_an_empty_result(tmp_path):
+    res = sweep(backlash_loop, [0.5, 0.9 * K_FOLD], progress=False)
+    assert not res.branches and not res.events and all(len(c) == 0 for c in res.cycles)
+    assert "no limit cycle in the window" in repr(res)
+    res.to_csv(tmp_path / "empty.csv")
+    assert (tmp_path / "empty.csv").read_text().count("\n") == 1  # the header only
