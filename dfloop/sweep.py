@@ -805,6 +805,15 @@ def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=No
                 P = _Point(X, family.jacobian(X)[1])
             known.append((k, P, c.stability == "marginal"))
     known.sort(key=lambda x: x[2])  # seeds at double roots last: the curve through them is usually traced already
+    by_value: dict = {}
+    for j, (k, _, _) in enumerate(known):
+        by_value.setdefault(k, []).append(j)
+
+    def matches(k: int, x: np.ndarray) -> list:
+        """The solver's cycles at value k within the matching tolerance of x = (ln A, ln w)."""
+        return [j for j in by_value.get(k, ()) if np.max(np.abs(known[j][1].X[:2] - x))
+                <= (_MATCH_MARGINAL if known[j][2] else _MATCH)]
+
     covered = [False] * len(known)
     curves = []
     with progress_bar(f"sweep of {parameter}: continuation", len(known), enabled=progress) as bar:
@@ -813,25 +822,18 @@ def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=No
                 continue
             nodes = tracer.curve(P, k)
             curves.append(nodes)
-            on_values = [n for n in nodes if n.k >= 0]
-            for j, (kk, Pj, marginal) in enumerate(known):
-                tol = _MATCH_MARGINAL if marginal else _MATCH
-                if not covered[j] and any(n.k == kk and np.max(np.abs(n.point.X[:2] - Pj.X[:2])) <= tol
-                                          for n in on_values):
+            hit = {i}.union(*(matches(n.k, n.point.X[:2]) for n in nodes if n.k >= 0))
+            for j in hit:
+                if not covered[j]:
                     covered[j] = True
                     bar.update(1)
-            if not covered[i]:
-                covered[i] = True
-                bar.update(1)
 
     branches, events = _assemble(curves, family, marginal_tol, parameter)
     notes = []
     for b in branches:
         for j in np.flatnonzero(b.value_index >= 0):
             k = b.value_index[j]
-            x = np.log([b.amplitude[j], b.frequency[j]])
-            if not any(kk == k and np.max(np.abs(Pk.X[:2] - x)) <= (_MATCH_MARGINAL if m else _MATCH)
-                       for kk, Pk, m in known):
+            if not matches(k, np.log([b.amplitude[j], b.frequency[j]])):
                 notes.append(f"at {parameter}={vals[k]:.9g} the solver did not report the cycle at "
                              f"A={b.amplitude[j]:.6g}, omega={b.frequency[j]:.6g} rad/s that continuation found "
                              f"(branch {b.index})")
