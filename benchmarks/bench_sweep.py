@@ -5,7 +5,8 @@ and an unstable one, which merge at the fold). Baseline: ``predict_limit_cycles`
 would do by hand, leaving the matching and the fold to the eye). ``sweep`` runs the same solves (its
 completeness check) plus the continuation. The fold gain is compared with an independent computation: along
 the Nyquist curve, arg(-1/N(X)) = arg G0(jw) gives X(w) and the cycle gain K(w) = 1/(|G0| |N(X)|); the fold
-is the minimum of K(w) (brentq on dK/dw = 0). Times are one run each, so noisy on a shared machine.
+is the minimum of K(w) (brentq on dK/dw = 0). Times are CPU times of this process (one run each; the
+work is single-threaded, and CPU time is less disturbed than wall time on a shared machine).
 
 Run: python benchmarks/bench_sweep.py [--write] [--figure]
 (--write: benchmarks/results/bench_sweep.md; --figure: docs/figures/sweep_backlash_gain.png)
@@ -46,18 +47,18 @@ def reference_fold() -> float:
 def main(write: bool, figure: bool) -> str:
     k_ref = reference_fold()
     sweep(loop_at, [3.0, 4.0], progress=False)  # warm-up (JIT)
-    rows = ["| values | independent solves (s) | sweep (s) | sweep / solves | branches | fold K | fold rel. error |",
+    rows = ["| values | independent solves (CPU s) | sweep (CPU s) | sweep / solves | branches | fold K | fold rel. error |",
             "|---|---|---|---|---|---|---|"]
     res = None
     for n in (10, 50):
         values = np.linspace(2.5, 5.5, n)
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         for K in values:
             df.predict_limit_cycles(*loop_at(K))
-        t_solve = time.perf_counter() - t0
-        t0 = time.perf_counter()
+        t_solve = time.process_time() - t0
+        t0 = time.process_time()
         res = sweep(loop_at, values, parameter="K", progress=False)
-        t_sweep = time.perf_counter() - t0
+        t_sweep = time.process_time() - t0
         (fold,) = res.folds()
         rows.append(f"| {n} | {t_solve:.2f} | {t_sweep:.2f} | {t_sweep / t_solve:.2f} | {len(res.branches)} | "
                     f"{fold.parameter:.12g} | {abs(fold.parameter / k_ref - 1):.1e} |")
