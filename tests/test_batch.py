@@ -64,6 +64,12 @@ def test_order_kept_and_errors_name_the_item():
         run_batch(abs, [1, 2], executor=object())
     with pytest.raises(RuntimeError, match="item 2: TypeError"):
         run_batch(abs, [1, 2, "x"])
+    import time
+
+    with ThreadPoolExecutor(1) as ex, pytest.raises(TimeoutError, match="1 of 1 items unfinished after timeout=0.05"):
+        run_batch(time.sleep, [0.5], executor=ex, timeout=0.05)
+    with pytest.raises(ValueError, match="timeout"):
+        run_batch(abs, [1], timeout=-1)
 
 
 def test_dask_local_cluster_gives_the_serial_results():
