@@ -297,3 +297,12 @@ def test_no_cycle_below_the_fold_gives_an_empty_result(tmp_path):
     assert "no limit cycle in the window" in repr(res)
     res.to_csv(tmp_path / "empty.csv")
     assert (tmp_path / "empty.csv").read_text().count("\n") == 1  # the header only
+
+
+def test_the_module_is_callable_as_the_function():
+    # dfloop.sweep names both the submodule and the exported function; either one sweeps
+    import dfloop.sweep as module
+
+    r1 = module(relay_loop, [1.2 * K_STAR, 1.5 * K_STAR], progress=False)
+    r2 = sweep(relay_loop, [1.2 * K_STAR, 1.5 * K_STAR], progress=False)
+    assert [b.amplitude.tolist() for b in r1.branches] == [b.amplitude.tolist() for b in r2.branches]
