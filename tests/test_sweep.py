@@ -6,6 +6,8 @@ import math
 import control as ct
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.optimize import brentq
 
 import dfloop
@@ -306,3 +308,20 @@ def test_the_module_is_callable_as_the_function():
     r1 = module(relay_loop, [1.2 * K_STAR, 1.5 * K_STAR], progress=False)
     r2 = sweep(relay_loop, [1.2 * K_STAR, 1.5 * K_STAR], progress=False)
     assert [b.amplitude.tolist() for b in r1.branches] == [b.amplitude.tolist() for b in r2.branches]
+
+
+@settings(max_examples=6, deadline=None, derandomize=True)
+@given(m=st.floats(0.5, 5.0), d=st.floats(0.01, 1.0), n=st.integers(2, 6), lo=st.floats(0.3, 0.95),
+       hi=st.floats(1.05, 4.0), descending=st.booleans())
+def test_relay_fold_for_any_level_dead_zone_and_grid(m, d, n, lo, hi, descending):
+    k_star = math.pi * d / (2 * m * G_PC)
+    values = np.linspace(lo, hi, n)[::-1 if descending else 1] * k_star
+    res = sweep(lambda K: (K * G0, dfloop.Relay(M=m, dead_zone=d)), values, progress=False)
+    (f,) = res.folds()
+    assert abs(f.parameter / k_star - 1) < 1e-9 and len(res.events) == 1
+    assert abs(f.amplitude / (d * math.sqrt(2)) - 1) < 1e-7
+    for b in res.branches:
+        p, A, _ = b.at_values()
+        q = (math.pi * d / (4 * m * p * G_PC)) ** 2
+        u = (1 + (1 if b.kind == "unstable" else -1) * np.sqrt(1 - 4 * q)) / 2
+        np.testing.assert_allclose(A, d / np.sqrt(u), rtol=1e-9)
