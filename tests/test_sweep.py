@@ -100,10 +100,12 @@ def test_relay_dead_zone_fold_and_branches_match_closed_form():
 def test_branches_born_between_two_values_are_traced_back_to_their_fold():
     # only two values, no cycle at the first: the completeness check at the second finds the pair, and
     # continuation backwards finds where it is born; decreasing values give the same fold
-    for values in ([0.5 * K_STAR, 3 * K_STAR], [3 * K_STAR, 0.5 * K_STAR]):
+    # (also with the fold on a given value, and on the end of the range)
+    for values in ([0.5 * K_STAR, 3 * K_STAR], [3 * K_STAR, 0.5 * K_STAR], [0.8 * K_STAR, K_STAR, 1.5 * K_STAR],
+                   [2 * K_STAR, K_STAR]):
         res = sweep(relay_loop, values, parameter="K", progress=False)
         (f,) = res.folds()
-        assert abs(f.parameter / K_STAR - 1) < 1e-6
+        assert abs(f.parameter / K_STAR - 1) < 1e-10 and len(res.branches) == 2
         assert "exists for K > " in f.detail
         for b in res.branches:  # arrays follow the order of the sweep
             assert np.all(np.diff(b.parameter) * np.sign(values[1] - values[0]) >= 0)
