@@ -82,7 +82,8 @@ def run_batch(fn: Callable[[Any], Any], items: Iterable, *, executor: cf.Executo
     """
     items = list(items)
     n = len(items)
-    if timeout is not None and not (isinstance(timeout, (int, float)) and timeout > 0):
+    if timeout is not None and not (isinstance(timeout, (int, float)) and not isinstance(timeout, bool)
+                                    and timeout > 0):
         raise ValueError(f"timeout must be a positive number of seconds or None; got {timeout!r}")
     if executor is not None and not callable(getattr(executor, "submit", None)):
         raise ValueError(f"executor must be a concurrent.futures.Executor (with submit); got "
@@ -108,6 +109,10 @@ def run_batch(fn: Callable[[Any], Any], items: Iterable, *, executor: cf.Executo
                 fut.cancel()
             raise TimeoutError(f"{label}: {n - sum(map(len, results.values()))} of {n} items unfinished after "
                                f"timeout={timeout} s; pass a larger timeout (or None to wait)") from None
+        except BaseException:  # a failed item (or an interrupt): drop the chunks not started yet
+            for fut in futures:
+                fut.cancel()
+            raise
         return [r for s in starts for r in results[s]]
 
 
