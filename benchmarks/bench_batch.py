@@ -42,10 +42,10 @@ def main(n: int, write: bool) -> str:
 
     loops = monte_carlo_loops(n)
     predict_many(loops[:6], progress=False)  # JIT / import warm-up in this process
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     serial = predict_many(loops, progress=False)
-    t_serial = time.perf_counter() - t0
-    rows = [("in this process (baseline)", None, t_serial, True)]
+    t_serial, cpu_serial = time.perf_counter() - t0, time.process_time() - c0
+    rows = [("in this process (baseline)", None, t_serial, True, cpu_serial / t_serial)]
     for workers in (1, 2):
         t0 = time.perf_counter()
         with LocalCluster(n_workers=workers, processes=True, threads_per_worker=1, dashboard_address=None) as cl, \
@@ -53,22 +53,26 @@ def main(n: int, write: bool) -> str:
             ex = client.get_executor()
             predict_many(loops[:4 * workers], executor=ex, chunksize=1, progress=False)  # workers import dfloop
             t_start = time.perf_counter() - t0
+            cpu0 = sum(client.run(time.process_time).values())
             t0 = time.perf_counter()
             par = predict_many(loops, executor=ex, progress=False)
             t = time.perf_counter() - t0
+            cpu = sum(client.run(time.process_time).values()) - cpu0
         rows.append((f"Dask LocalCluster, {workers} worker{'s' if workers > 1 else ''}", t_start, t,
-                     identical(serial, par)))
+                     identical(serial, par), cpu / (t * workers)))
     n_cycles = sum(len(r) for r in serial)
     t1 = rows[1][2]
     lines = ["# Batch of loops: 1 versus 2 Dask workers (dfloop.predict_many)", "",
              f"{n} loops (K p / (s (s+1)(s+p)), random K in [1, 5], p in [1.5, 3]; relay with dead zone, backlash, "
              f"saturation), {n_cycles} cycles in all; default chunk size (about 64 tasks). One run each; "
              f"machine: {os.cpu_count()} cores, shared. Command: `python benchmarks/bench_batch.py --n {n} --write`.",
+             "CPU share: CPU time of the process(es) doing the work over (wall time x processes); below 1 the "
+             "machine's other load took the rest, which caps the speed-up.",
              "", "| where | worker start-up (s) | batch time (s) | time / baseline | speed-up vs 1 worker | "
-             "identical to serial |", "|---|---|---|---|---|---|"]
-    for name, start, t, same in rows:
+             "CPU share | identical to serial |", "|---|---|---|---|---|---|---|"]
+    for name, start, t, same, share in rows:
         lines.append(f"| {name} | {'-' if start is None else f'{start:.1f}'} | {t:.2f} | {t / t_serial:.2f} | "
-                     f"{'-' if start is None else f'{t1 / t:.2f}'} | {'yes' if same else 'NO'} |")
+                     f"{'-' if start is None else f'{t1 / t:.2f}'} | {share:.2f} | {'yes' if same else 'NO'} |")
     table = "\n".join(lines) + "\n"
     if write:
         out = pathlib.Path(__file__).parent / "results" / "bench_batch.md"
