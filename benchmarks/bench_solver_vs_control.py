@@ -2,14 +2,15 @@
 
 For each problem both solvers get the same amplitude and frequency windows and the same grid sizes
 (python-control: the lists A and omega; dfloop: grid=(len(A), len(omega)) log-spaced over the same
-ranges). Prints a markdown table (times, ratio, answers, worst relative residual |1+GN|/(1+|GN|))
-and writes it to benchmarks/results/bench_solver_vs_control.md.
+ranges; the solver adds the points its grid rule needs). Prints a markdown table (times, ratio, answers,
+worst relative residual |1+GN|/(1+|GN|)); with --write also to benchmarks/results/bench_solver_vs_control.md.
 
-Run: python benchmarks/bench_solver_vs_control.py
+Run: python benchmarks/bench_solver_vs_control.py [--write]
 """
 from __future__ import annotations
 
 import pathlib
+import sys
 import time
 import warnings
 
@@ -130,8 +131,9 @@ def main() -> str:
 if __name__ == "__main__":
     table = main()
     print(table)
-    out = pathlib.Path(__file__).parent / "results" / "bench_solver_vs_control.md"
-    out.parent.mkdir(exist_ok=True)
-    out.write_text("# dfloop vs python-control describing_function_response\n\n"
-                   "Command: `python benchmarks/bench_solver_vs_control.py` (best of 5 runs for dfloop, best of 2 for "
-                   "python-control; same windows and grid sizes).\n\n" + table + "\n")
+    if "--write" in sys.argv[1:]:
+        out = pathlib.Path(__file__).parent / "results" / "bench_solver_vs_control.md"
+        out.parent.mkdir(exist_ok=True)
+        out.write_text("# dfloop vs python-control describing_function_response\n\n"
+                       "Command: `python benchmarks/bench_solver_vs_control.py --write` (best of 5 runs for dfloop, best "
+                       "of 2 for python-control; same windows and grid sizes).\n\n" + table + "\n")

@@ -1,26 +1,34 @@
-"""Accuracy versus time of the dynamic-backlash DF table, knob by knob.
+"""Cost and accuracy of the dynamic-backlash DF tables.
 
-Model: M1 = M2 = 1 kg, h = 0.1 m, eps = 0.5. Reference: direct simulation (transient 300 periods,
-40 periods used) at random off-grid (F, w) points. For every setting: build time (no cache), samples
-simulated, time per evaluated point, and the relative error of -1/N at the points the table marks
+Part 1, the paper-model tables of Figs. 5-8 (M1 = M2 = 1 kg, h = 0.1 m, 9 eps x F in 10..50 N x w in
+1..100 rad/s) built from an empty cache, with and without the probed starts (coexistence search), against
+the bare kernel in the same run: the same simulations (same beta, same transient and window lengths)
+through :class:`dfloop.impact.kernel.KernelRun` alone, without extraction or table logic.
+
+Part 2, accuracy versus time knob by knob at eps = 0.5. Reference: direct simulation (transient 600
+periods, 40 periods used) at random off-grid (F, w) points. For every setting: build time (no cache),
+samples simulated, time per evaluated point, and the relative error of -1/N at the points the table marks
 valid (median, 95th percentile, max), with the fraction of points whose actual error is within the
-table's error estimate (interpolation only: the reference uses longer runs than the table).
+table's error estimate.
 
-Run:  python benchmarks/bench_tables.py     (writes benchmarks/results/bench_tables.md)
+Run:  python benchmarks/bench_tables.py [--write]   (--write: benchmarks/results/bench_tables.md)
 """
 from __future__ import annotations
 
 import math
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
 from dfloop.impact import extract
-from dfloop.impact.dynamic_backlash import DynamicBacklash
+from dfloop.impact.dynamic_backlash import DynamicBacklash, prepare_many
+from dfloop.impact.kernel import ImpactParameters, KernelRun
 
 M1, M2, H, EPS = 1.0, 1.0, 0.1, 0.5
-REF = dict(transient_periods=300, periods=40)
+REF = dict(transient_periods=600, periods=40)
+EPS_ALL = tuple(round(0.1 * k, 1) for k in range(1, 10))
 RNG = np.random.default_rng(12345)
 
 
@@ -33,9 +41,37 @@ class _TwoD:
         return "_TwoD()"
 
 
-def _paper_physics(self, force, omega):
+def _paper_physics(self, force, omega, initial=None):
     return extract.impact_describing_function_batch(self.m1, self.m2, self.h, self.restitution, force, omega,
-                                                    transient_periods=self.transient_periods, periods=self.periods)
+                                                    transient_periods=self.transient_periods, periods=self.periods,
+                                                    initial=initial, on_event_limit="record")
+
+
+def bare_kernel_seconds(tables) -> tuple[float, int]:
+    """Time of the rest-start simulations of the tables' samples through the kernel alone (serial)."""
+    t0 = time.perf_counter()
+    n = 0
+    for nl in tables:
+        t = nl.table
+        for u, tr in zip(t.x, t.extra["transient_periods"]):
+            run = KernelRun(ImpactParameters(M1 / M2, 1.0, 1.0, nl.restitution, math.exp(u), 1.0))
+            run.advance((tr + nl.periods) * 2 * math.pi, 10 ** 9, keep=False)
+            n += 1
+    return time.perf_counter() - t0, n
+
+
+def paper_tables(**kw) -> dict:
+    """Build the Figs. 5-8 tables from an empty cache (two worker threads, as examples/paper_figures.py)."""
+    tables = [DynamicBacklash(M1, M2, H, e, cache=False, progress=False, **kw) for e in EPS_ALL]
+    t0 = time.perf_counter()
+    prepare_many(tables, (10.0, 50.0), (1.0, 100.0))
+    build = time.perf_counter() - t0
+    samples = sum(t.table.x.size for t in tables)
+    sims = samples + sum(int(np.count_nonzero(np.isfinite(t.table.extra.get(f"start{k}.re", np.zeros(0)))))
+                         for t in tables for k in range(t.starts))
+    kernel, n_rest = bare_kernel_seconds(tables)
+    return {"build_s": build, "samples": samples, "sims": sims, "kernel_rest_s": kernel,
+            "ms_per_sim": 1e3 * build * 2 / sims, "kernel_ms": 1e3 * kernel / n_rest}
 
 
 def points(n, F_window, w_window):
@@ -75,26 +111,24 @@ def measure(label, make, F, w, ref, ref_regular, window):
             "p95": np.percentile(rel, 95), "max": rel.max(), "covered": np.mean(covered)}
 
 
-def main() -> None:
+def main(argv: list[str]) -> None:
+    paper = []
+    for label, kw in (("default (2 probed starts)", {}), ("starts=0 (rest only)", dict(starts=0))):
+        paper.append(dict(paper_tables(**kw), setting=label))
+        print(paper[-1])
     window = ((10.0, 50.0), (5.0, 44.0))
     F, w = points(120, *window)
     t0 = time.perf_counter()
     ref, ref_regular = reference(F, w)
     t_ref = time.perf_counter() - t0
-    base = dict(cache=False, transient_periods=100, periods=20)
+    base = dict(cache=False, progress=False, periods=20)
     rows = []
-    settings = [("cubic, tol 1e-5 (default)", {}),
-                ("cubic, tol 1e-3", dict(tol=1e-3)),
+    settings = [("cubic, tol 1e-5, adaptive transient (default)", {}),
                 ("cubic, tol 1e-4", dict(tol=1e-4)),
-                ("cubic, tol 1e-6", dict(tol=1e-6)),
                 ("linear, tol 1e-5", dict(method="linear")),
-                ("pchip, tol 1e-5", dict(method="pchip")),
-                ("base_dx 0.05", dict(base_dx=0.05)),
-                ("edge_dx 1e-3", dict(edge_dx=1e-3)),
-                ("transient 50, periods 20", dict(transient_periods=50)),
-                ("transient 200, periods 20", dict(transient_periods=200)),
-                ("transient 100, periods 10", dict(periods=10)),
-                ("transient 100, periods 40", dict(periods=40))]
+                ("probe_dx 10 (no regime probes)", dict(probe_dx=10.0)),
+                ("starts 0 (no coexistence search)", dict(starts=0)),
+                ("fixed transient 100", dict(transient_periods=100))]
     for label, kw in settings:
         args = dict(base, **kw)
         rows.append(measure(f"1-D {label}", lambda: DynamicBacklash(M1, M2, H, EPS, **args), F, w, ref,
@@ -116,7 +150,17 @@ def main() -> None:
     finally:
         DynamicBacklash._extract = original
     print(rows[-1])
-    lines = ["# bench_tables: dynamic-backlash DF table, accuracy versus time", "",
+    lines = ["# bench_tables: dynamic-backlash DF tables, cost and accuracy", "",
+             "## Paper-model tables of Figs. 5-8 from an empty cache", "",
+             f"9 eps x F in 10..50 N x w in 1..100 rad/s, M1 = M2 = 1 kg, h = 0.1 m, two worker threads. "
+             "'ms/sim' is wall time x 2 threads / simulations; 'kernel ms' is the same rest-start simulations "
+             "(same beta, transient and window) through KernelRun alone, serial, in the same run.", "",
+             "| setting | build (s) | samples | simulations | ms/sim | bare kernel ms/sim | ratio |",
+             "|---|---|---|---|---|---|---|"]
+    for r in paper:
+        lines.append(f"| {r['setting']} | {r['build_s']:.1f} | {r['samples']} | {r['sims']} | {r['ms_per_sim']:.2f} | "
+                     f"{r['kernel_ms']:.2f} | {r['ms_per_sim'] / r['kernel_ms']:.1f} |")
+    lines += ["", "## Accuracy versus time at eps = 0.5", "",
              f"M1 = M2 = {M1} kg, h = {H} m, eps = {EPS}; {F.size} random points with F in {window[0]} N, "
              f"w in {window[1]} rad/s (beta > 0.26); reference: direct simulation, transient "
              f"{REF['transient_periods']} + {REF['periods']} periods ({t_ref:.2f} s for all points, "
@@ -130,10 +174,11 @@ def main() -> None:
                      f"{r['median']:.1e} | {r['p95']:.1e} | {r['max']:.1e} | {r['covered']:.2f} |")
     text = "\n".join(lines) + "\n"
     print(text)
-    out = Path(__file__).parent / "results" / "bench_tables.md"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(text)
+    if "--write" in argv:
+        out = Path(__file__).parent / "results" / "bench_tables.md"
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(text)
 
 
 if __name__ == "__main__":
-    main()
+    main(sys.argv[1:])

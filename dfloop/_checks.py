@@ -1,20 +1,29 @@
-"""Validation of user input: every failure is a ``ValueError`` that names the parameter."""
+"""Validation of user input: every failure is a :class:`dfloop.errors.DfloopError` (a ``ValueError``) that
+names the parameter and the value."""
 from __future__ import annotations
 
 import math
+import numbers
 
 import numpy as np
 
-__all__ = ["positive", "nonnegative", "finite", "in_closed_interval", "amplitude_array", "frequency_array"]
+from .errors import DfloopError
+
+__all__ = ["positive", "nonnegative", "finite", "in_closed_interval", "amplitude_array", "frequency_array",
+           "real_array", "integer_at_least"]
 
 
 def _real(name: str, value) -> float:
+    if isinstance(value, (complex, np.complexfloating)):
+        raise DfloopError(f"{name} must be a real number, got the complex value {value!r}")
+    if isinstance(value, (str, bytes, bool, np.bool_)):
+        raise DfloopError(f"{name} must be a real number, got {value!r} ({type(value).__name__})")
     try:
         x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a real number, got {value!r}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise DfloopError(f"{name} must be a real number, got {value!r}") from None
     if math.isnan(x):
-        raise ValueError(f"{name} must not be NaN")
+        raise DfloopError(f"{name} must not be NaN, got {value!r}")
     return x
 
 
@@ -22,7 +31,7 @@ def finite(name: str, value) -> float:
     """Return ``value`` as a float, raising if it is NaN or infinite."""
     x = _real(name, value)
     if not math.isfinite(x):
-        raise ValueError(f"{name} must be finite, got {x}")
+        raise DfloopError(f"{name} must be finite, got {x}")
     return x
 
 
@@ -30,7 +39,7 @@ def positive(name: str, value) -> float:
     """Return ``value`` as a finite float > 0."""
     x = finite(name, value)
     if x <= 0:
-        raise ValueError(f"{name} must be > 0, got {x}")
+        raise DfloopError(f"{name} must be > 0, got {x}")
     return x
 
 
@@ -38,7 +47,7 @@ def nonnegative(name: str, value) -> float:
     """Return ``value`` as a finite float >= 0."""
     x = finite(name, value)
     if x < 0:
-        raise ValueError(f"{name} must be >= 0, got {x}")
+        raise DfloopError(f"{name} must be >= 0, got {x}")
     return x
 
 
@@ -46,26 +55,77 @@ def in_closed_interval(name: str, value, lo: float, hi: float) -> float:
     """Return ``value`` as a float in [lo, hi]."""
     x = finite(name, value)
     if not lo <= x <= hi:
-        raise ValueError(f"{name} must lie in [{lo}, {hi}], got {x}")
+        raise DfloopError(f"{name} must lie in [{lo}, {hi}], got {x}")
     return x
 
 
+def _show(value) -> str:
+    """A short repr of a user value for error messages."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def real_array(value, name: str) -> np.ndarray:
+    """``value`` as a float array; complex, non-numeric, None or ragged input raises naming ``name``.
+
+    NaN and infinite entries pass (callers decide about them). Booleans count as 0 and 1 (numpy's rule).
+    """
+    try:
+        a = np.asarray(value)
+    except (ValueError, TypeError):  # ragged nested sequences
+        raise DfloopError(f"{name} must be a real number or a rectangular array of them, got {_show(value)}") from None
+    if a.dtype.kind == "c":
+        raise DfloopError(f"{name} must be real, got the complex value(s) {_show(value)}")
+    if a.dtype.kind == "O":
+        flat = a.ravel()
+        if not all(isinstance(v, numbers.Real) for v in flat):
+            bad = next(v for v in flat if not isinstance(v, numbers.Real))
+            where = "" if a.ndim == 0 else f" in {_show(value)}"
+            raise DfloopError(f"{name} must hold real numbers only, got {_show(bad)}{where}")
+    elif a.dtype.kind not in "biuf":
+        raise DfloopError(f"{name} must be a real number or an array of them, got {_show(value)}")
+    try:
+        return a.astype(float, copy=False)  # float input passes without a copy, as np.asarray(A, float) did
+    except OverflowError:  # Python integers beyond the float range
+        raise DfloopError(f"{name} must be representable as a float, got {_show(value)}") from None
+
+
 def amplitude_array(A, name: str = "A") -> np.ndarray:
-    """Amplitudes as a float array; negative entries raise, NaN entries pass through (and give NaN)."""
-    a = np.asarray(A, dtype=float)
+    """Amplitudes as a float array, >= 0 (``inf`` allowed: elements return their limit there).
+
+    Negative, complex or non-numeric entries raise naming ``name`` and the value; NaN entries pass through
+    (and give NaN in those entries only).
+    """
+    a = real_array(A, name)
     with np.errstate(invalid="ignore"):
-        if np.any(a < 0):
-            raise ValueError(f"{name} (amplitude) must be >= 0; got a negative entry")
+        neg = a < 0
+    if np.any(neg):
+        raise DfloopError(f"{name} (amplitude) must be >= 0; got {float(a[neg].ravel()[0])!r} "
+                          f"({int(np.count_nonzero(neg))} negative entr{'y' if np.count_nonzero(neg) == 1 else 'ies'})")
     return a
 
 
 def frequency_array(omega, name: str = "omega") -> np.ndarray:
-    """Frequencies in rad/s as a float array; non-positive entries raise, NaN entries pass through."""
-    w = np.asarray(omega, dtype=float)
+    """Frequencies in rad/s as a float array, finite and > 0; NaN entries pass through.
+
+    Non-positive, infinite, complex or non-numeric entries raise naming ``name`` and the value.
+    """
+    w = real_array(omega, name)
     with np.errstate(invalid="ignore"):
-        if np.any(w <= 0):
-            raise ValueError(f"{name} (frequency, rad/s) must be > 0; got a non-positive entry")
+        bad = (w <= 0) | np.isinf(w)
+    if np.any(bad):
+        n_bad = int(np.count_nonzero(bad))
+        raise DfloopError(f"{name} (frequency, rad/s) must be finite and > 0; got {float(w[bad].ravel()[0])!r} "
+                          f"({n_bad} bad entr{'y' if n_bad == 1 else 'ies'})")
     return w
+
+
+def integer_at_least(name: str, value, minimum: int) -> int:
+    """``value`` as an int >= ``minimum`` (integral floats such as 4.0 pass; 2.5, NaN, inf, True do not)."""
+    x = finite(name, value)
+    if x != int(x) or x < minimum:
+        raise DfloopError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(x)
 
 
 def window(name: str, value) -> tuple[float, float]:
@@ -73,7 +133,7 @@ def window(name: str, value) -> tuple[float, float]:
     try:
         lo, hi = (float(x) for x in value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} window must be a pair (lo, hi); got {value!r}") from None
+        raise DfloopError(f"{name} window must be a pair (lo, hi); got {value!r}") from None
     if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
-        raise ValueError(f"{name} window must satisfy 0 < lo < hi, both finite; got ({lo}, {hi})")
+        raise DfloopError(f"{name} window must satisfy 0 < lo < hi, both finite; got ({lo}, {hi})")
     return lo, hi

@@ -18,6 +18,7 @@ import math
 from functools import partial
 from typing import Any, Callable, Iterable, Sequence
 
+from . import _checks
 from .progress import progress_bar
 from .solve import LimitCycles, predict_limit_cycles
 
@@ -42,13 +43,7 @@ def _run_chunk(fn: Callable, start: int, chunk: Sequence, label: str = "batch") 
 def _chunk_size(chunksize, n: int) -> int:
     if chunksize is None:
         return max(1, math.ceil(n / _CHUNKS_PER_BATCH))
-    try:
-        c = int(chunksize)
-    except (TypeError, ValueError):
-        raise ValueError(f"chunksize must be a positive integer; got {chunksize!r}") from None
-    if c < 1 or c != chunksize:
-        raise ValueError(f"chunksize must be a positive integer; got {chunksize!r}")
-    return c
+    return _checks.integer_at_least("chunksize", chunksize, 1)
 
 
 def run_batch(fn: Callable[[Any], Any], items: Iterable, *, executor: cf.Executor | None = None,

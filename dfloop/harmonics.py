@@ -9,6 +9,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._checks import integer_at_least, positive, real_array
+from .errors import DfloopError
+
 __all__ = ["fundamental", "upward_crossings", "SteadyState", "steady_state"]
 
 
@@ -18,13 +21,27 @@ def fundamental(t: np.ndarray, x: np.ndarray, omega: float) -> complex:
     The samples should span a whole number of periods 2 pi / omega; then x = A sin(w t + phi) gives
     c = A exp(j phi).
     """
-    t, x = np.asarray(t, float), np.asarray(x, float)
-    if t.size < 3 or t[-1] <= t[0]:
-        raise ValueError("t must hold at least 3 increasing samples")
-    if not (np.isfinite(omega) and omega > 0):
-        raise ValueError(f"omega must be > 0 and finite, got {omega}")
+    t, x = _samples(t, x)
+    omega = positive("omega", omega)
     span = t[-1] - t[0]
     return complex(1j * 2.0 / span * np.trapezoid(x * np.exp(-1j * omega * t), t))
+
+
+def _samples(t, x) -> tuple[np.ndarray, np.ndarray]:
+    """Validated samples: t and x real, finite, one-dimensional, of one length >= 3, t increasing."""
+    t, x = real_array(t, "t"), real_array(x, "x")
+    if t.ndim != 1 or t.shape != x.shape:
+        raise DfloopError(f"t and x must be one-dimensional of one length, got shapes {t.shape} and {x.shape}")
+    if t.size < 3:
+        raise DfloopError(f"t must hold at least 3 strictly increasing samples, got {t.size} samples")
+    step = np.diff(t) <= 0
+    if np.any(step):
+        raise DfloopError(f"t must hold at least 3 strictly increasing samples, got {t.size} samples "
+                          f"(first non-increasing step at index {int(np.argmax(step))})")
+    for name, v in (("t", t), ("x", x)):
+        if not np.all(np.isfinite(v)):
+            raise DfloopError(f"{name} must be finite, got {float(v[~np.isfinite(v)][0])!r}")
+    return t, x
 
 
 def upward_crossings(t: np.ndarray, x: np.ndarray, level: float = 0.0) -> np.ndarray:
@@ -68,9 +85,8 @@ class SteadyState:
 
 def steady_state(t: np.ndarray, x: np.ndarray, periods: int = 10) -> SteadyState:
     """Measure the steady oscillation of x over its last ``periods`` periods (zero mean assumed)."""
-    t, x = np.asarray(t, float), np.asarray(x, float)
-    if periods < 1:
-        raise ValueError(f"periods must be >= 1, got {periods}")
+    t, x = _samples(t, x)
+    periods = integer_at_least("periods", periods, 1)
     crossings = upward_crossings(t, x)
     if crossings.size < 2:
         return SteadyState(float(np.max(np.abs(x[-max(t.size // 10, 1):]))), 0.0, 0.0, 0, False)

@@ -33,6 +33,7 @@ import numpy as np
 
 from . import _checks
 from .batch import run_batch
+from .describing.interop import as_element
 from .progress import progress_bar
 from .solve import LimitCycles, as_plant, predict_limit_cycles
 from .solve.stability import MARGINAL_TOL
@@ -294,10 +295,10 @@ def _build_loop(loop_at: Callable, value: float):
     if not (isinstance(loop, (tuple, list)) and len(loop) == 2):
         raise ValueError(f"loop_at({value!r}) must return a pair (G, N); got {type(loop).__name__}")
     G, N = loop
-    if not (callable(N) and hasattr(N, "frequency_dependent") and hasattr(N, "amplitude_domain")):
-        raise ValueError(f"loop_at({value!r}) returned N of type {type(N).__name__}: N must be a "
-                         "DescribingFunction")
-    return as_plant(G), N
+    try:
+        return as_plant(G), as_element(N)
+    except ValueError as exc:
+        raise ValueError(f"loop_at({value!r}): {exc}") from exc
 
 
 @dataclass
@@ -779,8 +780,7 @@ def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=No
     more than 30 degrees. Derivatives are central differences (1e-6 in each coordinate).
     """
     vals = _check_values(values)
-    if not (isinstance(max_steps, (int, np.integer)) and max_steps >= 1):
-        raise ValueError(f"max_steps must be a positive integer; got {max_steps!r}")
+    max_steps = _checks.integer_at_least("max_steps", max_steps, 1)
     if omega is not None:
         omega = _checks.window("omega", omega)
     if amplitude is not None:

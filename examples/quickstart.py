@@ -13,8 +13,6 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import dfloop as df  # noqa: E402
-from dfloop.plot.nyquist import plot_nyquist, plot_residual_map  # noqa: E402
-from dfloop.verify import verify_cycle  # noqa: E402
 
 # plant G(s) = 1.5 / (s (s + 1)^2) and a backlash of total clearance h = 0.2 in the loop of Fig. 1
 G = ct.tf([1.5], [1, 2, 1, 0])
@@ -24,12 +22,12 @@ cycles = df.predict_limit_cycles(G, N)  # windows chosen from the plant and the 
 print(cycles)
 
 for c in cycles:  # closed-loop time simulation from inside and outside each predicted cycle
-    print(verify_cycle(G, N, c, perturbation=0.5, steps_per_period=200))
+    print(df.verify_cycle(G, N, c, perturbation=0.5, steps_per_period=200))
 
 out = pathlib.Path(tempfile.gettempdir())
-ax = plot_nyquist(G, N, cycles)
-ax.figure.savefig(out / "dfloop_quickstart_nyquist.png", dpi=120)
-ax = plot_residual_map(G, N, cycles)
-ax.figure.savefig(out / "dfloop_quickstart_residual.png", dpi=120)
+cplt = cycles.plot(G, N)  # a control.ControlPlot: .lines, .axes, .figure (same as df.plot_nyquist(G, N, cycles))
+cplt.figure.savefig(out / "dfloop_quickstart_nyquist.png", dpi=120)
+cplt = df.plot_residual_map(G, N, cycles)
+cplt.figure.savefig(out / "dfloop_quickstart_residual.png", dpi=120)
 plt.close("all")
 print("figures written to", out)

@@ -54,8 +54,8 @@ def test_order_kept_and_errors_name_the_item():
 
     with ThreadPoolExecutor(2) as ex:
         assert run_batch(abs, list(range(-50, 50)), executor=ex, chunksize=7) == [abs(i) for i in range(-50, 50)]
-        with pytest.raises(ValueError, match="predict_many, item 1: N must be a DescribingFunction"):
-            predict_many([(G0, dfloop.Backlash(0.2)), (G0, abs)], executor=ex, chunksize=1)
+        with pytest.raises(ValueError, match="predict_many, item 1: N must be a dfloop DescribingFunction"):
+            predict_many([(G0, dfloop.Backlash(0.2)), (G0, "relay")], executor=ex, chunksize=1)
     with pytest.raises(ValueError, match=r"loops\[1\] must be a pair"):
         predict_many([(G0, dfloop.Backlash(0.2)), G0])
     with pytest.raises(ValueError, match="chunksize"):

@@ -1,7 +1,10 @@
 """Disk cache: round trip, key and checksum checks, atomic writes, directory selection."""
+import warnings
+
 import numpy as np
 import pytest
 
+from dfloop.errors import CacheWarning
 from dfloop.impact import cache
 
 
@@ -33,18 +36,28 @@ def test_key_depends_on_every_parameter_and_code(monkeypatch):
 def test_wrong_key_missing_and_corrupted_files_are_misses(tmp_path, arrays):
     key = cache.cache_key({"a": 1})
     p = cache.save_table(tmp_path / "t.npz", arrays, key, {}, {})
-    assert cache.load_table(p, cache.cache_key({"a": 2})) is None
-    assert cache.load_table(tmp_path / "missing.npz", key) is None
+    with pytest.warns(CacheWarning, match="stale"):
+        assert cache.load_table(p, cache.cache_key({"a": 2})) is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                 # a missing file is a plain miss: no warning
+        assert cache.load_table(tmp_path / "missing.npz", key) is None
+        assert cache.load_table(tmp_path / "no" / "dir" / "t.npz", key) is None
     good = p.read_bytes()
     for pos in (len(good) // 3, len(good) // 2, len(good) - 30):
         bad = bytearray(good)
         bad[pos] ^= 0x5A
         p.write_bytes(bytes(bad))
-        assert cache.load_table(p, key) is None
+        with pytest.warns(CacheWarning, match="corrupted"):
+            assert cache.load_table(p, key) is None
     p.write_bytes(good[: len(good) // 2])             # truncated
-    assert cache.load_table(p, key) is None
+    with pytest.warns(CacheWarning, match="corrupted"):
+        assert cache.load_table(p, key) is None
     p.write_bytes(b"not a zip file")
-    assert cache.load_table(p, key) is None
+    with pytest.warns(CacheWarning, match="corrupted"):
+        assert cache.load_table(p, key) is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert cache.load_table(p, key, on_error="ignore") is None
 
 
 def test_tampered_array_with_valid_zip_is_rejected(tmp_path, arrays):
@@ -54,7 +67,8 @@ def test_tampered_array_with_valid_zip_is_rejected(tmp_path, arrays):
         payload = {k: z[k] for k in z.files}
     payload["a.x"] = payload["a.x"] + 1e-15         # well-formed file, wrong content
     np.savez(p, **payload)
-    assert cache.load_table(p, key) is None
+    with pytest.warns(CacheWarning, match="checksum mismatch"):
+        assert cache.load_table(p, key) is None
 
 
 def test_cache_dir_from_environment(monkeypatch, tmp_path):

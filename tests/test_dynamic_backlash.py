@@ -9,7 +9,8 @@ from dfloop.impact.dynamic_backlash import DynamicBacklash, prepare_many
 from dfloop.impact.extract import impact_describing_function
 
 M1, M2, H, EPS = 1.0, 1.0, 0.1, 0.5
-KW = dict(transient_periods=100, periods=20)
+KW = dict(periods=20, starts=0)     # adaptive transient (the default); coexistence probes: tests/test_table_trust.py
+REF = dict(transient_periods=600, periods=20)           # direct reference: a long fixed transient
 
 
 @pytest.fixture(autouse=True)
@@ -19,7 +20,7 @@ def tmp_cache(tmp_path, monkeypatch):
 
 
 def direct(F, w, eps=EPS, m1=M1, m2=M2, h=H, **kw):
-    return impact_describing_function(m1, m2, h, eps, F, w, **(kw or KW))
+    return impact_describing_function(m1, m2, h, eps, F, w, **(kw or REF))
 
 
 def test_table_matches_direct_simulation_off_grid():
@@ -240,3 +241,30 @@ def test_effects_make_the_table_two_dimensional_and_enter_the_key():
     assert a.parameters()["h"] == H and "mass_ratio" not in a.parameters()
     with pytest.raises(ValueError, match="2-D"):
         a.similarity_table(1.0)
+
+
+@pytest.mark.parametrize("effects", [("damping",), "damping", [3.0], 5])
+def test_effects_that_are_not_effect_objects_are_rejected_at_construction(effects):
+    with pytest.raises(ValueError, match="effects"):
+        DynamicBacklash(M1, M2, H, EPS, effects=effects)
+
+
+def test_eps_is_an_alias_of_restitution_and_the_label_uses_restitution(monkeypatch):
+    a = DynamicBacklash(M1, M2, H, eps=0.5, cache=False)
+    assert a.restitution == 0.5 and a.parameters() == DynamicBacklash(M1, M2, H, 0.5, cache=False).parameters()
+    with pytest.raises(ValueError, match="restitution"):
+        DynamicBacklash(M1, M2, H, 0.5, eps=0.5)
+    with pytest.raises(ValueError, match="restitution"):
+        DynamicBacklash(M1, M2, H)
+    labels = []
+    from dfloop.impact import dynamic_backlash as mod
+
+    real = mod.progress_bar
+
+    def spy(label, total=None, **kw):
+        labels.append(label)
+        return real(label, total, **kw)
+
+    monkeypatch.setattr(mod, "progress_bar", spy)
+    DynamicBacklash(M1, M2, H, eps=0.5, cache=False, starts=0, base_dx=0.025)(50.0, 40.0)
+    assert labels == ["DynamicBacklash(restitution=0.5) table"]

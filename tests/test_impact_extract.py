@@ -154,3 +154,72 @@ def test_window_longer_than_run_is_rejected():
 def test_empty_batch_rejected():
     with pytest.raises(ValueError, match="empty"):
         impact_describing_function_batch(M1, M2, H, 0.5, np.array([]), np.array([]))
+
+
+# ------------------------------------------------------------------------------ labels at the model's edges
+@pytest.mark.parametrize("rel", [1e-9, 0.0])
+def test_no_impact_motion_labelled_as_such_right_up_to_wL(rel):
+    """Just below w_L a motion from rest grazes once and then flies freely: x1 is exactly linear over the
+    window, so N = 0 exactly, labelled periodic no-impact motion (not 'irregular')."""
+    w = 2.0 * math.sqrt(F / (H * M2)) * (1 - rel)
+    for transient in (None, 200):
+        r = impact_describing_function(M1, M2, H, 0.5, F, w, transient_periods=transient, periods=20)
+        assert r.N == 0 and r.n_impacts == 0 and r.regular and r.periodicity == 0.0
+        assert "no impacts in the window" in repr(r)
+
+
+def test_grazing_motion_that_drifts_into_impacts_is_labelled_by_its_window():
+    """At w_L (1 - 1e-6) the gap drifts after the grazing impact until impacts resume (after ~100 periods):
+    a window before is no-impact motion (N = 0), a window after a periodic impacting motion."""
+    w = 2.0 * math.sqrt(F / (H * M2)) * (1 - 1e-6)
+    early = impact_describing_function(M1, M2, H, 0.5, F, w, transient_periods=10, periods=20)
+    late = impact_describing_function(M1, M2, H, 0.5, F, w, transient_periods=400, periods=20)
+    assert early.N == 0 and early.n_impacts == 0 and early.regular
+    assert late.n_impacts > 0 and late.regular and late.periodicity < 1e-9
+
+
+@pytest.mark.parametrize("force,omega,h", [(1e300, 1.5e150, 0.1), (1e-3, 3e3, 1e-12), (1e250, 1e130, 1e-8)])
+def test_extreme_force_and_clearance_keep_the_similarity_law_without_overflow(force, omega, h):
+    import warnings
+
+    beta = force / (M2 * h * omega * omega)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        r = impact_describing_function(M1, M2, h, 0.5, force, omega, transient_periods=100, periods=20)
+    ref = impact_describing_function(M1 / M2, 1.0, 1.0, 0.5, beta, 1.0, transient_periods=100, periods=20)
+    assert r.period == ref.period > 0
+    assert r.N == pytest.approx(h * ref.X1 / force, rel=1e-9)
+    assert math.isfinite(abs(r.N)) and r.beta == pytest.approx(beta, rel=1e-12)
+
+
+def test_beta_overflow_is_a_clear_error():
+    with pytest.raises(ValueError, match="force: beta"):
+        impact_describing_function(M1, M2, 1e-300, 0.5, 1e300, 1e-5, transient_periods=1, periods=1)
+
+
+@pytest.mark.parametrize("w", [35.9, 36.1, 36.3])
+def test_adaptive_transient_follows_slow_convergence(w):
+    """eps = 0.5 at 35.9-36.4 rad/s converges over ~1000 periods: a fixed 100-period transient calls it
+    irregular; the adaptive one finds period 1 and the DF of a 2500-period run."""
+    assert not impact_describing_function(M1, M2, H, 0.5, F, w, transient_periods=100, periods=20).regular
+    r = impact_describing_function(M1, M2, H, 0.5, F, w, transient_periods=None, periods=20)
+    ref = impact_describing_function(M1, M2, H, 0.5, F, w, transient_periods=2500, periods=20)
+    assert r.period == ref.period == 1
+    assert abs(r.N - ref.N) <= 1e-6 * abs(ref.N)
+    assert 100 < r.transient_periods <= 4000
+
+
+def test_adaptive_transient_stops_early_on_irregular_motion():
+    r = impact_describing_function(M1, M2, H, 0.5, F, 22.5, transient_periods=None, periods=20)
+    assert not r.regular and r.transient_periods <= 200
+
+
+def test_batch_records_event_limit_failures_and_goes_on():
+    w = np.array([40.0, 5.0])            # period-1 motion; chattering low-frequency motion
+    kw = dict(transient_periods=None, periods=20, max_events=300)
+    with pytest.raises(Exception, match="max_events"):
+        impact_describing_function_batch(M1, M2, H, 0.5, F, w, **kw)
+    b = impact_describing_function_batch(M1, M2, H, 0.5, F, w, on_event_limit="record", **kw)
+    assert b.failure[0] == "" and "max_events = 300" in b.failure[1]
+    assert b.regular[0] and not b.regular[1] and np.isnan(b.N[1])
+    assert b.N[0] == impact_describing_function(M1, M2, H, 0.5, F, 40.0, **kw).N

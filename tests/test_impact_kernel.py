@@ -189,3 +189,36 @@ def test_random_parameters_keep_momentum_and_no_penetration():
         imp = tr.impacts
         p = m1 * imp["v1_post"] + imp["v2_post"]
         assert np.max(np.abs(p - beta * np.sin(imp["t"])), initial=0.0) <= 1e-10 * beta
+
+
+def test_default_event_bound_grows_with_the_run_and_covers_chatter():
+    """The default bound is sized from the number of periods; a chattering run of many periods stays inside
+    it (counted events per period against the per-period bound), and the error says how to raise it."""
+    from dfloop.impact.kernel import DEFAULT_MAX_EVENTS, default_max_events
+
+    assert default_max_events(0.5, 1e-9, 10) == DEFAULT_MAX_EVENTS
+    assert default_max_events(0.5, 1e-9, 1e6) > 10 * DEFAULT_MAX_EVENTS
+    for eps in (0.2, 0.5, 0.9):
+        periods = 200
+        tr = simulate(M1 / M2, 1.0, 1.0, eps, 300.0, 1.0, periods * 2 * math.pi)   # beta = 300: chatter
+        per_period = default_max_events(eps, 1e-9, 1e9) / 1e9
+        assert tr.t0.size / periods <= per_period
+        assert tr.n_impacts / periods > 20                                      # it does chatter
+    with pytest.raises(EventLimitError, match=r"pass a larger max_events \(e.g. max_events=100\)"):
+        simulate(M1, M2, H, 0.5, F, 10.0, 10.0, max_events=50)
+
+
+def test_kernel_run_with_forget_is_exact_and_bounded():
+    """Continuing a run in pieces and forgetting the past gives the same motion as one run."""
+    from dfloop.impact.kernel import ImpactParameters, KernelRun
+
+    p = ImpactParameters(M1, M2, H, 0.5, F, 30.0)
+    one = simulate(M1, M2, H, 0.5, F, 30.0, 60 * p.period)
+    run = KernelRun(p, initial=None, capacity=8)
+    run.advance(40 * p.period, 10**6, keep=False)
+    run.forget()
+    run.advance(60 * p.period, 10**6)
+    part = run.trajectory()
+    assert part.t0.size < one.t0.size
+    t = np.linspace(40.5 * p.period, 60 * p.period, 301)
+    np.testing.assert_allclose(part.evaluate(t)["x1"], one.evaluate(t)["x1"], rtol=0, atol=1e-12 * H)

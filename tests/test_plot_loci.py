@@ -10,30 +10,30 @@ import dfloop as df  # noqa: E402
 from dfloop.plot.loci import default_amplitudes, plot_loci  # noqa: E402
 
 
-def data_lines(ax):
-    """Lines other than the two axis guides (axhline/axvline)."""
-    return [ln for ln in ax.get_lines() if len(ln.get_xdata()) > 2]
+def data_lines(cplt):
+    """The -1/N curves of a ControlPlot returned by plot_loci (lines[0]; lines[1] is the -1 marker)."""
+    return cplt.lines[0]
 
 
 def test_amplitude_only_single_curve_over_domain():
     b = df.Backlash(0.1)
-    ax = plot_loci(b)
-    lines = data_lines(ax)
+    cplt = plot_loci(b)
+    lines = data_lines(cplt)
     assert len(lines) == 1
     A = default_amplitudes(b)
     assert A[0] > 0.05 and np.isclose(A[-1], 50.0)
     z = -1 / b(A)
     np.testing.assert_allclose(lines[0].get_xdata(), z.real)
     np.testing.assert_allclose(lines[0].get_ydata(), z.imag)
-    plt.close(ax.figure)
+    plt.close(cplt.figure)
 
 
 def test_given_amplitudes_and_existing_axes_and_kwargs():
     fig, ax = plt.subplots()
     A = np.array([0.5, 1.0, 2.0, 4.0])
     out = plot_loci(df.Relay(1.0, hysteresis=0.2), amplitudes=A, ax=ax, color="red")
-    assert out is ax
-    (line,) = data_lines(ax)
+    assert out.axes[0, 0] is ax and out.figure is fig
+    (line,) = data_lines(out)
     z = -1 / df.Relay(1.0, hysteresis=0.2)(A)
     np.testing.assert_allclose(line.get_xdata() + 1j * line.get_ydata(), z)
     assert line.get_color() == "red"
@@ -44,15 +44,17 @@ def test_frequency_dependent_family_like_fig3_leaves_out_n_zero():
     mb = df.MassBacklash(1.0, 1.0, 0.1)
     F = [10.0, 20.0, 30.0, 40.0, 50.0]
     w = np.linspace(0.5, 40.0, 200)  # w_L = 10 ... 22.4 rad/s: the tail has N = 0
-    ax = plot_loci(mb, amplitudes=F, omega=w)
-    lines = data_lines(ax)
+    cplt = plot_loci(mb, amplitudes=F, omega=w)
+    lines = data_lines(cplt)
     assert len(lines) == 5
     for Fi, line in zip(F, lines):
         keep = w < mb.limit_frequency(Fi)
         z = -1 / mb(Fi, w[keep])
-        np.testing.assert_allclose(line.get_xdata() + 1j * line.get_ydata(), z, rtol=1e-14)
+        drawn = line.get_xdata() + 1j * line.get_ydata()
+        np.testing.assert_allclose(drawn[keep], z, rtol=1e-14)
+        assert np.all(np.isnan(drawn[~keep]))  # N = 0 there: a gap, not a point at infinity
         assert line.get_label() == f"F = {Fi:g} N"
-    plt.close(ax.figure)
+    plt.close(cplt.figure)
 
 
 def test_frequency_dependent_requires_omega():

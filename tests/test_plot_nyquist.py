@@ -1,7 +1,6 @@
 """plot_nyquist / plot_residual_map: the drawn data are the plant response, the -1/N locus and the cycles."""
 import control as ct
 import matplotlib
-import matplotlib.collections
 
 matplotlib.use("Agg")
 import matplotlib.colors as mcolors  # noqa: E402
@@ -25,8 +24,10 @@ def _close():
 
 def test_nyquist_draws_plant_locus_and_cycles_by_stability():
     cycles = df.predict_limit_cycles(G, N)
-    ax = plot_nyquist(G, N, cycles)
-    g_line, n_line = ax.lines[0], ax.lines[1]
+    cplt = plot_nyquist(G, N, cycles)
+    assert isinstance(cplt, ct.ControlPlot)
+    ax = cplt.axes[0, 0]
+    (g_line,), (n_line,) = cplt.lines[0], cplt.lines[1]
     w_pick = np.geomspace(*cycles.omega_window, 2000)[100]
     x, y = g_line.get_data()
     gp = df.as_plant(G)(np.array([w_pick]))[0]
@@ -37,12 +38,11 @@ def test_nyquist_draws_plant_locus_and_cycles_by_stability():
     A = np.unique(np.concatenate([np.geomspace(lo, hi, 1000),
                                   lo + (min(hi, 10 * lo) - lo) * np.geomspace(1e-9, 1.0, 400)]))
     np.testing.assert_allclose(xs + 1j * ys, -1 / N(A))
-    markers = ax.collections
+    markers = cplt.lines[2]
     assert len(markers) == len(cycles) == 2
     for c, m in zip(cycles, markers):
-        np.testing.assert_allclose(m.get_offsets()[0], [c.G.real, c.G.imag])
-        face = m.get_facecolor()
-        assert (face.size > 0 and face[0][3] > 0) == c.stable  # filled iff stable
+        np.testing.assert_allclose(np.ravel(m.get_data()), [c.G.real, c.G.imag])
+        assert (m.get_markerfacecolor() != "none") == c.stable  # filled iff stable
     texts = [t.get_text() for t in ax.texts]
     assert any(f"A={c.amplitude:.3g}" in t and c.stability in t for c in cycles for t in texts)
 
@@ -57,18 +57,21 @@ class _DelayedSaturation(DescribingFunction):
 def test_frequency_dependent_locus_family_and_marginal_marker():
     Nf = _DelayedSaturation()
     cycles = df.predict_limit_cycles(ct.tf([2], [1, 2, 2, 1]), Nf, omega=(0.1, 10), amplitude=(1, 50))
-    ax = plot_nyquist(ct.tf([2], [1, 2, 2, 1]), Nf, cycles, n_loci=4)
-    assert len(ax.lines) - 1 - 2 == 4 + len(cycles)  # G, the loci, two axis lines
+    cplt = plot_nyquist(ct.tf([2], [1, 2, 2, 1]), Nf, cycles, n_loci=4)
+    assert len(cplt.lines[1]) == 4 + len(cycles)  # one locus per frequency of the window and per cycle
     fig, ax2 = plt.subplots()
     touching = df.predict_limit_cycles(lambda w: -2 + 1j * (w - 1) ** 2, df.Relay(M=1.0), omega=(0.5, 2))
-    assert plot_nyquist(lambda w: -2 + 1j * (w - 1) ** 2, df.Relay(M=1.0), touching, ax=ax2) is ax2
-    assert ax2.collections[0].get_paths()[0] is not None
-    assert mcolors.to_hex(ax2.collections[0].get_edgecolor()[0]) == mcolors.to_hex("C1")
+    cplt2 = plot_nyquist(lambda w: -2 + 1j * (w - 1) ** 2, df.Relay(M=1.0), touching, ax=ax2)
+    assert cplt2.axes[0, 0] is ax2
+    (marker,) = cplt2.lines[2]
+    assert touching[0].marginal and marker.get_marker() == "D"
+    assert mcolors.to_hex(marker.get_markeredgecolor()) == mcolors.to_hex("C1")
 
 
 def test_residual_map_shows_the_relative_residual_and_zero_lines():
     cycles = df.predict_limit_cycles(G, N)
-    ax = plot_residual_map(G, N, cycles, shape=(40, 50), amplitude=(0.15, 3.0), omega=(0.05, 5.0))
+    cplt = plot_residual_map(G, N, cycles, shape=(40, 50), amplitude=(0.15, 3.0), omega=(0.05, 5.0))
+    ax = cplt.axes[0, 0]
     mesh = ax.collections[0]
     A = np.geomspace(0.15, 3.0, 40)
     w = np.geomspace(0.05, 5.0, 50)
@@ -76,11 +79,10 @@ def test_residual_map_shows_the_relative_residual_and_zero_lines():
     expected = np.log10(np.maximum(np.abs(1 + P) / (1 + np.abs(P)), 1e-16))
     np.testing.assert_allclose(np.asarray(mesh.get_array()).reshape(40, 50), expected)
     assert ax.get_xscale() == "log" and ax.get_yscale() == "log"
-    pts = np.array([m.get_offsets()[0] for m in ax.collections
-                    if isinstance(m, matplotlib.collections.PathCollection)])
+    pts = np.array([np.ravel(m.get_data()) for m in cplt.lines[0]])
     np.testing.assert_allclose(sorted(pts[:, 0]), sorted(c.frequency for c in cycles))
     # default view: a decade around the cycles, inside the search windows
-    ax = plot_residual_map(G, N, cycles, shape=(10, 10))
+    ax = plot_residual_map(G, N, cycles, shape=(10, 10)).axes[0, 0]
     edges = ax.collections[0].get_coordinates()[:, 0, 1]  # cell edges midway between the sampled A
     centres = (edges[:-1] + edges[1:]) / 2
     lo, hi = centres[0], centres[-1]
@@ -105,8 +107,9 @@ def test_nyquist_marks_jump_crossings_apart_from_cycles():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         cycles = df.predict_limit_cycles(G_SYN, N, omega=(0.9, 1.1), amplitude=(1.0, 3.0))
-    ax = plot_nyquist(G_SYN, N, cycles)
+    cplt = plot_nyquist(G_SYN, N, cycles)
     (j,) = cycles.jump_crossings
-    (marker,) = ax.collections
-    np.testing.assert_allclose(marker.get_offsets()[0], [j.G.real, j.G.imag])
-    assert any("no cycle" in t.get_text() for t in ax.texts)
+    assert cplt.lines[2] == []
+    (marker,) = cplt.lines[3]
+    np.testing.assert_allclose(np.ravel(marker.get_data()), [j.G.real, j.G.imag])
+    assert any("no cycle" in t.get_text() for t in cplt.axes[0, 0].texts)

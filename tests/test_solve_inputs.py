@@ -78,7 +78,7 @@ def test_zero_N_rejected():
 
 
 def test_not_a_describing_function_rejected():
-    with pytest.raises(ValueError, match="N must be a DescribingFunction"):
+    with pytest.raises(ValueError, match="N must be a dfloop DescribingFunction"):
         df.predict_limit_cycles(H, 3.0)
 
 

@@ -261,8 +261,11 @@ def test_clustered_roots_of_equal_degree_in_one_cell_are_all_found(k):
     assert len(cycles) == k
     found = np.array([np.log(c.amplitude) + 1j * np.log(c.frequency) for c in cycles])
     # |R| <= 1e-10 (1 + |GN|) = 2e-10 with |dR/d(x + iy)| = k eps^(k-1) bounds the position error
-    np.testing.assert_allclose(found[np.argsort(np.angle(found))], z[np.argsort(np.angle(z))],
-                               atol=2e-10 / (k * eps ** (k - 1)))
+    # each expected root has its own found root within the bound (matched by distance: sorting by angle is
+    # ill-defined for roots on the negative real axis, where a rounding-level imaginary part flips +-pi)
+    distance = np.abs(found[:, None] - z[None, :])
+    assert sorted(np.argmin(distance, axis=0)) == list(range(k))
+    assert np.max(np.min(distance, axis=0)) <= 2e-10 / (k * eps ** (k - 1))
     assert all(c.stability == "stable" for c in cycles)
 
 

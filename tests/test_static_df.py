@@ -204,3 +204,57 @@ def test_every_element_exported_and_reprs():
                  "PreloadedSpring", "CoulombViscousFriction"):
         assert hasattr(df, name)
     assert repr(df.Backlash(0.1)) == "Backlash(h=0.1, k=1.0)"
+
+
+# ------------------------------------------------------------------ limits at A = 0 and A = inf
+# (element, N(0), N(inf), amplitude scale): the documented limits; the check is that N at amplitudes
+# 1e-9 and 1e9 times the element's scale approaches them (an independent evaluation of the closed forms
+# away from the end points), and that the end points themselves return exactly the limit, never NaN.
+_LIMITS = [
+    (df.Backlash(0.2, 3.0), 0.0, 3.0, 0.2),
+    (df.Saturation(1.5, 2.0), 2.0, 0.0, 1.5),
+    (df.DeadZone(0.5, 2.0), 0.0, 2.0, 0.5),
+    (df.Relay(2.0), np.inf, 0.0, 1.0),
+    (df.Relay(2.0, hysteresis=0.1), 0.0, 0.0, 0.1),
+    (df.Relay(2.0, dead_zone=0.3), 0.0, 0.0, 0.3),
+    (df.CubicStiffness(2.0, 0.5), 2.0, np.inf, 1.0),
+    (df.CubicStiffness(2.0, -0.5), 2.0, -np.inf, 1.0),
+    (df.Quantizer(0.25), 0.0, 1.0, 0.25),
+    (df.PreloadedSpring(1.0, 3.0), np.inf, 3.0, 1.0),
+    (df.CoulombViscousFriction(1.0, 0.5), np.inf, 0.5, 1.0),
+]
+
+
+@pytest.mark.parametrize("el,n0,ninf,scale", _LIMITS, ids=[repr(c[0]) for c in _LIMITS])
+def test_limits_at_zero_and_infinite_amplitude(el, n0, ninf, scale):
+    with np.errstate(all="raise", under="ignore"):  # no overflow or invalid-operation warnings either
+        at = el(np.array([0.0, np.inf]))
+    assert at[0] == n0 and at[1] == ninf
+    if isinstance(el, df.Quantizer):
+        big = el(1e5 * scale)  # its level bound (1e7 levels) caps the amplitude
+        assert abs(big - 1.0) < 1e-8
+    else:
+        big = el(1e9 * scale)
+        assert (abs(big - ninf) <= 1e-6 * max(1.0, abs(ninf))) if np.isfinite(ninf) else abs(big) > 1e15
+    small = el(1e-9 * scale)
+    assert (abs(small - n0) <= 1e-6 * max(1.0, abs(n0))) if np.isfinite(n0) else abs(small) > 1e8
+
+
+@pytest.mark.parametrize("el", [c[0] for c in _LIMITS], ids=[repr(c[0]) for c in _LIMITS])
+def test_extreme_finite_amplitudes_give_no_nan_and_no_warning(el):
+    a = np.array([5e-324, 1e-300, 1e-150, 1e150, 1e300, 1.7e308])
+    if isinstance(el, df.Quantizer):
+        a = np.array([5e-324, 1e-300, 1e-150])
+    with np.errstate(all="raise", under="ignore"):
+        n = el(a)
+    assert not np.any(np.isnan(n))
+
+
+def test_composition_limits_keep_exact_zero_parts_of_G():
+    ideal = df.LinearThenStatic(lambda s: 1.0 / (s * s), df.Relay(1.0))  # G(jw) = -1/w^2: real
+    n = ideal(0.0, 2.0)
+    assert n.real == -np.inf and n.imag == 0.0  # numpy's -0.25 * (inf + 0j) would give NaN in the imaginary part
+    mb = df.MassBacklash(1.0, 3.0, 0.1, k=2.0)
+    np.testing.assert_array_equal(mb([0.0, np.inf], 2.0), [0.0, -2.0 / (4.0 * 4.0)])
+    with pytest.raises(ValueError, match="omega"):
+        mb(1.0, np.inf)

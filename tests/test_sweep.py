@@ -327,3 +327,15 @@ def test_relay_fold_for_any_level_dead_zone_and_grid(m, d, n, lo, hi, descending
         q = (math.pi * d / (4 * m * p * G_PC)) ** 2
         u = (1 + (1 if b.kind == "unstable" else -1) * np.sqrt(1 - 4 * q)) / 2
         np.testing.assert_allclose(A, d / np.sqrt(u), rtol=1e-9)
+
+
+def test_python_control_nonlinearity_is_accepted_and_bad_elements_named():
+    # python-control's saturation becomes dfloop's Saturation: the same sweep, bit for bit
+    sat = ct.saturation_nonlinearity(1.0)
+    plant = ct.tf([1], [1, 3, 2, 0])
+    a = sweep(lambda K: (K * plant, sat), [8.0, 12.0], progress=False)
+    b = sweep(lambda K: (K * plant, dfloop.Saturation(1.0)), [8.0, 12.0], progress=False)
+    assert len(a.branches) == 1 and a.branches[0].kind == "stable"
+    np.testing.assert_array_equal(a.branches[0].amplitude, b.branches[0].amplitude)
+    with pytest.raises(ValueError, match=r"loop_at\(1.0\): N must be a dfloop DescribingFunction"):
+        sweep(lambda K: (K * plant, "relay"), [1.0, 2.0], progress=False)

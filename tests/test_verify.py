@@ -112,10 +112,53 @@ def test_steady_state_measures_amplitude_frequency_and_periodicity():
     np.testing.assert_allclose(upward_crossings(t, np.sin(w * t))[:3], [np.pi, 2 * np.pi, 3 * np.pi], atol=1e-8)
 
 
-def test_simulation_converges_at_second_order_in_the_step():
-    G, N = ct.tf([8], [1, 2, 2, 1]), df.Saturation(1.0)
-    c = df.predict_limit_cycles(G, N)[0]
-    amps = [verify_cycle(G, N, c, steps_per_period=n, periods=60).inside.amplitude for n in (100, 200, 400)]
+def test_fixed_step_fallback_converges_at_second_order_in_the_step():
+    """An element with only an operator (no piecewise-linear model) runs on the fixed-step fallback."""
+    G, N = ct.tf([20], [1, 3, 3, 1]), SaturatingDeadZone(0.2, 1.0)
+    c = df.predict_limit_cycles(G, N)[-1]
+    runs = [verify_cycle(G, N, c, steps_per_period=n, periods=60) for n in (100, 200, 400)]
+    assert all("fixed step" in r.method for r in runs)
+    amps = [r.inside.amplitude for r in runs]
     e1, e2 = amps[0] - amps[1], amps[1] - amps[2]
     assert abs(e1 / e2) > 3  # halving the step divides the change by ~4 or more (2 for a plain hold)
-    assert amps[2] == pytest.approx(c.amplitude, rel=0.03)  # and the DF prediction is within 3 %
+
+
+def test_exact_flow_run_lands_on_the_exact_cycle():
+    """No fixed step for piecewise-linear elements: the settled run is the exact periodic orbit."""
+    from dfloop.exact import exact_cycle
+
+    G, N = ct.tf([8], [1, 2, 2, 1]), df.Saturation(1.0)
+    c = df.predict_limit_cycles(G, N)[0]
+    e = exact_cycle(G, N, c)
+    v = verify_cycle(G, N, c, periods=30, steps_per_period=2000)
+    assert v.verdict == "stable" and "exact" in v.method
+    assert v.inside.amplitude == pytest.approx(e.amplitude, rel=1e-6)
+    assert v.inside.frequency == pytest.approx(e.frequency, rel=1e-6)
+
+
+def test_verify_rejects_bad_cycle_and_run_arguments():
+    G, N = H_SIMPLE * 8, df.Saturation(1.0)
+    with pytest.raises(ValueError, match="periods"):
+        verify_cycle(G, N, (1.0, 1.0), periods=float("inf"))
+    with pytest.raises(ValueError, match="cycle"):
+        verify_cycle(G, N, None)
+    cycles = df.predict_limit_cycles(G, N)
+    with pytest.raises(ValueError, match="cycle.*one"):
+        verify_cycle(G, N, list(cycles) * 2)
+    with pytest.raises(ValueError, match="steps_per_period"):
+        verify_cycle(G, N, cycles[0], steps_per_period=10)
+
+
+def test_open_loop_unstable_plant_reports_where_the_runs_settle():
+    """Saturation around 30/((s-1)(s+2)(s+3)): the DF cycle (A = 3.77, w = 1) is 23 % / 49 % off; the runs
+    settle on the true cycle, which verify_cycle names (checked against exact_cycle)."""
+    from dfloop.exact import exact_cycle
+
+    G, N = ct.tf([30], [1, 4, 1, -6]), df.Saturation(1.0)
+    c = df.predict_limit_cycles(G, N)[0]
+    v = verify_cycle(G, N, c, periods=30)
+    e = exact_cycle(G, N, c)
+    assert e.success
+    assert v.inside.amplitude == pytest.approx(e.amplitude, rel=1e-4)
+    assert "settled elsewhere" in v.message and f"A={e.amplitude:.4g}" in v.message
+    assert f"w={e.frequency:.4g}" in v.message

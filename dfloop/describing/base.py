@@ -10,6 +10,7 @@ from abc import ABC, abstractmethod
 import numpy as np
 
 from .._checks import amplitude_array, frequency_array
+from ..errors import DfloopError
 
 __all__ = ["DescribingFunction", "negative_inverse"]
 
@@ -19,6 +20,18 @@ class DescribingFunction(ABC):
 
     Subclasses implement :meth:`_evaluate` on validated float arrays (already broadcast-compatible)
     and set the class attributes below.
+
+    Input rules, the same for every element (checked here, in :meth:`__call__`; docs/errors.md lists them):
+
+    - ``A`` is real and >= 0; ``omega`` is real, finite and > 0 (rad/s). Complex, negative, non-numeric,
+      None or ragged input raises :class:`dfloop.errors.DfloopError` (a ``ValueError``) naming the
+      parameter and the value; so do ``A`` and ``omega`` that do not broadcast together.
+    - ``A = 0`` and ``A = inf`` give the limit of N as A -> 0+ and A -> inf (which may be 0 or an infinite
+      value, never NaN); each element's docstring states its limits. The one exception is
+      :class:`dfloop.NumericDF`, which cannot take a limit numerically: it raises ``DfloopError`` naming
+      ``A`` outside [1e-250, 1e250].
+    - NaN entries of ``A`` or ``omega`` give NaN in those entries only; dfloop's elements never return NaN
+      for other input (tests/test_bad_input_hypothesis.py checks it).
 
     Attributes
     ----------
@@ -38,23 +51,34 @@ class DescribingFunction(ABC):
         Parameters
         ----------
         A : array_like
-            Input amplitude(s), >= 0, in ``input_unit``. NaN entries give NaN in those entries only.
+            Input amplitude(s), real, >= 0 (``inf`` gives the limit), in ``input_unit``. NaN entries give NaN
+            in those entries only.
         omega : array_like, optional
-            Frequency in rad/s (> 0), broadcast against ``A``. Required when ``frequency_dependent``.
+            Frequency in rad/s (real, finite, > 0), broadcast against ``A``. Required when
+            ``frequency_dependent``; validated (and ignored) for amplitude-only elements.
 
         Returns
         -------
         numpy.ndarray of complex
             N with the broadcast shape of ``A`` and ``omega`` (a 0-d array for scalar input).
+
+        Raises
+        ------
+        dfloop.errors.DfloopError
+            Bad ``A`` or ``omega`` (see the class docstring), naming the parameter and the value.
         """
         a = amplitude_array(A, self.input_name)
         if omega is None:
             if self.frequency_dependent:
-                raise ValueError(f"omega is required: {type(self).__name__} depends on frequency")
+                raise DfloopError(f"omega is required: {type(self).__name__} depends on frequency, got omega=None")
             w = None
         else:
             w = frequency_array(omega)
-            a, w = np.broadcast_arrays(a, w)
+            try:
+                a, w = np.broadcast_arrays(a, w)
+            except ValueError:
+                raise DfloopError(f"{self.input_name} and omega must broadcast together, got shapes "
+                                  f"{np.shape(a)} and {np.shape(w)}") from None
         return np.asarray(self._evaluate(a, w), dtype=complex)
 
     @abstractmethod
@@ -67,7 +91,7 @@ class DescribingFunction(ABC):
         For frequency-dependent elements the bounds may depend on ``omega`` (broadcast).
         Default: (0, inf).
         """
-        shape = np.shape(omega) if omega is not None else ()
+        shape = np.shape(frequency_array(omega)) if omega is not None else ()
         return np.zeros(shape), np.full(shape, np.inf)
 
     def validity(self, A, omega=None) -> np.ndarray:
@@ -91,6 +115,35 @@ class DescribingFunction(ABC):
         starting from rest (zero output, centred state). Elements without one raise NotImplementedError.
         """
         raise NotImplementedError(f"{type(self).__name__} has no time-domain operator")
+
+    def describing_function(self, A):
+        """N(A) through python-control's describing-function protocol (amplitude-only elements).
+
+        ``control.describing_function``, ``describing_function_response`` and ``describing_function_plot``
+        call this method (they look it up by name) instead of treating the element as a static map f(x).
+
+        Parameters
+        ----------
+        A : float or array_like
+            Input amplitude(s), >= 0, in ``input_unit``.
+
+        Returns
+        -------
+        complex or numpy.ndarray of complex
+            The same values as ``self(A)`` (a Python complex for scalar ``A``).
+
+        Raises
+        ------
+        ValueError
+            For a frequency-dependent element: python-control's analysis assumes N(A) only; use
+            :func:`dfloop.predict_limit_cycles`, which solves 1 + G(jw) N(A, w) = 0.
+        """
+        if self.frequency_dependent:
+            raise ValueError(
+                f"{type(self).__name__} depends on frequency (N(A, omega)); python-control's describing-function "
+                "analysis assumes N(A) only: use dfloop.predict_limit_cycles(G, element) instead")
+        n = self(A)
+        return complex(n) if n.ndim == 0 else n
 
     def __repr__(self) -> str:
         params = ", ".join(f"{k}={v!r}" for k, v in vars(self).items() if not k.startswith("_"))

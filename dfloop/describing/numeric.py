@@ -17,7 +17,8 @@ from typing import Callable
 
 import numpy as np
 
-from .._checks import amplitude_array, finite, in_closed_interval
+from .._checks import amplitude_array, in_closed_interval, integer_at_least
+from ..errors import DfloopError
 from .base import DescribingFunction
 from .static import StaticElement
 
@@ -32,6 +33,7 @@ _SUB_SAMPLES = 32  # detection grid inside a bracket, on each side of the singul
 _MAX_NESTING = 3  # levels of that nested search
 _MAX_LEVELS = 64  # bound on adaptive halvings of a quadrature piece
 _MAX_PIECES = 8192  # bound on pieces under refinement per branch
+_A_RANGE = (1e-250, 1e250)  # amplitudes computed: below, A sin t underflows; above, element arithmetic overflows
 
 
 def _median_filter(d: np.ndarray) -> np.ndarray:
@@ -210,14 +212,6 @@ def _branch_integrals(evaluate, lo, hi, fixed, nodes: int, samples: int, locate:
     return _adaptive_pieces(evaluate, R, rows, bounds[:, :-1].ravel(), bounds[:, 1:].ravel(), nodes, rtol)
 
 
-def _integer_at_least(name: str, value, minimum: int) -> int:
-    """``value`` as an int >= minimum, raising ValueError naming ``name``."""
-    x = finite(name, value)
-    if x != int(x) or x < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    return int(x)
-
-
 class NumericDF(DescribingFunction):
     """Describing function computed numerically from a static function or a hysteretic operator.
 
@@ -258,7 +252,10 @@ class NumericDF(DescribingFunction):
     the rising and falling branches; a branch's output at any phase comes from a copy of the state at the
     branch start fed the branch's monotone input (rate independence), so switching instants can be
     bisected. The operator must come back to the same state after the measured period (checked;
-    ``ValueError`` otherwise). A must be finite and > 0; NaN entries give NaN. Near a dead-band edge
+    ``ValueError`` otherwise). Limits: a numeric DF has none, so A = 0 and A = inf raise ``ValueError``
+    (:class:`dfloop.errors.DfloopError`), as does any A outside [1e-250, 1e250] (there the samples A sin t
+    underflow, or the element's arithmetic overflows) and an element whose output is not finite along the
+    sinusoid; NaN entries give NaN. Near a dead-band edge
     (A = edge (1 + e)) the DF's relative condition number is ~1/e: the element's own rounding of
     x = A sin t then limits agreement to a few eps / e.
     Measured cost per amplitude on the dev machine (``python benchmarks/bench_numeric_df.py``, 2 shared
@@ -289,16 +286,17 @@ class NumericDF(DescribingFunction):
             element = element.operator()
             hysteretic = True if hysteretic is None else hysteretic
         if not callable(element):
-            raise ValueError(f"element must be callable, got {type(element).__name__}")
+            raise DfloopError(f"element must be callable, got {element!r} ({type(element).__name__})")
         self.element = element
         self.hysteretic = bool(hysteretic)
         if breakpoints is not None and self.hysteretic:
-            raise ValueError("breakpoints apply to static functions only (hysteretic=True given)")
+            raise DfloopError(f"breakpoints apply to static functions only (hysteretic=True given), got "
+                              f"breakpoints={breakpoints!r}")
         self.breakpoints = breakpoints
-        nodes = _integer_at_least("nodes", nodes, 2)
-        samples = _integer_at_least("samples", samples, 16)
+        nodes = integer_at_least("nodes", nodes, 2)
+        samples = integer_at_least("samples", samples, 16)
         if method not in ("pieces", "sampled"):
-            raise ValueError(f"method must be 'pieces' or 'sampled', got {method!r}")
+            raise DfloopError(f"method must be 'pieces' or 'sampled', got {method!r}")
         self.rtol = in_closed_interval("rtol", rtol, 1e-16, 1e-2)
         self.locate = breakpoints is None if locate is None else bool(locate)
         self.nodes, self.samples, self.method = int(nodes), int(samples), method
@@ -319,10 +317,19 @@ class NumericDF(DescribingFunction):
         e_out = np.full(A.shape, np.nan)
         ok = ~np.isnan(A)
         a = A[ok]
-        if np.any(a == 0.0) or np.any(np.isinf(a)):
-            raise ValueError(f"{self.input_name} (amplitude) must be finite and > 0 for NumericDF")
+        lo, hi = _A_RANGE
+        outside = (a < lo) | (a > hi)
+        if np.any(outside):
+            bad = float(a[outside][0])  # a plain float: its repr is the number
+            raise DfloopError(
+                f"{self.input_name} (amplitude) must lie in [{lo:g}, {hi:g}] for NumericDF, got {bad!r}: a numeric "
+                "DF has no limit at 0 or infinity (an analytic element gives it), and beyond this range the "
+                f"samples {self.input_name} sin(t) underflow or the element's arithmetic overflows"
+            )
         if a.size:
-            n_out[ok], e_out[ok] = self._hysteretic(a) if self.hysteretic else self._static(a)
+            n, e = self._hysteretic(a) if self.hysteretic else self._static(a)
+            self._finite(np.column_stack([n.real, n.imag, e if self.method == "pieces" else 0 * n.real]), a)
+            n_out[ok], e_out[ok] = n, e
         return n_out, e_out
 
     def _fixed_phases(self, a: np.ndarray) -> np.ndarray:
@@ -331,7 +338,7 @@ class NumericDF(DescribingFunction):
         levels = self.breakpoints(float(a.max())) if callable(self.breakpoints) else self.breakpoints
         levels = np.asarray(levels, dtype=float).ravel()
         if not np.all(np.isfinite(levels)):
-            raise ValueError("breakpoints must be finite")
+            raise DfloopError(f"breakpoints must be finite, got {levels[~np.isfinite(levels)][0]!r}")
         levels = np.concatenate([levels, -levels])
         return np.arcsin(np.clip(levels[None, :] / a[:, None], -1.0, 1.0))
 
@@ -339,17 +346,29 @@ class NumericDF(DescribingFunction):
         f = self.element
 
         def evaluate(rows, theta):
-            return np.asarray(f(a[rows][:, None] * np.sin(theta)), dtype=float).reshape(theta.shape)
+            return self._finite(np.asarray(f(a[rows][:, None] * np.sin(theta)), dtype=float).reshape(theta.shape),
+                                a[rows])
 
         if self.method == "sampled":
             theta = 2.0 * np.pi * np.arange(self.samples) / self.samples
             y = evaluate(np.arange(a.size), np.broadcast_to(theta, (a.size, theta.size)))
-            return 2.0 * np.mean(y * np.sin(theta), axis=1) / a, np.full(a.size, np.nan)
+            return (2.0 * np.mean(y * np.sin(theta), axis=1)) / a, np.full(a.size, np.nan)
         lo, hi = np.full(a.size, -0.5 * np.pi), np.full(a.size, 0.5 * np.pi)
         i_sin, _, err = _branch_integrals(
             evaluate, lo, hi, self._fixed_phases(a), self.nodes, self.samples, self.locate, self.rtol
         )
-        return 2.0 * i_sin / (np.pi * a), 2.0 * err / (np.pi * a)
+        return (2.0 / np.pi) * (i_sin / a), (2.0 / np.pi) * (err / a)  # pi a would overflow near 1e308
+
+    def _finite(self, values: np.ndarray, amplitudes: np.ndarray) -> np.ndarray:
+        """``values`` (one row per amplitude), raising DfloopError naming the amplitude where one is not finite."""
+        bad = ~np.isfinite(values)
+        if np.any(bad):
+            row = int(np.argwhere(bad)[0][0])
+            raise DfloopError(
+                f"the element's output is not finite along {self.input_name} sin(t) at {self.input_name} = "
+                f"{float(amplitudes[row])!r}: NumericDF needs an element with finite output at that amplitude"
+            )
+        return values
 
     def _branch_states(self, A: float):
         """Operator states at the start of the rising (x = -A) and falling (x = +A) branches, after a
@@ -393,14 +412,14 @@ class NumericDF(DescribingFunction):
                     vals[i] = [c(v) for v in x]
                 else:
                     vals[i] = [copy.deepcopy(states[row])(v) for v in x]
-            return vals
+            return self._finite(vals, amp[rows])
 
         lo = np.tile([-0.5 * np.pi, 0.5 * np.pi], a.size)
         i_sin, i_cos, err = _branch_integrals(
             evaluate, lo, lo + np.pi, np.empty((lo.size, 0)), self.nodes, self.samples, self.locate, self.rtol
         )
         total = (i_sin + 1j * i_cos).reshape(-1, 2).sum(axis=1)
-        return total / (np.pi * a), err.reshape(-1, 2).sum(axis=1) / (np.pi * a)
+        return (total / a) / np.pi, (err.reshape(-1, 2).sum(axis=1) / a) / np.pi
 
     def _check_periodic(self, begin, end, A: float) -> None:
         """The state after the measured period must reproduce the rising branch of the period's start."""
@@ -410,7 +429,7 @@ class NumericDF(DescribingFunction):
         ye = np.array([e(A * np.sin(t)) for t in theta])
         scale = max(np.max(np.abs(yb)), np.finfo(float).tiny)
         if np.max(np.abs(yb - ye)) > 1e-9 * scale:
-            raise ValueError(
+            raise DfloopError(
                 f"the operator is not periodic after one warm-up period at {self.input_name} = {A}: "
                 "it is not a rate-independent hysteresis operator"
             )

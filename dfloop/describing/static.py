@@ -3,7 +3,9 @@
 Convention (docs/design.md section 1): input x(t) = A sin(w t), N(A) = (Y1 / A) exp(j phi1) where Y1 sin(w t + phi1)
 is the output's fundamental. Every ``N`` here is amplitude-only, evaluated with numpy broadcasting, equal to
 0 exactly (never NaN) where the output has no fundamental (inside dead bands, below switching levels); NaN
-entries of ``A`` give NaN in those entries only; negative ``A`` raises ``ValueError``.
+entries of ``A`` give NaN in those entries only; negative, complex or non-numeric ``A`` raises ``ValueError``
+(:class:`dfloop.errors.DfloopError`). At ``A = 0`` and ``A = inf`` every element returns the limit of N, stated
+under "Limits" in its docstring (possibly infinite, never NaN).
 
 Each element also provides :meth:`operator`, a fresh stateful callable ``op(x) -> y`` for time-domain
 simulation, and static (memoryless) elements provide a vectorised :meth:`StaticElement.output` ``y = f(x)``
@@ -16,7 +18,8 @@ from abc import abstractmethod
 
 import numpy as np
 
-from .._checks import finite, in_closed_interval, nonnegative, positive
+from .._checks import finite, frequency_array, in_closed_interval, nonnegative, positive, real_array
+from ..errors import DfloopError
 from .base import DescribingFunction
 
 __all__ = [
@@ -58,14 +61,14 @@ def _f(u: np.ndarray) -> np.ndarray:
 
 
 def _ratio(level: float, A: np.ndarray) -> np.ndarray:
-    """level / A with level / 0 = inf (no warning) and level / inf = 0; NaN stays NaN."""
-    with np.errstate(divide="ignore", invalid="ignore"):
+    """level / A with level / 0 = inf (no warning, also when it overflows) and level / inf = 0; NaN stays NaN."""
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         return level / A
 
 
 def _one_minus_ratio(level: float, A: np.ndarray) -> np.ndarray:
     """1 - level / A computed as (A - level) / A (exact near A = level), 1 at A = inf, -inf at A = 0."""
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         return np.where(np.isinf(A), 1.0, (A - level) / A)
 
 
@@ -74,8 +77,16 @@ def _keep_nan(A: np.ndarray, values: np.ndarray) -> np.ndarray:
     return np.where(np.isnan(A), np.nan, values)
 
 
+def _scalar_input(x) -> float:
+    """One input sample of an operator as a float; complex or non-numeric samples raise naming ``x``."""
+    try:
+        return float(x)
+    except (TypeError, ValueError, OverflowError):
+        raise DfloopError(f"x must be a real number, got {x!r}") from None
+
+
 def _domain(lo: float, hi: float, omega) -> tuple[np.ndarray, np.ndarray]:
-    shape = np.shape(omega) if omega is not None else ()
+    shape = np.shape(frequency_array(omega)) if omega is not None else ()
     return np.full(shape, float(lo)), np.full(shape, float(hi))
 
 
@@ -95,7 +106,7 @@ class StaticElement(DescribingFunction):
         f = self.output
 
         def op(x: float) -> float:
-            return float(f(float(x)))
+            return float(f(_scalar_input(x)))
 
         return op
 
@@ -117,7 +128,7 @@ class PlayOperator:
         self.center = 0.0
 
     def __call__(self, x: float) -> float:
-        x = float(x)
+        x = _scalar_input(x)
         half = 0.5 * self.h
         if x - self.center > half:
             self.center = x - half
@@ -146,6 +157,8 @@ class Backlash(DescribingFunction):
     with t = sqrt(r (2 - r)) and phi(t) = asin t - t sqrt(1 - t^2); this equals (k/2)[1 + f(1 - h/X)] with
     f(u) = (2/pi)(asin u + u sqrt(1 - u^2)), rewritten so that it keeps full relative precision near
     X = h/2 and for X >> h. N = 0 exactly for X <= h/2; N(h) = k/2 - j k/pi; N -> k as X -> inf.
+
+    Limits: N(0) = 0, N(inf) = k.
 
     Parameters
     ----------
@@ -191,6 +204,8 @@ class Saturation(StaticElement):
 
     N = k for A <= limit, N = k f(limit / A) above, f(u) = (2/pi)(asin u + u sqrt(1 - u^2)).
 
+    Limits: N(0) = k, N(inf) = 0.
+
     Parameters
     ----------
     limit : float
@@ -204,7 +219,7 @@ class Saturation(StaticElement):
         self.k = positive("k", k)
 
     def output(self, x):
-        return self.k * np.clip(np.asarray(x, dtype=float), -self.limit, self.limit)
+        return self.k * np.clip(real_array(x, "x"), -self.limit, self.limit)
 
     def breakpoints(self, A_max=None):
         return np.array([self.limit])
@@ -226,6 +241,8 @@ class DeadZone(StaticElement):
     A <= delta (phi(t) = asin t - t sqrt(1 - t^2); the second form is used near the edge, where the
     first cancels).
 
+    Limits: N(0) = 0, N(inf) = k.
+
     Parameters
     ----------
     delta : float
@@ -239,7 +256,7 @@ class DeadZone(StaticElement):
         self.k = positive("k", k)
 
     def output(self, x):
-        x = np.asarray(x, dtype=float)
+        x = real_array(x, "x")
         return self.k * (x - np.clip(x, -self.delta, self.delta))
 
     def breakpoints(self, A_max=None):
@@ -250,7 +267,7 @@ class DeadZone(StaticElement):
         with np.errstate(invalid="ignore"):
             rc = np.clip(r, 0.0, 1.0)
             gap = np.clip(_one_minus_ratio(self.delta, A), 0.0, 1.0)  # 1 - delta/A without cancellation
-            near_edge = (2.0 * self.k / np.pi) * _asin_minus(np.sqrt(gap * (1.0 + rc)), rc)
+            near_edge = (2.0 / np.pi) * self.k * _asin_minus(np.sqrt(gap * (1.0 + rc)), rc)
             n = np.where(rc < 0.5, self.k * (1.0 - _f(rc)), near_edge)
             return np.where(r >= 1.0, 0.0, n)
 
@@ -278,7 +295,7 @@ class RelayOperator:
         self.state = 0
 
     def __call__(self, x: float) -> float:
-        x = float(x)
+        x = _scalar_input(x)
         if self.state == 1 and x < self.off:
             self.state = -1 if x < -self.on else 0
         elif self.state == -1 and x > -self.off:
@@ -310,6 +327,8 @@ class Relay(DescribingFunction):
     a = 0. Switching needs x to pass a level strictly, so N = 0 exactly for A <= d + a (no switching, no
     fundamental), and N(0) = inf for the ideal relay (a = d = 0).
 
+    Limits: N(0) = inf for the ideal relay (a = d = 0), 0 otherwise; N(inf) = 0.
+
     Parameters
     ----------
     M : float
@@ -338,15 +357,15 @@ class Relay(DescribingFunction):
     def _evaluate(self, A, omega):
         on, off = self.on_level, self.off_level
         r_on, r_off = _ratio(on, A), _ratio(off, A)
-        with np.errstate(invalid="ignore", divide="ignore"):
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             c_on = np.clip(r_on, -1.0, 1.0)
             c_off = np.clip(r_off, -1.0, 1.0)
             gap_on = np.clip(_one_minus_ratio(on, A), 0.0, 2.0)  # 1 - on/A without cancellation
             gap_off = np.clip(_one_minus_ratio(off, A), 0.0, 2.0)
-            re = (2.0 * self.M / (np.pi * A)) * (
+            re = (2.0 / np.pi) * (self.M / A) * (  # scaled so that neither pi A nor 2 M overflows
                 np.sqrt(gap_on * (1.0 + c_on)) + np.sqrt(gap_off * (1.0 + c_off))
             )
-            im = -(4.0 * self.M / np.pi) * (self.hysteresis / A) / A  # no 0/0 when A^2 underflows
+            im = 0.0 if self.hysteresis == 0.0 else -(4.0 / np.pi) * ((self.M / A) * (self.hysteresis / A))
             n = re + 1j * im
             if on == 0.0:
                 return np.where(A == 0.0, complex(np.inf, 0.0), n)
@@ -367,6 +386,9 @@ class Relay(DescribingFunction):
 class CubicStiffness(StaticElement):
     """Cubic (Duffing) spring: y = k1 x + k3 x^3, N = k1 + 3 k3 A^2 / 4.
 
+    Limits: N(0) = k1, N(inf) = +inf (hardening, k3 > 0) or -inf (softening); beyond X ~ 1e154 m the
+    value overflows to that infinity.
+
     Parameters
     ----------
     k1 : float
@@ -382,14 +404,16 @@ class CubicStiffness(StaticElement):
         self.k1 = positive("k1", k1)
         self.k3 = finite("k3", k3)
         if self.k3 == 0.0:
-            raise ValueError("k3 must be non-zero (use a linear gain for k3 = 0)")
+            raise DfloopError("k3 must be non-zero, got 0.0 (use a linear gain for k3 = 0)")
 
     def output(self, x):
-        x = np.asarray(x, dtype=float)
-        return self.k1 * x + self.k3 * x**3
+        x = real_array(x, "x")
+        with np.errstate(over="ignore"):  # Horner form: the limits at x = +/-inf, not inf - inf
+            return x * (self.k1 + self.k3 * (x * x))
 
     def _evaluate(self, A, omega):
-        return self.k1 + 0.75 * self.k3 * A * A
+        with np.errstate(over="ignore"):  # beyond ~1e154 m: +/-inf, the rounded value of the true N
+            return self.k1 + 0.75 * self.k3 * A * A
 
     def amplitude_domain(self, omega=None):
         """(0, inf) when hardening; (0, sqrt(4 k1 / (3 |k3|))) when softening (N = 0 at the upper end)."""
@@ -407,6 +431,8 @@ class Quantizer(StaticElement):
     N = 0 exactly for A <= step/2, N -> 1 as A -> inf. The sum has A/step + 1/2 terms; more than 1e7
     levels raise ``ValueError`` (the quantizer is then a unit gain to about 1e-7).
 
+    Limits: N(0) = 0, N(inf) = 1.
+
     Parameters
     ----------
     step : float
@@ -417,23 +443,28 @@ class Quantizer(StaticElement):
         self.step = positive("step", step)
 
     def output(self, x):
-        x = np.asarray(x, dtype=float)
-        return self.step * np.sign(x) * np.floor(np.abs(x) / self.step + 0.5)
+        x = real_array(x, "x")
+        with np.errstate(over="ignore", invalid="ignore"):
+            q = self.step * np.sign(x) * np.floor(np.abs(x) / self.step + 0.5)
+        return np.where(np.abs(x) > self.step * 2.0**52, x, q)  # beyond: x is a multiple of step to rounding
 
     def breakpoints(self, A_max: float | None = None) -> np.ndarray:
         """Thresholds (i - 1/2) step below ``A_max`` (required: there are infinitely many)."""
         if A_max is None:
-            raise ValueError("A_max is required: a quantizer has infinitely many breakpoints")
+            raise DfloopError("A_max is required: a quantizer has infinitely many breakpoints, got A_max=None")
         n = self._levels(np.asarray(A_max, dtype=float))
         return (np.arange(1, int(n) + 1) - 0.5) * self.step
 
     def _levels(self, A: np.ndarray) -> np.ndarray:
-        n = np.ceil(np.nan_to_num(A, nan=0.0) / self.step - 0.5)
+        with np.errstate(over="ignore"):
+            n = np.ceil(np.nan_to_num(A, nan=0.0, posinf=0.0) / self.step - 0.5)
         n = np.maximum(n, 0.0)
         if n.size and n.max() > _QUANTIZER_MAX_LEVELS:
-            raise ValueError(
-                f"A / step exceeds the bound of {_QUANTIZER_MAX_LEVELS} quantization levels "
-                "(the quantizer is a unit gain there to about 1e-7)"
+            worst = float(np.nan_to_num(A, nan=0.0, posinf=0.0).max())
+            raise DfloopError(
+                f"{self.input_name} / step = {worst / self.step:.6g} exceeds the bound of {_QUANTIZER_MAX_LEVELS} "
+                f"quantization levels ({self.input_name} = {worst!r}, step = {self.step!r}): the quantizer is a "
+                "unit gain there to about 1e-7; use a unit gain, or a larger step"
             )
         return n
 
@@ -450,8 +481,8 @@ class Quantizer(StaticElement):
                 rc = np.clip(r, 0.0, 1.0)
                 terms = np.where(i <= n[..., None], np.sqrt((1.0 - rc) * (1.0 + rc)), 0.0)
                 total += terms.sum(axis=-1)
-            n_out = 4.0 * self.step / (np.pi * A) * total
-        return _keep_nan(A, np.where(A <= 0.5 * self.step, 0.0, n_out))
+            n_out = (4.0 / np.pi) * (self.step * (total / A))  # step total / A <= 1 + step / A: no overflow
+        return _keep_nan(A, np.where(A <= 0.5 * self.step, 0.0, np.where(np.isinf(A), 1.0, n_out)))
 
     def amplitude_domain(self, omega=None):
         """(step/2, inf)."""
@@ -460,6 +491,8 @@ class Quantizer(StaticElement):
 
 class PreloadedSpring(StaticElement):
     """Preloaded spring: y = k x + F0 sign(x), N = k + 4 F0 / (pi A) (N(0) = inf).
+
+    Limits: N(0) = inf, N(inf) = k.
 
     Parameters
     ----------
@@ -477,15 +510,15 @@ class PreloadedSpring(StaticElement):
         self.k = nonnegative("k", k)
 
     def output(self, x):
-        x = np.asarray(x, dtype=float)
+        x = real_array(x, "x")
         return self.k * x + self.preload * np.sign(x)
 
     def breakpoints(self, A_max=None):
         return np.array([0.0])
 
     def _evaluate(self, A, omega):
-        with np.errstate(divide="ignore"):
-            return self.k + 4.0 * self.preload / (np.pi * A)
+        with np.errstate(divide="ignore", over="ignore"):
+            return self.k + (4.0 / np.pi) * (self.preload / A)
 
     def amplitude_domain(self, omega=None):
         """(0, inf)."""
@@ -498,6 +531,8 @@ class CoulombViscousFriction(StaticElement):
     y = Fc sign(v) + c v (N), input amplitude V in m/s: N = c + 4 Fc / (pi V) (N(0) = inf). Static in the
     input because the input is the velocity: the element sits in a loop whose plant outputs velocity
     (e.g. 1 / (m s + ...)); a position-driven loop must include the differentiation in the plant.
+
+    Limits: N(0) = inf, N(inf) = c.
 
     Parameters
     ----------
@@ -515,15 +550,15 @@ class CoulombViscousFriction(StaticElement):
         self.c = nonnegative("c", c)
 
     def output(self, x):
-        x = np.asarray(x, dtype=float)
+        x = real_array(x, "x")
         return self.c * x + self.Fc * np.sign(x)
 
     def breakpoints(self, A_max=None):
         return np.array([0.0])
 
     def _evaluate(self, A, omega):
-        with np.errstate(divide="ignore"):
-            return self.c + 4.0 * self.Fc / (np.pi * A)
+        with np.errstate(divide="ignore", over="ignore"):
+            return self.c + (4.0 / np.pi) * (self.Fc / A)
 
     def amplitude_domain(self, omega=None):
         """(0, inf)."""

@@ -1,11 +1,21 @@
-"""JIT step loop and event search of the linear-mode effects engine (:mod:`dfloop.impact.effects`).
+"""The compiled event loop of the exact linear-mode engine (:mod:`dfloop.impact._engine`).
 
-State z = [x1, v1, x2, v2, cos wt, sin wt, 1] evolves by z' = A z in one mode. :func:`scan_steps` advances z by
-the precomputed step exponential E = exp(A dt) until a constraint row r (r.z >= 0 in the mode) is violated inside
-a step; the crossing is then refined on the Taylor series of exp(A s) z over that step. Plain float arrays only,
-so the functions also run (slowly) with NUMBA_DISABLE_JIT=1. Products are taken with ``np.dot`` (the same BLAS
-gemv/dot calls NumPy makes), so results do not depend on the JIT: this matters in chaotic regimes, where
-rounding-level differences in the event times grow over the transient.
+State z = [x1, v1, d, u, extra..., 1] with d = gap - wall (the gap measured from the wall of the last impact,
+``ref``: 0 = side A at gap 0, 1 = side B at gap h) and u = v2 - v1, so that a gap near a wall is carried with
+full relative precision (chatter of nanometre bounces is resolved, not drowned in the rounding of x2 - x1).
+The extra states are the forcing oscillator [cos wt, sin wt] (open loop) or the plant's states (closed loop).
+
+In one mode (contact FREE / STUCK_A / STUCK_B x ground mode of a friction mass) the motion is z' = A z.
+:func:`run_engine` advances z by the precomputed step exponential E = exp(A dt) until a constraint row r
+(r.z >= 0 in the mode) is violated inside a step, refines the crossing on the Taylor series of exp(A s) z over
+the step, applies the event (impact law, plastic settle of a converged chatter, separation, stick-slip), selects
+the next admissible mode and records the segment in preallocated buffers; it returns when the buffers are full
+(the caller grows them and resumes), when ``t_end`` is reached or when ``max_events`` is exceeded.
+
+Plain float arrays only, so everything also runs (slowly) with NUMBA_DISABLE_JIT=1 and gives the same numbers:
+the hot products are explicit loops and the others ``np.dot`` (the BLAS calls NumPy makes), so results do not
+depend on the JIT. This matters in chaotic regimes, where rounding-level differences in the event times grow
+over the transient.
 """
 from __future__ import annotations
 
@@ -14,20 +24,76 @@ from numba import njit
 
 TAYLOR_TERMS = 30
 NO_ROOT = -1.0       # first_violation: no violation inside the step
+SUB_PIECES = 8       # pieces of an examined step (one turning point assumed per piece)
 REFINE_ITERATIONS = 200
+NEWTON_STEPS = 12    # refine: Newton steps before pure bisection
+
+# state slots
+X1, V1, D, U = 0, 1, 2, 3
+# contact modes and ground modes (ground code stored in records: 0 grounded / no friction, +1, -1 slipping)
+FREE, STUCK_A, STUCK_B = 0, 1, 2
+N_SLOTS = 9          # slot = 3 * contact + ground index (0: none or grounded, 1: slipping +, 2: slipping -)
+# constraint kinds
+HIT_A, HIT_B, SEPARATE, STOP, SLIP = 0, 1, 2, 3, 4
+# segment causes
+START, IMPACT_A, IMPACT_B, SEPARATION, GROUND_EVENT = 0, 1, 2, 3, 4
+# run status
+DONE, BUFFER_FULL, EVENT_LIMIT, NO_MODE, DIVERGED = 0, 1, 2, 3, 4
+BEYOND_LIMIT = -2    # scan_steps: a state component passed the divergence limit
+# float parameters: m1, m2, eps, h, v_stick, dt, divergence limit; int parameters: has friction, friction mass
+P_M1, P_M2, P_EPS, P_H, P_VSTICK, P_DT, P_LIMIT = range(7)
+I_FRICTION, I_FMASS = range(2)
+# float run state: t, t_end, record_from; int run state: slot, ref, events, max_events, records
+S_T, S_TEND, S_RECORD_FROM = range(3)
+J_SLOT, J_REF, J_EVENTS, J_MAX_EVENTS, J_RECORDS = range(5)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
+def _matvec(M, x, out):
+    """out = M x with explicit loops (no allocation; the same rounding with or without the JIT)."""
+    for i in range(M.shape[0]):
+        acc = 0.0
+        for k in range(M.shape[1]):
+            acc += M[i, k] * x[k]
+        out[i] = acc
+
+
+@njit(cache=True, nogil=True)
+def taylor_into(A, z, terms, span=0.0):
+    """terms[k] = A^k z / k! for k < TAYLOR_TERMS (Taylor coefficients of exp(A s) z), in place.
+
+    With ``span`` > 0 (the longest s used), terms are set to 0 once two consecutive terms are below 1e-30 of
+    max|z| over the span (their contribution is far below rounding).
+    """
+    terms[0] = z
+    n = z.shape[0]
+    size = 0.0
+    for i in range(n):
+        size = max(size, abs(z[i]))
+    small = 0
+    power = 1.0
+    for k in range(1, TAYLOR_TERMS):
+        if small >= 2:
+            terms[k:] = 0.0
+            return
+        _matvec(A, terms[k - 1], terms[k])
+        big = 0.0
+        for i in range(n):
+            terms[k, i] /= k
+            big = max(big, abs(terms[k, i]))
+        power *= span
+        small = small + 1 if span > 0.0 and big * power <= 1e-30 * size else 0
+
+
+@njit(cache=True, nogil=True)
 def taylor(A, z):
     """Rows A^k z / k! for k < TAYLOR_TERMS (Taylor coefficients of exp(A s) z)."""
     terms = np.empty((TAYLOR_TERMS, z.shape[0]))
-    terms[0] = z
-    for k in range(1, TAYLOR_TERMS):
-        terms[k] = np.dot(A, terms[k - 1]) / k
+    taylor_into(A, z, terms)
     return terms
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def poly(terms, s):
     """exp(A s) z from Taylor coefficients (Horner)."""
     out = terms[-1].copy()
@@ -37,104 +103,210 @@ def poly(terms, s):
     return out
 
 
-@njit(cache=True)
-def _value(terms, A, r, s, derivative):
-    """r.z(s) (derivative False) or r.A z(s) (derivative True)."""
-    z = poly(terms, s)
+@njit(cache=True, nogil=True)
+def _pval(c, s, derivative):
+    """Scalar polynomial sum c_k s^k (or its derivative) by Horner."""
+    n = c.shape[0]
     if derivative:
-        return np.dot(r, np.dot(A, z))
-    return np.dot(r, z)
+        acc = (n - 1) * c[n - 1]
+        for k in range(n - 2, 0, -1):
+            acc = acc * s + k * c[k]
+        return acc
+    acc = c[n - 1]
+    for k in range(n - 2, -1, -1):
+        acc = acc * s + c[k]
+    return acc
 
 
-@njit(cache=True)
-def refine(terms, A, r, derivative, lo, hi, flo):
-    """Root of r.z(s) (or of r.A z(s)) with a sign change on [lo, hi] (bisection with secant steps)."""
-    fhi = _value(terms, A, r, hi, derivative)
-    for _ in range(REFINE_ITERATIONS):
+@njit(cache=True, nogil=True)
+def _pval2(c, s, derivative):
+    """Value and slope at s of the polynomial c (derivative False) or of its derivative (True)."""
+    n = c.shape[0]
+    if derivative:   # p'(s) and p''(s)
+        f = (n - 1) * c[n - 1]
+        d = 0.0
+        for k in range(n - 2, 0, -1):
+            d = d * s + f
+            f = f * s + k * c[k]
+        return f, d
+    f = c[n - 1]
+    d = 0.0
+    for k in range(n - 2, -1, -1):
+        d = d * s + f
+        f = f * s + c[k]
+    return f, d
+
+
+@njit(cache=True, nogil=True)
+def refine(c, derivative, lo, hi, flo):
+    """Root of the polynomial c (or of its derivative) with a sign change on [lo, hi].
+
+    Newton steps kept inside the bracket (bisection when a step leaves it, and only bisection after
+    NEWTON_STEPS steps without convergence); once a Newton step is at rounding level the bracket is closed
+    with one probe to either side. Returns the end on the far side of the root from ``lo`` (the violated
+    side), at relative distance <= 4e-16 from the root.
+    """
+    s = 0.5 * (lo + hi)
+    for it in range(REFINE_ITERATIONS):
         if hi - lo <= 4e-16 * max(hi, 1e-300):
             break
-        s = hi - fhi * (hi - lo) / (fhi - flo) if fhi != flo else 0.5 * (lo + hi)
-        if not (lo < s < hi) or (hi - lo) < 1e-3 * abs(s - 0.5 * (lo + hi)):
-            s = 0.5 * (lo + hi)
-        fs = _value(terms, A, r, s, derivative)
+        fs, ds = _pval2(c, s, derivative)
         if fs == 0.0:
             return s
         if (fs > 0) == (flo > 0):
             lo, flo = s, fs
         else:
-            hi, fhi = s, fs
-        # force a bisection every other step to guarantee progress
-        m = 0.5 * (lo + hi)
-        fm = _value(terms, A, r, m, derivative)
-        if fm == 0.0:
-            return m
-        if (fm > 0) == (flo > 0):
-            lo, flo = m, fm
+            hi = s
+        if it < NEWTON_STEPS and ds != 0.0:
+            s_new = s - fs / ds
+            if abs(s_new - s) <= 2e-16 * max(abs(s), 1e-300):
+                step = 4e-16 * max(abs(s_new), 1e-300)   # converged: close the bracket around s_new
+                for probe in (s_new - step, s_new + step):
+                    if lo < probe < hi:
+                        fp = _pval(c, probe, derivative)
+                        if fp == 0.0:
+                            return probe
+                        if (fp > 0) == (flo > 0):
+                            lo, flo = probe, fp
+                        else:
+                            hi = probe
+                s_new = 0.5 * (lo + hi)
+            elif not (lo < s_new < hi):
+                s_new = 0.5 * (lo + hi)
         else:
-            hi, fhi = m, fm
+            s_new = 0.5 * (lo + hi)
+        s = s_new
     return hi
 
 
-@njit(cache=True)
-def first_violation(terms, A, r, leaving, dt):
-    """First s in [0, dt] where r.z(s) < 0 given r.z >= 0 before (NO_ROOT if none in the step).
+@njit(cache=True, nogil=True)
+def _surely_positive(c, dt):
+    """True when c0 + c1 s + c2 s^2 + ... > 0 on [0, dt] for sure: the quadratic's minimum exceeds a bound on
+    the remaining terms (a cheap proof that a dip inside the step stays clear of the constraint)."""
+    rest = 0.0
+    p = dt * dt
+    for k in range(3, c.shape[0]):
+        p *= dt
+        rest += abs(c[k]) * p
+    lo = min(c[0], c[0] + c[1] * dt + c[2] * dt * dt)
+    if c[2] > 0.0:
+        s = -c[1] / (2.0 * c[2])
+        if 0.0 < s < dt:
+            lo = min(lo, c[0] + c[1] * s + c[2] * s * s)
+    return lo > 2.0 * rest
 
-    ``leaving``: the step starts on r.z = 0 and moves away; values within rounding of 0 are then not events.
-    One turning point per step is resolved (the step is 1/32 of the fastest time scale).
-    """
-    tol = 1e-12 * np.dot(np.abs(r), np.abs(terms[0])) if leaving else 0.0
-    fa = _value(terms, A, r, 0.0, False)
-    fb = _value(terms, A, r, dt, False)
-    da = _value(terms, A, r, 0.0, True)
-    db = _value(terms, A, r, dt, True)
+
+@njit(cache=True, nogil=True)
+def _piece_violation(c, tol, lo, hi, fa, da):
+    """First s in [lo, hi] with c(s) < -tol given the values at lo, assuming at most one turning point."""
+    fb = _pval(c, hi, False)
+    db = _pval(c, hi, True)
     turns = (da > 0.0 and db < 0.0) or (da < 0.0 and db > 0.0)
-    turn = refine(terms, A, r, True, 0.0, dt, da) if turns else 0.0
+    if fb >= -tol and not (turns and da < 0.0):
+        return NO_ROOT
+    turn = refine(c, True, lo, hi, da) if turns else lo
     if fb < -tol:
         if turns and da > 0.0:  # rises to a maximum, then falls through zero
-            ft = _value(terms, A, r, turn, False)
-            return refine(terms, A, r, False, turn, dt, ft) if ft > 0.0 else turn
-        return refine(terms, A, r, False, 0.0, dt, fa) if fa > 0.0 else 0.0
-    if turns and da < 0.0:      # dips to a minimum inside the step
-        ft = _value(terms, A, r, turn, False)
-        if ft < -tol:
-            return refine(terms, A, r, False, 0.0, turn, fa) if fa > 0.0 else 0.0
+            ft = _pval(c, turn, False)
+            return refine(c, False, turn, hi, ft) if ft > 0.0 else turn
+        return refine(c, False, lo, hi, fa) if fa > 0.0 else lo
+    ft = _pval(c, turn, False)  # dips to a minimum inside the piece
+    if ft < -tol:
+        return refine(c, False, lo, turn, fa) if fa > 0.0 else lo
     return NO_ROOT
 
 
 @njit(cache=True, nogil=True)
-def scan_steps(A, E, dt, rows, leaving, z, t, t_end):
-    """Advance z (in place) by steps exp(A dt) = E from time t until the first event or the end.
+def first_violation(terms, r, leaving, dt):
+    """First s in [0, dt] where r.z(s) < 0 given r.z >= 0 before (NO_ROOT if none in the step).
 
-    Stops before a step shorter than ``dt`` (the last one before ``t_end``), which the caller takes with its own
-    exponential. ``leaving[j]``: row j starts on 0 and moves away (applies to the first step only).
+    ``leaving``: the step starts on r.z = 0 and moves away; values within rounding of 0 are then not events.
+    When the curvature keeps its sign over the step the slope is monotone (one turning point at most);
+    otherwise the step is examined in SUB_PIECES pieces, each with at most one turning point assumed (the scan
+    examines a step whenever the row's value, rate or curvature changes sign in it). A bound on the Taylor
+    series that proves the row positive over the whole step ends the search first.
+    """
+    c = np.empty(terms.shape[0])
+    _matvec(terms, r, c)
+    tol = 0.0
+    if leaving:
+        for i in range(r.shape[0]):
+            tol += abs(r[i]) * abs(terms[0, i])
+        tol *= 1e-12
+    elif _surely_positive(c, dt):
+        return NO_ROOT
+    # the slope is monotone (one turning point at most) when the curvature keeps its sign over the step
+    _, curvature_b = _pval2(c, dt, True)
+    pieces = 1 if c[2] * curvature_b > 0.0 else SUB_PIECES
+    lo, fa, da = 0.0, c[0], c[1]
+    for k in range(1, pieces + 1):
+        hi = dt * k / pieces if k < pieces else dt
+        s = _piece_violation(c, tol, lo, hi, fa, da)
+        if s != NO_ROOT:
+            return s
+        lo, fa, da = hi, _pval(c, hi, False), _pval(c, hi, True)
+    return NO_ROOT
+
+
+@njit(cache=True, nogil=True)
+def scan_steps(A, E, dt, rows, rows_a, rows_aa, leaving, z, t, t_end, limit=np.inf):
+    """Advance z (in place) by steps exp(A dt) = E from time t until the first event or ``t_end``.
+
+    ``rows_a`` = rows @ A and ``rows_aa`` = rows @ A @ A (the rows' rates and curvatures). The last step,
+    shorter than ``dt``, is taken on the Taylor series. ``leaving[j]``: row j starts on 0 and moves away (applies
+    to the first step only). A row is examined closely (Taylor series, root refinement) only when it is negative
+    at the step end or its rate or curvature changes sign in the step (two turning points need the latter).
+    A state component beyond ``limit`` in magnitude stops the scan (a diverging closed loop).
 
     Returns
     -------
     t : float
-        Time reached (s): the event time, or the time at which stepping stopped.
+        Time reached (s): the event time, or ``t_end``.
     hit : int
-        Index of the violated row, or -1 when no event occurred.
+        Index of the violated row, -1 when no event occurred, BEYOND_LIMIT past ``limit``.
     """
     n_rows = rows.shape[0]
     first = True
-    db = np.dot(rows, np.dot(A, z))
-    while t < t_end and min(dt, t_end - t) == dt:
-        z_next = np.dot(E, z)
-        fb = np.dot(rows, z_next)
-        da = db                       # r.A z at the step start = r.A z_next of the previous step
-        db = np.dot(rows, np.dot(A, z_next))
+    z_next = np.empty_like(z)
+    fa = np.empty(n_rows)
+    fb = np.empty(n_rows)
+    da = np.empty(n_rows)
+    db = np.empty(n_rows)
+    ca = np.empty(n_rows)
+    cb = np.empty(n_rows)
+    terms = np.empty((TAYLOR_TERMS, z.shape[0]))
+    _matvec(rows, z, fb)
+    _matvec(rows_a, z, db)
+    _matvec(rows_aa, z, cb)
+    while t < t_end:
+        step = dt if t_end - t >= dt else t_end - t
+        have_terms = False
+        if step == dt:
+            _matvec(E, z, z_next)
+        else:
+            taylor_into(A, z, terms, step)
+            have_terms = True
+            z_next[:] = poly(terms, step)
+        da[:] = db                    # r.A z at the step start = r.A z_next of the previous step
+        ca[:] = cb
+        fa[:] = fb
+        _matvec(rows, z_next, fb)
+        _matvec(rows_a, z_next, db)
+        _matvec(rows_aa, z_next, cb)
         best_s = NO_ROOT
         hit = -1
-        have_terms = False
-        terms = np.empty((0, 0))
         for j in range(n_rows):
-            r = rows[j]
-            lv = first and leaving[j]
-            if fb[j] < 0.0 or da[j] * db[j] < 0.0 or lv:
+            # a row leaving its boundary with a positive, increasing slope all through the step (curvature of
+            # one sign) cannot come back within it
+            lv = first and leaving[j] and not (fb[j] > 0.0 and da[j] > 0.0 and db[j] > 0.0 and ca[j] * cb[j] > 0.0)
+            if lv or fb[j] < 0.0 or ((da[j] * db[j] < 0.0 or ca[j] * cb[j] < 0.0)
+                                     and min(fa[j], fb[j]) <= 0.5 * step * step * max(abs(ca[j]), abs(cb[j]))):
+                # (a dip between two positive ends is at most (max curvature) step^2 / 8 deep: with the
+                # curvature allowed to double inside the step, ends above 0.5 step^2 |curvature| are clear)
                 if not have_terms:
-                    terms = taylor(A, z)
+                    taylor_into(A, z, terms, step)
                     have_terms = True
-                s = first_violation(terms, A, r, lv, dt)
+                s = first_violation(terms, rows[j], lv, step)
                 if s != NO_ROOT and (hit < 0 or s < best_s):
                     best_s, hit = s, j
         first = False
@@ -142,38 +314,59 @@ def scan_steps(A, E, dt, rows, leaving, z, t, t_end):
             z[:] = poly(terms, best_s)
             return t + best_s, hit
         z[:] = z_next
-        t += dt
+        t = t + step if step == dt else t_end
+        for i in range(z.shape[0]):
+            if not abs(z[i]) <= limit:
+                return t, BEYOND_LIMIT
     return t, -1
 
 
 @njit(cache=True)
+def _magnitudes(z):
+    """|z| with a floor of 1e-4 max|z|: the rounding scale of a row's value. A component near 0 at an event
+    (cos wt at a zero of the force) was computed from values of the state's size, not from its own."""
+    out = np.abs(z)
+    floor = 1e-4 * out.max()
+    for i in range(out.shape[0]):
+        out[i] += floor
+    return out
+
+
+@njit(cache=True)
 def rows_on_zero(rows, z):
-    """Rows r with r.z = 0 to rounding (|r.z| <= 1e-12 |r|.|z|): constraints that start on their boundary."""
+    """Rows r with r.z = 0 to rounding (|r.z| <= 1e-12 |r|.|z|, |z| floored): constraints on their boundary."""
     out = np.empty(rows.shape[0], dtype=np.bool_)
-    abs_z = np.abs(z)
+    abs_z = _magnitudes(z)
     for j in range(rows.shape[0]):
-        r = rows[j]
-        out[j] = abs(np.dot(r, z)) <= 1e-12 * (np.dot(np.abs(r), abs_z) + 1e-300)
+        val = 0.0
+        size = 1e-300
+        for i in range(z.shape[0]):
+            val += rows[j, i] * z[i]
+            size += abs(rows[j, i]) * abs_z[i]
+        out[j] = abs(val) <= 1e-12 * size
     return out
 
 
 @njit(cache=True)
 def admissible(A, rows, z):
     """All rows hold at z (r.z >= 0), ties broken by the first non-negligible derivative r.A^k z, k <= 3."""
-    derivs = np.empty((4, z.shape[0]))
-    sizes = np.empty((4, z.shape[0]))   # sizes bound the terms summed in each derivative (rounding scale)
+    n = z.shape[0]
+    derivs = np.empty((4, n))
+    sizes = np.empty((4, n))   # sizes bound the terms summed in each derivative (rounding scale)
     derivs[0] = z
-    sizes[0] = np.abs(z)
+    sizes[0] = _magnitudes(z)
     abs_a = np.abs(A)
     for k in range(1, 4):
-        derivs[k] = np.dot(A, derivs[k - 1])
-        sizes[k] = np.dot(abs_a, sizes[k - 1])
+        _matvec(A, derivs[k - 1], derivs[k])
+        _matvec(abs_a, sizes[k - 1], sizes[k])
     for j in range(rows.shape[0]):
-        r = rows[j]
-        abs_r = np.abs(r)
         for k in range(4):
-            val = np.dot(r, derivs[k])
-            tol = 1e-12 * np.dot(abs_r, sizes[k])
+            val = 0.0
+            tol = 0.0
+            for i in range(n):
+                val += rows[j, i] * derivs[k, i]
+                tol += abs(rows[j, i]) * sizes[k, i]
+            tol *= 1e-12
             if val > tol:
                 break
             if val < -tol:
@@ -192,4 +385,266 @@ def propagate(A, E, z0, s, step):
     out = np.empty((s.shape[0], z0.shape[0]))
     for i in range(s.shape[0]):
         out[i] = poly(taylor(A, starts[chunks[i]]), s[i] - chunks[i] * step)
+    return out
+
+
+@njit(cache=True)
+def friction_velocity(z, fmass):
+    """Velocity of the friction mass: v1 (fmass 0) or v2 = v1 + u (fmass 1)."""
+    return z[V1] if fmass == 0 else z[V1] + z[U]
+
+
+@njit(cache=True)
+def choose_mode(mats, rows, nrows, valid, ipar, fpar, z, ref):
+    """The first admissible mode slot at z (stuck preferred over free, grounded over slipping), or -1.
+
+    Contact is a candidate when the gap sits on the reference wall with no relative velocity; a friction mass
+    at rest may stay on the ground or slip either way.
+    """
+    h = fpar[P_H]
+    n_contacts = 1
+    contacts = np.zeros(2, dtype=np.int64)
+    if abs(z[U]) <= fpar[P_VSTICK] and abs(z[D]) <= 1e-12 * h:
+        contacts[0] = STUCK_A if ref == 0 else STUCK_B
+        contacts[1] = FREE
+        n_contacts = 2
+    grounds = np.zeros(3, dtype=np.int64)
+    n_grounds = 1
+    if ipar[I_FRICTION]:
+        v = friction_velocity(z, ipar[I_FMASS])
+        if v == 0.0:
+            grounds[1], grounds[2] = 1, 2
+            n_grounds = 3
+        else:
+            grounds[0] = 1 if v > 0.0 else 2
+    for ci in range(n_contacts):
+        for gi in range(n_grounds):
+            slot = 3 * contacts[ci] + grounds[gi]
+            if valid[slot] and admissible(mats[slot], rows[slot, ref, :nrows[slot]], z):
+                return slot
+    return -1
+
+
+@njit(cache=True)
+def ground_code(slot):
+    """Ground mode of a slot as recorded: 0 (grounded or no friction), +1 or -1 (slipping)."""
+    g = slot % 3
+    return 0 if g == 0 else (1 if g == 1 else -1)
+
+
+@njit(cache=True, nogil=True)
+def _impact(z, side, eps, mu2, v_stick):
+    """Impact law (8a/8b) on wall ``side`` (d -> 0): v1 += (1 + eps) M2/M u, u -> -eps u; below v_stick the
+    converged chatter settles plastically (momentum kept, u = 0). A pair found on the wall while already moving
+    away from it (a micro-flight whose apex lies below the rounding of the gap) settles plastically too."""
+    z[D] = 0.0
+    u = z[U]
+    if (side == 0 and u > 0.0) or (side == 1 and u < 0.0):
+        z[V1] = z[V1] + mu2 * u
+        z[U] = 0.0
+        return
+    z[V1] = z[V1] + (1.0 + eps) * mu2 * u
+    z[U] = -eps * u
+    if abs(z[U]) <= v_stick:
+        z[V1] = z[V1] + mu2 * z[U]
+        z[U] = 0.0
+
+
+@njit(cache=True, nogil=True)
+def run_engine(mats, exps, rows, rows_a, rows_aa, kinds, nrows, valid, fpar, ipar, z, fst, ist,
+               rec_t, rec_z, rec_slot, rec_ref, rec_cause, rec_vel):
+    """Run the event loop from the state (z, fst, ist) until done, the buffers are full or the event bound.
+
+    Parameters
+    ----------
+    mats, exps : (N_SLOTS, n, n)
+        Mode matrices A and step exponentials exp(A dt) (dt = ``fpar[P_DT]``).
+    rows : (N_SLOTS, 2, n_rows_max, n); kinds : (N_SLOTS, n_rows_max); nrows, valid : (N_SLOTS,)
+        Constraint rows per slot and reference wall, their kinds (HIT_A, ...), counts, and which slots exist;
+        ``rows_a``, ``rows_aa``: the rows times the slot's A and A^2 (their rates and curvatures).
+    fpar, ipar : parameter arrays (P_*, I_* slots).
+    z : (n,) state, updated in place; fst, ist : run state (S_*, J_* slots), updated in place.
+    rec_* : record buffers (segment start time, state, slot, reference wall, cause, [v1, v2 pre, v1, v2 post]).
+        Segments starting at or before ``fst[S_RECORD_FROM]`` overwrite record 0 (bounded memory).
+
+    Returns
+    -------
+    int
+        DONE, BUFFER_FULL, EVENT_LIMIT or NO_MODE.
+    """
+    m1, m2, eps = fpar[P_M1], fpar[P_M2], fpar[P_EPS]
+    M = m1 + m2
+    v_stick = fpar[P_VSTICK]
+    dt = fpar[P_DT]
+    fmass = ipar[I_FMASS]
+    t, t_end, record_from = fst[S_T], fst[S_TEND], fst[S_RECORD_FROM]
+    slot, ref, n_rec = ist[J_SLOT], ist[J_REF], ist[J_RECORDS]
+    capacity = rec_t.shape[0]
+    leaving = rows_on_zero(rows[slot, ref, :nrows[slot]], z)
+    status = DONE
+    while t < t_end:
+        if n_rec >= capacity:
+            status = BUFFER_FULL
+            break
+        nr = nrows[slot]
+        t, j = scan_steps(mats[slot], exps[slot], dt, rows[slot, ref, :nr], rows_a[slot, ref, :nr],
+                          rows_aa[slot, ref, :nr], leaving, z, t, t_end, fpar[P_LIMIT])
+        if j == BEYOND_LIMIT:
+            status = DIVERGED
+            break
+        if j < 0:
+            break
+        ist[J_EVENTS] += 1
+        if ist[J_EVENTS] > ist[J_MAX_EVENTS]:
+            status = EVENT_LIMIT
+            break
+        kind = kinds[slot, j]
+        contact = slot // 3
+        v1_pre, v2_pre = z[V1], z[V1] + z[U]
+        if kind == HIT_A or kind == HIT_B:
+            ref = 0 if kind == HIT_A else 1
+            _impact(z, ref, eps, m2 / M, v_stick)
+            cause = IMPACT_A if kind == HIT_A else IMPACT_B
+        elif kind == SEPARATE:
+            cause = SEPARATION
+        elif kind == STOP:
+            cause = GROUND_EVENT
+            if contact != FREE:
+                z[V1] = 0.0
+                z[U] = 0.0
+            elif fmass == 0:
+                z[U] = z[U] + z[V1]   # M1 stops, v2 kept
+                z[V1] = 0.0
+            else:
+                z[U] = -z[V1]         # M2 stops
+        else:
+            cause = GROUND_EVENT
+        if ipar[I_FRICTION] and slot % 3 == 0 and kind != HIT_A and kind != HIT_B:
+            # the friction mass was grounded: its speed is 0 exactly (not the rounding of v1 + u)
+            if fmass == 0:
+                z[U] = z[U] + z[V1]
+                z[V1] = 0.0
+            else:
+                z[U] = -z[V1]
+        slot = choose_mode(mats, rows, nrows, valid, ipar, fpar, z, ref)
+        if slot < 0:
+            # two events at one instant: the event left the pair on a wall moving into it (e.g. a friction stop
+            # as the gap closes): the impact happens now
+            gap = z[D] + ref * fpar[P_H]
+            side = -1
+            if abs(gap) <= 1e-12 * fpar[P_H] and z[U] < 0.0:
+                side = 0
+            elif abs(gap - fpar[P_H]) <= 1e-12 * fpar[P_H] and z[U] > 0.0:
+                side = 1
+            if side >= 0:
+                v1_pre, v2_pre = z[V1], z[V1] + z[U]
+                ref = side
+                _impact(z, side, eps, m2 / M, v_stick)
+                cause = IMPACT_A if side == 0 else IMPACT_B
+                slot = choose_mode(mats, rows, nrows, valid, ipar, fpar, z, ref)
+        if slot < 0:
+            status = NO_MODE
+            break
+        if slot // 3 != FREE and (z[U] != 0.0 or z[D] != 0.0):
+            # stuck chosen with a relative speed below v_stick left by a non-impact event: settle exactly
+            z[D] = 0.0
+            if ipar[I_FRICTION] and slot % 3 == 0:
+                z[V1] = 0.0           # the pair rests on the ground
+            else:
+                z[V1] = z[V1] + m2 * z[U] / M
+            z[U] = 0.0
+        leaving = rows_on_zero(rows[slot, ref, :nrows[slot]], z)
+        k = 0 if t <= record_from else n_rec
+        rec_t[k] = t
+        rec_z[k] = z
+        rec_slot[k] = slot
+        rec_ref[k] = ref
+        rec_cause[k] = cause
+        rec_vel[k, 0], rec_vel[k, 1] = v1_pre, v2_pre
+        rec_vel[k, 2], rec_vel[k, 3] = z[V1], z[V1] + z[U]
+        n_rec = k + 1
+    fst[S_T] = t
+    ist[J_SLOT], ist[J_REF], ist[J_RECORDS] = slot, ref, n_rec
+    return status
+
+
+@njit(cache=True)
+def expm_taylor(M):
+    """exp(M) by scaling and squaring of an 18-term Taylor series (||M/2^s||_1 <= 1/4: truncation < 1e-25).
+
+    For the small mode matrices of the engine (real, or complex for the Van Loan blocks of the Fourier
+    integrals); explicit loops, so it costs microseconds and gives the same numbers with or without the JIT.
+    """
+    n = M.shape[0]
+    norm = 0.0
+    for j in range(n):
+        col = 0.0
+        for i in range(n):
+            col += abs(M[i, j])
+        norm = max(norm, col)
+    squarings = 0
+    while norm > 0.25 and squarings < 1000:
+        norm *= 0.5
+        squarings += 1
+    scale = 0.5 ** squarings
+    X = M * scale
+    out = np.zeros_like(M)
+    term = np.zeros_like(M)
+    for i in range(n):
+        out[i, i] = 1.0
+        term[i, i] = 1.0
+    for k in range(1, 18):
+        term = _matmul(term, X) / k
+        out = out + term
+    for _ in range(squarings):
+        out = _matmul(out, out)
+    return out
+
+
+@njit(cache=True)
+def _matmul(P, Q):
+    """P Q with explicit loops."""
+    out = np.zeros_like(P)
+    for i in range(P.shape[0]):
+        for k in range(P.shape[1]):
+            a = P[i, k]
+            if a != 0.0:
+                for j in range(Q.shape[1]):
+                    out[i, j] += a * Q[k, j]
+    return out
+
+
+@njit(cache=True)
+def van_loan_pieces(step, big, y0, lengths, dt, component):
+    """Component ``component`` of exp(big L) y0 for every piece (rows of y0, lengths L), complex.
+
+    ``step`` = exp(big dt): whole steps first, then the Taylor series of big over the remainder (< dt).
+    """
+    m, n = y0.shape
+    out = np.empty(m, dtype=np.complex128)
+    y = np.empty(n, dtype=np.complex128)
+    tmp = np.empty(n, dtype=np.complex128)
+    term = np.empty(n, dtype=np.complex128)
+    for p in range(m):
+        y[:] = y0[p]
+        chunks = int(np.floor(lengths[p] / dt))
+        for _ in range(chunks):
+            for i in range(n):
+                acc = 0j
+                for k in range(n):
+                    acc += step[i, k] * y[k]
+                tmp[i] = acc
+            y[:] = tmp
+        rest = lengths[p] - chunks * dt
+        term[:] = y
+        total = y[component]
+        for k in range(1, TAYLOR_TERMS):
+            for i in range(n):
+                acc = 0j
+                for j in range(n):
+                    acc += big[i, j] * term[j]
+                tmp[i] = acc * (rest / k)
+            term[:] = tmp
+            total += term[component]
+        out[p] = total
     return out

@@ -13,6 +13,7 @@ on disk (:mod:`dfloop.impact.cache`).
 from __future__ import annotations
 
 import math
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Callable
@@ -22,14 +23,35 @@ import numpy as np
 from .. import _checks
 from ..describing.base import DescribingFunction
 from . import cache as _cache
+from .extract import PERIODICITY_TOL
 from .limits import BETA_NO_IMPACT
-from .table import Samples, Table1D, Table2D, TableSettings, TableValues, settings_dict, stderr_progress
+from ..progress import progress_bar
+from .table import Samples, Table1D, Table2D, TableSettings, TableValues, settings_dict
 
 __all__ = ["DynamicBacklash", "prepare_many"]
 
 _U_START = math.log(BETA_NO_IMPACT) + 1e-9     # first table point, just above the no-impact limit
 _OMEGA_REF = 1.0                               # frequency of the similarity-table simulations (rad/s)
 _REGIME_BASE = 1000                            # label = (period * BASE + impacts per cycle) * BASE + sticking
+FAILED = -2                                    # regime label of a sample whose simulation failed
+_BRANCH_REL = 1e-4                             # relative difference of D that makes another start a new branch
+_BLOCK_BASE_INTERVALS = 8                      # a canonical block holds 8 base intervals
+_PRIOR_SIMULATIONS_PER_BLOCK = 60              # progress estimate (per start) before the first block is done
+# alternative starts probed for coexisting motions, in similarity units (h = 1, w = 1, force beta):
+# (gap / h, u / (beta h w)) with x1 = v1 = 0; rest with a centred gap is the default start
+_STARTS = ((0.1, 1.5), (0.9, -1.5), (0.5, 3.0), (0.3, -0.75))
+
+
+def _effects_tuple(effects) -> tuple:
+    """Validated effects: a sequence of effect objects (each with a ``keeps_similarity`` attribute)."""
+    if isinstance(effects, (str, bytes)) or not hasattr(effects, "__iter__"):
+        raise ValueError(f"effects must be a sequence of effect objects (dfloop.impact.effects), got {effects!r}")
+    effects = tuple(effects)
+    for e in effects:
+        if not isinstance(getattr(e, "keeps_similarity", None), bool):
+            raise ValueError(f"effects: {e!r} is not an effect object (e.g. dfloop.impact.ViscousDamping(c=...)); "
+                             f"got effects={effects!r}")
+    return effects
 
 
 def _regime_label(period, impacts, sticking):
@@ -47,22 +69,38 @@ class DynamicBacklash(DescribingFunction):
     h : float
         Clearance (m).
     restitution : float
-        Coefficient of restitution eps in [0, 1].
+        Coefficient of restitution eps in [0, 1]. ``eps=`` is accepted as an alias (give one of the two).
     effects : sequence, optional
-        Extra physics from :mod:`dfloop.impact.effects`; any effect with ``keeps_similarity`` False makes
-        the table two-dimensional.
+        Extra physics from :mod:`dfloop.impact.effects` (effect objects; anything else is a ValueError at
+        construction); any effect with ``keeps_similarity`` False makes the table two-dimensional.
     tol : float
         Relative tolerance of the midpoint check of the refinement, on D (hence on -1/N) inside smooth
         periodic regions. The default 1e-5 keeps the actual error of -1/N below 1e-4 with margin
         (``benchmarks/bench_tables.py``: a tolerance of 1e-4 lets a few points reach 1.5e-4).
     method : {'cubic', 'pchip', 'linear'}
         Interpolation inside smooth segments.
-    transient_periods, periods : int
-        Forcing periods discarded, then used for the fundamental, per simulated sample.
+    transient_periods : int or None
+        Forcing periods discarded per sample; None (default): adaptive, until the period detection has
+        converged (:func:`dfloop.impact.extract.impact_describing_function`), at most
+        ``max_transient_periods``.
+    periods : int
+        Forcing periods used for the fundamental, per simulated sample.
     base_dx, min_dx : float
         Initial spacing and smallest refined interval of the table in ln beta (and ln w for 2-D tables).
     edge_dx : float
         Width in ln beta to which edges of irregular regions and bifurcations without a jump are located.
+    probe_dx : float
+        Widest accepted interval in ln beta between two samples of the same regime: wider intervals are
+        probed inside even when the interpolation check passed (regime windows narrower than this can
+        still hide between two samples; see docs/tables.md).
+    starts : int
+        Start states probed besides rest at every sample (paper's model) to find coexisting periodic motions.
+        Where another start settles on a different periodic motion, the value from rest is kept, every
+        branch is stored with the sample, ``validity`` is False and ``error_estimate`` includes the
+        distance to the farthest branch.
+    max_events : int, optional
+        Event bound per simulated sample (default sized from the run length); a sample that reaches it is
+        recorded as failed (not valid, infinite error estimate) and the build goes on.
     beta_max : float
         Largest beta the table may reach. Beyond it (deep in the low-frequency region, where the masses
         move almost as one body) the paper's model returns the rigid-body value -1/((M1 + M2) w^2), whose
@@ -71,41 +109,61 @@ class DynamicBacklash(DescribingFunction):
         ``beta_max`` raise ValueError.
     cache : bool
         Load and save tables in :func:`dfloop.impact.cache.cache_dir`.
-    progress : bool or callable
-        True prints a progress line on stderr; a callable gets ``(n_samples, stage)``.
+    progress : bool, None or callable
+        None (default): a progress bar with the time left (:func:`dfloop.progress.progress_bar`) for builds
+        longer than a second; True: from the start; False: none; a callable gets ``(n_samples, stage)``.
 
     Notes
     -----
     ``validity`` is False where the sampled motion was not periodic (irregular / chaotic, below the
-    lower limit w_c) and inside the tiny brackets around jumps; ``error_estimate`` is the interpolation
-    error measured during refinement (absolute, m/N). Subharmonic but periodic motion is valid.
+    lower limit w_c), where other periodic motions coexist, where a sample failed, and inside the tiny
+    brackets around regime changes; ``error_estimate`` is the interpolation error measured during
+    refinement plus the spread of coexisting branches (absolute, m/N). Subharmonic but periodic motion is
+    valid. The table is built block by block on a fixed lattice in ln beta and saved after every block, so
+    its content does not depend on the order of requests and an interrupted build resumes (docs/tables.md).
     """
 
     frequency_dependent = True
     input_name = "F"
     input_unit = "N"
 
-    def __init__(self, m1: float, m2: float, h: float, restitution: float, effects=(), *, tol: float = 1e-5,
-                 method: str = "cubic", transient_periods: int = 100, periods: int = 20,
-                 base_dx: float = 0.1, min_dx: float = 2e-4, edge_dx: float = 1e-2, beta_max: float = 1e4, cache: bool = True,
-                 progress: bool | Callable[[int, str], None] = False):
+    def __init__(self, m1: float, m2: float, h: float, restitution: float | None = None, effects=(), *,
+                 eps: float | None = None, tol: float = 1e-5, method: str = "cubic",
+                 transient_periods: int | None = None, max_transient_periods: int = 4000, periods: int = 20,
+                 base_dx: float = 0.1, min_dx: float = 2e-4, edge_dx: float = 1e-2, probe_dx: float = 0.05,
+                 starts: int = 2, beta_max: float = 1e4, max_events: int | None = None, cache: bool = True,
+                 progress: bool | None | Callable[[int, str], None] = None):
         self.m1 = _checks.positive("m1", m1)
         self.m2 = _checks.positive("m2", m2)
         self.h = _checks.positive("h", h)
-        self.restitution = _checks.in_closed_interval("restitution", restitution, 0.0, 1.0)
-        self.effects = tuple(effects)
-        self.transient_periods = int(_checks.nonnegative("transient_periods", transient_periods))
+        if eps is not None and restitution is not None:
+            raise ValueError(f"restitution: give the coefficient of restitution once, as restitution= or its "
+                             f"alias eps=, got restitution={restitution!r} and eps={eps!r}")
+        if eps is None and restitution is None:
+            raise ValueError("restitution: the coefficient of restitution is required (restitution= or eps=)")
+        self.restitution = _checks.in_closed_interval("restitution", restitution if eps is None else eps, 0.0, 1.0)
+        self.effects = _effects_tuple(effects)
+        self.transient_periods = (None if transient_periods is None
+                                  else int(_checks.nonnegative("transient_periods", transient_periods)))
+        self.max_transient_periods = int(_checks.positive("max_transient_periods", max_transient_periods))
         self.periods = int(_checks.positive("periods", periods))
+        self.starts = int(_checks.nonnegative("starts", starts))
+        if self.starts > len(_STARTS):
+            raise ValueError(f"starts must be <= {len(_STARTS)}, got {starts!r}")
+        self.max_events = None if max_events is None else int(_checks.positive("max_events", max_events))
         self.beta_max = _checks.positive("beta_max", beta_max)
         if self.beta_max <= BETA_NO_IMPACT:
             raise ValueError(f"beta_max must exceed 1/4, got {self.beta_max}")
-        self._settings = TableSettings(tol=_checks.positive("tol", tol), method=method,
-                                       base_dx=_checks.positive("base_dx", base_dx),
+        base_dx = _checks.positive("base_dx", base_dx)
+        self._settings = TableSettings(tol=_checks.positive("tol", tol), method=method, base_dx=base_dx,
                                        min_dx=_checks.positive("min_dx", min_dx),
-                                       edge_dx=_checks.positive("edge_dx", edge_dx))
+                                       edge_dx=_checks.positive("edge_dx", edge_dx),
+                                       probe_dx=_checks.positive("probe_dx", probe_dx),
+                                       block_dx=_BLOCK_BASE_INTERVALS * base_dx, origin=_U_START)
         self._y_settings = TableSettings(tol=tol, method=method, base_dx=0.25, min_dx=max(min_dx, 1e-3))
         self._use_cache = bool(cache)
         self._progress = progress
+        self._tick = None
         self._table: Table1D | Table2D | None = None
         self._loaded_from_cache = False
 
@@ -120,6 +178,8 @@ class DynamicBacklash(DescribingFunction):
         p = {"kind": "DynamicBacklash/1" if self.similarity else "DynamicBacklash/2",
              "restitution": self.restitution, "effects": [repr(e) for e in self.effects],
              "transient_periods": self.transient_periods, "periods": self.periods,
+             "max_transient_periods": self.max_transient_periods, "starts": self.starts,
+             "max_events": self.max_events,
              "settings": settings_dict(self._settings)}
         if self.similarity:
             p["mass_ratio"] = self.m1 / self.m2        # D(beta) depends on m1/m2 and eps only
@@ -142,28 +202,62 @@ class DynamicBacklash(DescribingFunction):
         return self._table
 
     # ------------------------------------------------------------------ sampling
-    def _extract(self, force: np.ndarray, omega: np.ndarray):
+    def _extract(self, force: np.ndarray, omega: np.ndarray, initial=None):
         from .extract import impact_describing_function_batch
 
         return impact_describing_function_batch(self.m1, self.m2, self.h, self.restitution, force, omega,
                                                 effects=self.effects, transient_periods=self.transient_periods,
-                                                periods=self.periods)
+                                                max_transient_periods=self.max_transient_periods,
+                                                periods=self.periods, max_events=self.max_events,
+                                                initial=initial, on_event_limit="record", callback=self._tick)
+
+    def _labels(self, r):
+        """(value D, regime label, regular) of a batch; failed runs get label FAILED, value 0, not regular."""
+        period = np.asarray(r.period, dtype=np.int64)
+        failed = r.failure != ""
+        regular = (period > 0) & ~failed
+        # regime: the period and, for motions without sticking, the impacts per cycle; the number of
+        # chattering impacts before a stuck phase changes continuously-valued motion and is no regime
+        stuck = np.nan_to_num(np.asarray(r.stuck_fraction)) > 0
+        per_cycle = np.rint(np.nan_to_num(np.asarray(r.impacts_per_period)) * np.maximum(period, 1)).astype(np.int64)
+        label = _regime_label(period, np.where(regular & ~stuck, per_cycle, 0), np.where(regular & stuck, 1, 0))
+        label = np.where(failed, FAILED, label)
+        return None, label, regular, failed
 
     def _samples(self, force: np.ndarray, omega: np.ndarray) -> Samples:
         r = self._extract(force, omega)
-        period = np.asarray(r.period, dtype=np.int64)
-        regular = period > 0
-        # regime: the period and, for motions without sticking, the impacts per cycle; the number of
-        # chattering impacts before a stuck phase changes continuously-valued motion and is no regime
-        stuck = np.asarray(r.stuck_fraction) > 0
-        per_cycle = np.rint(np.asarray(r.impacts_per_period) * np.maximum(period, 1)).astype(np.int64)
-        label = _regime_label(period, np.where(regular & ~stuck, per_cycle, 0), np.where(regular & stuck, 1, 0))
-        value = np.asarray(r.N, dtype=complex) * self.m2 * omega ** 2
-        extra = {"period": period, "periodicity": np.asarray(r.periodicity, dtype=float),
+        _, label, regular, failed = self._labels(r)
+        value = np.where(failed, 0.0, np.nan_to_num(np.asarray(r.N, dtype=complex)) * self.m2 * omega ** 2)
+        spread = np.where(failed, np.inf, 0.0)
+        extra = {"period": np.asarray(r.period, dtype=np.int64), "periodicity": np.asarray(r.periodicity, dtype=float),
                  "n_A": np.asarray(r.max_run_A, dtype=float), "n_B": np.asarray(r.max_run_B, dtype=float),
                  "impacts_per_period": np.asarray(r.impacts_per_period, dtype=float),
-                 "stuck_fraction": np.asarray(r.stuck_fraction, dtype=float)}
-        return Samples(value, label, regular, extra)
+                 "stuck_fraction": np.asarray(r.stuck_fraction, dtype=float),
+                 "transient_periods": np.asarray(r.transient_periods, dtype=float),
+                 "failed": failed.astype(float)}
+        branches = np.ones(force.shape)
+        # other starts only where rest settled on a periodic motion (elsewhere the value is invalid anyway)
+        probe = np.flatnonzero(regular) if not self.effects else np.empty(0, dtype=np.int64)
+        for k in range(self.starts):
+            gap, u_rel = _STARTS[k]
+            alt_value = np.full(force.shape, np.nan, dtype=complex)
+            alt_label = np.full(force.shape, FAILED, dtype=np.int64)
+            if probe.size:
+                alt = self._extract(force[probe], omega[probe], lambda f, w, gap=gap, u_rel=u_rel:
+                                    (0.0, 0.0, gap * self.h, u_rel * f / (self.m2 * w)))
+                _, lab, alt_regular, _ = self._labels(alt)
+                alt_value[probe] = np.nan_to_num(np.asarray(alt.N, dtype=complex)) * self.m2 * omega[probe] ** 2
+                alt_label[probe] = np.where(alt_regular, lab, FAILED)
+            differ = (alt_label != FAILED) & ((alt_label != label) | (np.abs(alt_value - value)
+                                                                      > _BRANCH_REL * np.abs(value)))
+            branches += differ
+            spread = np.where(differ, np.maximum(spread, np.abs(alt_value - value)), spread)
+            extra[f"start{k}.re"], extra[f"start{k}.im"] = alt_value.real, alt_value.imag
+            extra[f"start{k}.regime"] = alt_label.astype(float)
+        extra["branches"] = branches
+        # a converged sample is within the period detection's tolerance of its orbit: its own uncertainty
+        uncertainty = np.abs(value) * (np.nan_to_num(np.asarray(r.periodicity, dtype=float)) + PERIODICITY_TOL)
+        return Samples(value, label, regular, extra, spread, uncertainty)
 
     def _sampler_1d(self, u: np.ndarray) -> Samples:
         beta = np.exp(u)
@@ -187,12 +281,32 @@ class DynamicBacklash(DescribingFunction):
         return out
 
     # ------------------------------------------------------------------ table management
-    def _progress_callback(self):
-        if callable(self._progress):
-            return self._progress
-        if self._progress:
-            return stderr_progress(f"DynamicBacklash(eps={self.restitution:g}) table")
-        return None
+    def _build(self, extend, n_blocks: int) -> None:
+        """Run ``extend(progress, checkpoint)`` with a progress bar (time left) and a save after every block."""
+        label = f"DynamicBacklash(restitution={self.restitution:g}) table"
+        user = self._progress if callable(self._progress) else None
+        enabled = None if self._progress is None else (False if user is not None else bool(self._progress))
+        lock = threading.Lock()
+        count = {"sims": 0, "blocks": 0}
+        with progress_bar(label, n_blocks * _PRIOR_SIMULATIONS_PER_BLOCK * (1 + self.starts),
+                          enabled=enabled) as bar:
+            def tick():
+                with lock:
+                    count["sims"] += 1
+                    bar.update(1)
+
+            def checkpoint():
+                count["blocks"] += 1
+                per_block = count["sims"] / count["blocks"]
+                bar.set_total(int(count["sims"] + (n_blocks - count["blocks"]) * per_block))
+                self._store()
+
+            self._tick = tick
+            try:
+                extend(user, checkpoint)
+            finally:
+                self._tick = None
+        self._store()
 
     def _load_cached(self) -> None:
         if self._table is not None or not self._use_cache:
@@ -207,7 +321,7 @@ class DynamicBacklash(DescribingFunction):
         self._loaded_from_cache = True
 
     def _store(self) -> None:
-        if self._use_cache:
+        if self._use_cache and self._table is not None:
             self.save(self.cache_path)
 
     def _check_beta(self, beta_hi: float) -> None:
@@ -227,14 +341,12 @@ class DynamicBacklash(DescribingFunction):
         self._check_beta(beta_hi)
         self._load_cached()
         u_hi = max(math.log(beta_hi), _U_START + self._settings.base_dx)
-        if self._table is not None and self._table.covers(_U_START, u_hi):
-            return
-        progress = self._progress_callback()
         if self._table is None:
-            self._table = Table1D.build(self._sampler_1d, _U_START, u_hi, self._settings, progress)
-        else:
-            self._table.extend(self._sampler_1d, _U_START, u_hi, progress)
-        self._store()
+            self._table = Table1D(self._settings)
+        missing = self._table.missing_blocks(_U_START, u_hi)
+        if missing.size:
+            self._build(lambda progress, checkpoint: self._table.extend(self._sampler_1d, _U_START, u_hi, progress,
+                                                                         checkpoint), int(missing.size))
 
     def _ensure_2d(self, u_lo, u_hi, v_lo, v_hi) -> None:
         self._check_beta(math.exp(u_hi))
@@ -244,12 +356,9 @@ class DynamicBacklash(DescribingFunction):
         yw = (v_lo - pad, max(v_hi, v_lo + self._y_settings.base_dx) + pad)
         if self._table is not None and self._table.covers(xw, yw):
             return
-        progress = self._progress_callback()
         if self._table is None:
-            self._table = Table2D.build(self._sampler_2d, xw, yw, self._settings, self._y_settings, progress)
-        else:
-            self._table.extend(self._sampler_2d, xw, yw, progress)
-        self._store()
+            self._table = Table2D(self._settings, self._y_settings)
+        self._build(lambda progress, checkpoint: self._table.extend(self._sampler_2d, xw, yw, progress), 1)
 
     def prepare(self, F, omega) -> "DynamicBacklash":
         """Build (or load) the table over the window spanned by force amplitudes F and frequencies omega."""
@@ -325,7 +434,10 @@ class DynamicBacklash(DescribingFunction):
         hi is infinite for the paper's model (beyond ``beta_max`` the rigid-body value with its exact bound
         is returned, flagged not valid) and ``beta_max`` M2 h w^2 with effects (beyond it: ValueError).
         """
-        w = np.asarray(omega if omega is not None else np.nan, dtype=float)
+        if omega is None:
+            raise _checks.DfloopError("omega is required: the amplitude domain of DynamicBacklash depends on "
+                                      "frequency (rad/s), got omega=None")
+        w = _checks.frequency_array(omega)
         base = self.m2 * self.h * w ** 2
         hi = np.full(np.shape(base), np.inf) if self.similarity else self.beta_max * base
         return BETA_NO_IMPACT * base, hi

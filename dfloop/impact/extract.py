@@ -16,14 +16,15 @@ from __future__ import annotations
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .. import _checks
 from ._core import IMPACT_A, IMPACT_B
-from .kernel import DEFAULT_CHATTER_TOL, DEFAULT_MAX_EVENTS, Trajectory, simulate
-from .limits import lower_limit_frequency
+from .kernel import (DEFAULT_CHATTER_TOL, EventLimitError, ImpactParameters, KernelRun, Trajectory,
+                     default_max_events, simulate)
+from .limits import beta_lower_limit
 
 __all__ = ["ImpactDF", "ImpactDFBatch", "describing_function_from_trajectory", "impact_describing_function",
            "impact_describing_function_batch"]
@@ -32,6 +33,13 @@ DEFAULT_TRANSIENT_PERIODS = 200
 DEFAULT_PERIODS = 40
 MAX_DETECTED_PERIOD = 12
 PERIODICITY_TOL = 1e-6  # relative mismatch of the stroboscopic state that still counts as periodic
+_ROUNDING_MISMATCH = 1e-11   # stroboscopic mismatch at rounding level (x max(1, beta)): periodic whatever its trend
+_MAX_CONTRACTION = 0.9995    # a candidate contracting slower than this per period is not extrapolated
+_EXTRAPOLATE_BELOW = 1e-2    # ... nor one whose mismatch is still this large
+_GROWTH = 4                  # adaptive transient: at most x4 per step, each step needing new evidence
+MIN_TRANSIENT_PERIODS = 25   # first transient of the adaptive extraction
+CHAOS_TRANSIENT_PERIODS = 100  # adaptive: a motion not contracting towards any period by then is irregular
+DEFAULT_MAX_TRANSIENT_PERIODS = 4000
 
 
 @dataclass(frozen=True, repr=False)
@@ -68,6 +76,11 @@ class ImpactDF:
     below_wc : bool
         w below the paper's lower limit w_c of eq. (10), where the paper reports irregular motion. The exact
         kernel (with sticking) often finds periodic chatter-and-stick motion there: ``regular`` says which.
+    transient_periods : int
+        Forcing periods discarded before the window (chosen adaptively when the caller asked for it).
+
+    A window without impacts or sticking is free flight: x1 is exactly linear, N = 0 exactly, and the
+    motion is labelled period 1 with ``n_impacts`` = 0 (no-impact motion), whatever the gap does.
     """
 
     N: complex
@@ -84,6 +97,7 @@ class ImpactDF:
     n_impacts: int
     beta: float
     below_wc: bool
+    transient_periods: int = 0
 
     @property
     def regular(self) -> bool:
@@ -92,12 +106,13 @@ class ImpactDF:
 
     def __repr__(self) -> str:
         note = "" if self.regular else ", irregular: N is an average over the window"
+        note += ", no impacts in the window" if self.n_impacts == 0 and self.stuck_fraction == 0 else ""
         note += ", below w_c of eq. (10)" if self.below_wc else ""
         return (f"ImpactDF(N={self.N:.6g}, |N|={abs(self.N):.4g}, period={self.period}, "
                 f"periodicity={self.periodicity:.2e}, impacts_per_period={self.impacts_per_period:.3g}, "
                 f"max_run_A={self.max_run_A}, max_run_B={self.max_run_B}, "
                 f"stuck_fraction={self.stuck_fraction:.3g}, periods_used={self.periods_used}, "
-                f"n_impacts={self.n_impacts}, beta={self.beta:.4g}{note})")
+                f"n_impacts={self.n_impacts}, transient_periods={self.transient_periods}, beta={self.beta:.4g}{note})")
 
 
 def _run_lengths(sides: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -111,19 +126,67 @@ def _run_lengths(sides: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return lengths[first == 0], lengths[first == 1]
 
 
-def _detect_period(traj: Trajectory, t_start: float, n_periods: int) -> int:
-    """Smallest p such that the state at period boundaries repeats after p periods (0 if none)."""
+def _stroboscopic_states(traj: Trajectory, t_start: float, n_periods: int) -> np.ndarray:
+    """Normalised state (v1, v2, gap) at the n_periods + 1 period boundaries from t_start."""
     p = traj.params
     tp = 2.0 * math.pi / p.omega
     t = t_start + tp * np.arange(n_periods + 1)
     t[-1] = min(t[-1], traj.t_end)
     st = traj.evaluate(t)
     v_scale = max(np.max(np.abs(st["v1"])), np.max(np.abs(st["v2"])), p.h * p.omega)
-    state = np.column_stack([st["v1"] / v_scale, st["v2"] / v_scale, st["gap"] / p.h])
-    for period in range(1, min(MAX_DETECTED_PERIOD, n_periods // 3) + 1):
-        if np.max(np.abs(state[period:] - state[:-period])) < PERIODICITY_TOL:
-            return period
-    return 0
+    return np.column_stack([st["v1"] / v_scale, st["v2"] / v_scale, st["gap"] / p.h])
+
+
+def _assess_period(state: np.ndarray, tol: float = PERIODICITY_TOL, floor: float = _ROUNDING_MISMATCH
+                   ) -> tuple[int, float]:
+    """(period, extra_periods): the smallest converged period p, else 0 with the periods still needed.
+
+    For a candidate p the mismatches m_j = |S_{j+p} - S_j| (max norm) over the window must stay below
+    ``tol`` *and* the distance to the periodic orbit they imply must too: with the contraction rate r per
+    period estimated from the two halves of the window, that distance is about m_end r / (1 - r) (a slowly
+    converging motion has a small mismatch per period but is still far from its orbit). Mismatches at
+    rounding level (below ``floor``, see :func:`_rounding_floor`) are accepted as they are. When no period has converged, ``extra_periods`` is the number
+    of further periods after which the best candidate should meet the criterion if it keeps contracting at
+    rate r (``inf`` when it does not clearly contract, see :func:`_extra_periods`, or its mismatch is still
+    above 1e-2: irregular so far).
+    """
+    n = state.shape[0] - 1
+    best = (math.inf, math.inf)       # (end mismatch, extra periods) of the best non-converged candidate
+    for period in range(1, min(MAX_DETECTED_PERIOD, n // 3) + 1):
+        m = np.max(np.abs(state[period:] - state[:-period]), axis=1)
+        half = m.size // 2
+        a, b = float(np.max(m[:half])), float(np.max(m[half:]))
+        if b <= floor and a <= tol:
+            return period, 0.0
+        rate = (b / a) ** (1.0 / max(m.size - half, 1)) if a > 0 else 1.0
+        if max(a, b) < tol and rate < 1.0 and b * rate / (1.0 - rate) < tol:
+            return period, 0.0
+        if b < best[0]:
+            best = (b, _extra_periods(m, tol) if b < _EXTRAPOLATE_BELOW else math.inf)
+    return 0, best[1]
+
+
+def _rounding_floor(beta: float) -> float:
+    """Stroboscopic mismatch of an exactly periodic motion in floating point: the gap h is computed from
+    forcing terms of size ~ beta h, so rounding grows with beta (measured ~3e-13 beta in chattering motion)."""
+    return _ROUNDING_MISMATCH * max(1.0, beta)
+
+
+def _extra_periods(m: np.ndarray, tol: float) -> float:
+    """Periods until the mismatch sequence m (one per period) falls to tol (1 - r) / 4, if it contracts.
+
+    The contraction must be clear: a least-squares line through log m with slope log r < log 0.9995 and
+    residuals below 0.5 (a factor 1.6); otherwise inf (an irregular motion's mismatch does not line up).
+    """
+    if m.size < 4 or np.any(m <= 0):
+        return math.inf
+    j = np.arange(m.size)
+    y = np.log(m)
+    slope, icept = np.polyfit(j, y, 1)
+    if slope >= math.log(_MAX_CONTRACTION) or np.std(y - (slope * j + icept)) > 0.5:
+        return math.inf
+    rate = math.exp(slope)
+    return max(math.log(tol * (1.0 - rate) / (4.0 * m[-1])) / slope, 0.0)
 
 
 def describing_function_from_trajectory(traj: Trajectory, transient_periods: int, periods: int) -> ImpactDF:
@@ -145,7 +208,27 @@ def describing_function_from_trajectory(traj: Trajectory, transient_periods: int
     if t_a + periods * tp > traj.t_end * (1.0 + 1e-12):
         raise ValueError(f"periods: the trajectory ends at {traj.t_end:g} s, before the window end "
                          f"{t_a + periods * tp:g} s")
-    period = _detect_period(traj, t_a, periods)
+    period, _ = _assess_period(_stroboscopic_states(traj, t_a, periods), floor=_rounding_floor(p.beta))
+    return _df_over_window(traj, t_a, periods, period)
+
+
+def _no_impact(traj: Trajectory, t_a: float) -> bool:
+    """True when the motion after t_a is free flight throughout (no impact, no stuck phase)."""
+    first = np.searchsorted(traj.t0, t_a, side="right") - 1
+    return bool(np.all(traj.mode[first:] == 0) and not np.any(traj.impact_mask[first + 1:]))
+
+
+def _df_over_window(traj: Trajectory, t_a: float, periods: int, period: int) -> ImpactDF:
+    """The DF of x1 over ``periods`` forcing periods from t_a, for a motion of the given period (0: none)."""
+    p = traj.params
+    w = p.omega
+    tp = 2.0 * math.pi / w
+    if _no_impact(traj, t_a):
+        # free flight throughout: x1 is exactly linear in t, its fundamental exactly 0 (whatever the gap does)
+        return ImpactDF(N=0j, X1=0j, periodicity=0.0, period=1, impacts_per_period=0.0, max_run_A=0,
+                        max_run_B=0, runs_A=np.zeros(0, np.int64), runs_B=np.zeros(0, np.int64),
+                        stuck_fraction=0.0, periods_used=periods, n_impacts=0, beta=p.beta,
+                        below_wc=bool(p.beta > beta_lower_limit(p.restitution)))
     used = periods if period <= 1 else period * (periods // period)  # period <= periods // 3
     t_b = min(t_a + used * tp, traj.t_end)
     bounds = t_a + tp * np.arange(used + 1)
@@ -179,13 +262,15 @@ def describing_function_from_trajectory(traj: Trajectory, transient_periods: int
                     max_run_A=int(runs_a.max(initial=0)), max_run_B=int(runs_b.max(initial=0)),
                     runs_A=runs_a, runs_B=runs_b, stuck_fraction=float(overlap[stuck].sum() / length),
                     periods_used=used, n_impacts=int(sides.size), beta=p.beta,
-                    below_wc=bool(w < lower_limit_frequency(p.force, p.m2, p.h, p.restitution)))
+                    below_wc=bool(p.beta > beta_lower_limit(p.restitution)))
 
 
 def impact_describing_function(m1: float, m2: float, h: float, restitution: float, force: float, omega: float,
-                               *, effects=(), transient_periods: int = DEFAULT_TRANSIENT_PERIODS,
-                               periods: int = DEFAULT_PERIODS, max_events: int = DEFAULT_MAX_EVENTS,
-                               chatter_tol: float = DEFAULT_CHATTER_TOL) -> ImpactDF:
+                               *, effects=(), transient_periods: int | None = DEFAULT_TRANSIENT_PERIODS,
+                               periods: int = DEFAULT_PERIODS, max_events: int | None = None,
+                               chatter_tol: float = DEFAULT_CHATTER_TOL,
+                               max_transient_periods: int = DEFAULT_MAX_TRANSIENT_PERIODS,
+                               initial=None) -> ImpactDF:
     """N(F, w) = X1 / F (m/N) of the two-mass impact system driven by F cos(w t) on M2, output x1.
 
     Parameters
@@ -200,27 +285,109 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
         Force amplitude (N) and frequency (rad/s).
     effects : sequence, optional
         Optional effects (:mod:`dfloop.impact.effects`); they break the similarity law.
-    transient_periods, periods : int
-        Forcing periods discarded, then integrated (a period-p motion uses a multiple of p).
-    max_events, chatter_tol
-        Passed to :func:`dfloop.impact.kernel.simulate`.
+    transient_periods : int or None
+        Forcing periods discarded before the window. None: adaptive, from ``MIN_TRANSIENT_PERIODS`` on,
+        lengthened until the period detection has converged (see :func:`_assess_period`: a motion that
+        contracts towards a periodic orbit is followed for as long as the extrapolated contraction says, up
+        to ``max_transient_periods``; one that does not contract after ``CHAOS_TRANSIENT_PERIODS`` is
+        irregular). The length used is returned as ``transient_periods`` of the result.
+    periods : int
+        Forcing periods integrated (a period-p motion uses a multiple of p).
+    max_events : int, optional
+        Bound on the events of the run (default :func:`dfloop.impact.kernel.default_max_events` for the
+        longest run this call may make).
+    chatter_tol : float
+        See :func:`dfloop.impact.kernel.simulate`.
+    max_transient_periods : int
+        Bound of the adaptive transient (forcing periods).
+    initial : (x1, v1, gap, u), optional
+        Start state (m, m/s) instead of rest with a centred gap (paper's model only); used to look for
+        coexisting periodic motions.
 
     Returns
     -------
     ImpactDF
+
+    Notes
+    -----
+    Without effects the motion is simulated in the similarity variables (h = M2 = w = 1, force = beta) and
+    scaled back, N = h Xi1 / F, so extreme forces and clearances neither overflow nor lose precision as
+    long as beta = F / (M2 h w^2) itself is a finite number.
     """
-    transient_periods = int(_checks.nonnegative("transient_periods", transient_periods))
+    transient = None if transient_periods is None else int(_checks.nonnegative("transient_periods",
+                                                                                 transient_periods))
     periods = int(_checks.positive("periods", periods))
-    omega_checked = _checks.positive("omega", omega)
-    t_end = (transient_periods + periods) * 2.0 * math.pi / omega_checked
-    traj = simulate(m1, m2, h, restitution, force, omega, t_end, effects=effects, max_events=max_events,
-                    chatter_tol=chatter_tol)
-    return describing_function_from_trajectory(traj, transient_periods, periods)
+    max_transient = int(_checks.positive("max_transient_periods", max_transient_periods))
+    chatter_tol = _checks.positive("chatter_tol", chatter_tol)
+    p = ImpactParameters(m1, m2, h, restitution, force, omega)
+    longest = (max_transient if transient is None else transient) + periods
+    if max_events is None:
+        max_events = default_max_events(p.restitution, chatter_tol, longest)
+    if int(max_events) < 1:
+        raise ValueError(f"max_events must be >= 1, got {max_events}")
+    max_events = int(max_events)
+    if effects:
+        if initial is not None:
+            raise ValueError("initial: a start other than rest is supported by the paper's model only "
+                             "(no effects)")
+
+        def window(t_a: float, t_b: float) -> Trajectory:
+            return simulate(p.m1, p.m2, p.h, p.restitution, p.force, p.omega, t_b, effects=effects,
+                            max_events=max_events, chatter_tol=chatter_tol)
+
+        return _describe(p, window, transient, periods, max_transient)
+    log_beta = math.log(p.force) - math.log(p.m2) - math.log(p.h) - 2.0 * math.log(p.omega)
+    if log_beta > math.log(1e300):
+        raise ValueError(f"force: beta = F/(M2 h w^2) = exp({log_beta:.6g}) overflows (F = {p.force!r} N, "
+                         f"h = {p.h!r} m, omega = {p.omega!r} rad/s); the masses then move as one body, "
+                         f"N = -1/((M1 + M2) w^2)")
+    beta = math.exp(log_beta) if log_beta > -690.0 else 1e-300
+    scaled = ImpactParameters(p.m1 / p.m2, 1.0, 1.0, p.restitution, beta, 1.0)
+    if initial is not None:
+        x1, v1, gap, u = initial
+        initial = (x1 / p.h, v1 / (p.h * p.omega), gap / p.h, u / (p.h * p.omega))
+    run = KernelRun(scaled, chatter_tol, initial)
+
+    def window(t_a: float, t_b: float) -> Trajectory:
+        run.advance(t_a, max_events, keep=False)
+        run.forget()
+        run.advance(t_b, max_events)
+        return run.trajectory()
+
+    r = _describe(scaled, window, transient, periods, max_transient)
+    return replace(r, N=p.h * r.X1 / p.force, X1=p.h * r.X1)
+
+
+def _describe(p: ImpactParameters, window, transient: int | None, periods: int, max_transient: int) -> ImpactDF:
+    """Fixed or adaptive transient; ``window(t_a, t_b)`` returns the motion covering [t_a, t_b]."""
+    tp = p.period
+    if transient is not None:
+        traj = window(transient * tp, (transient + periods) * tp)
+        return replace(describing_function_from_trajectory(traj, transient, periods), transient_periods=transient)
+    t_skip = min(MIN_TRANSIENT_PERIODS, max_transient)
+    for _ in range(max_transient // periods + 2):     # t_skip grows by >= periods every pass
+        traj = window(t_skip * tp, (t_skip + periods) * tp)
+        period, extra = _assess_period(_stroboscopic_states(traj, t_skip * tp, periods),
+                                       floor=_rounding_floor(p.beta))
+        if math.isfinite(extra):
+            target = min(t_skip + periods + math.ceil(1.5 * extra), _GROWTH * t_skip + periods)
+        elif t_skip < CHAOS_TRANSIENT_PERIODS:
+            target = 2 * t_skip + periods
+        else:
+            target = None
+        if period > 0 or t_skip >= max_transient or target is None or _no_impact(traj, t_skip * tp):
+            return replace(_df_over_window(traj, t_skip * tp, periods, period), transient_periods=t_skip)
+        t_skip = max(min(target, max_transient), t_skip + periods)
+    raise AssertionError("unreachable: the adaptive transient grows by at least one window per pass")
 
 
 @dataclass(frozen=True, repr=False)
 class ImpactDFBatch:
-    """Arrays of :class:`ImpactDF` fields over a broadcast grid of (force, omega)."""
+    """Arrays of :class:`ImpactDF` fields over a broadcast grid of (force, omega).
+
+    ``failure`` is "" where the run finished and the reason where it did not (with
+    ``on_event_limit='record'``: the event bound was reached); there N is NaN and period 0.
+    """
 
     N: np.ndarray
     periodicity: np.ndarray
@@ -233,6 +400,8 @@ class ImpactDFBatch:
     n_impacts: np.ndarray
     beta: np.ndarray
     below_wc: np.ndarray
+    transient_periods: np.ndarray
+    failure: np.ndarray
 
     @property
     def regular(self) -> np.ndarray:
@@ -240,46 +409,64 @@ class ImpactDFBatch:
         return self.period > 0
 
     def __repr__(self) -> str:
+        failed = int(np.count_nonzero(self.failure != ""))
+        note = f", failed={failed}" if failed else ""
         return (f"ImpactDFBatch(shape={self.N.shape}, regular={int(self.regular.sum())}/{self.N.size}, "
-                f"max periodicity={float(np.max(self.periodicity, initial=0.0)):.2e})")
+                f"max periodicity={float(np.nanmax(self.periodicity, initial=0.0)):.2e}{note})")
+
+
+_BATCH_FIELDS = {"N": complex, "periodicity": float, "period": np.int64, "impacts_per_period": float,
+                 "max_run_A": np.int64, "max_run_B": np.int64, "stuck_fraction": float, "periods_used": np.int64,
+                 "n_impacts": np.int64, "beta": float, "below_wc": bool, "transient_periods": np.int64}
+_FAILED = {"N": complex(np.nan, np.nan), "periodicity": np.nan, "period": 0, "impacts_per_period": np.nan,
+           "max_run_A": 0, "max_run_B": 0, "stuck_fraction": np.nan, "periods_used": 0, "n_impacts": 0,
+           "beta": np.nan, "below_wc": False, "transient_periods": 0}
 
 
 def impact_describing_function_batch(m1: float, m2: float, h: float, restitution: float, force, omega, *,
-                                     effects=(), transient_periods: int = DEFAULT_TRANSIENT_PERIODS,
-                                     periods: int = DEFAULT_PERIODS, max_events: int = DEFAULT_MAX_EVENTS,
+                                     effects=(), transient_periods: int | None = DEFAULT_TRANSIENT_PERIODS,
+                                     periods: int = DEFAULT_PERIODS, max_events: int | None = None,
                                      chatter_tol: float = DEFAULT_CHATTER_TOL,
-                                     workers: int | None = None) -> ImpactDFBatch:
+                                     max_transient_periods: int = DEFAULT_MAX_TRANSIENT_PERIODS,
+                                     initial=None, on_event_limit: str = "raise",
+                                     workers: int | None = None, callback=None) -> ImpactDFBatch:
     """:func:`impact_describing_function` over broadcast arrays ``force`` and ``omega`` (N, rad/s).
 
     Runs in a thread pool of ``workers`` threads (default: the CPU count); the JIT kernel releases the GIL.
+    ``on_event_limit``: 'raise' (default) lets an :class:`~dfloop.impact.kernel.EventLimitError` through;
+    'record' marks that point failed (``failure`` holds the reason) and goes on. ``callback()``, if given,
+    is called once per finished point (from the worker threads). ``initial`` is one start state for all
+    points or a callable ``initial(force, omega)`` returning the start state of each point.
     """
+    if on_event_limit not in ("raise", "record"):
+        raise ValueError(f"on_event_limit must be 'raise' or 'record', got {on_event_limit!r}")
     f, w = np.broadcast_arrays(np.asarray(force, dtype=float), np.asarray(omega, dtype=float))
     if f.size == 0:
         raise ValueError("force, omega: empty grid")
-    workers = int(workers or os.cpu_count() or 1)
-    if workers < 1:
-        raise ValueError(f"workers must be >= 1, got {workers}")
+    workers = (os.cpu_count() or 1) if workers is None else _checks.integer_at_least("workers", workers, 1)
 
     def one(fw):
-        return impact_describing_function(m1, m2, h, restitution, fw[0], fw[1], effects=effects,
-                                          transient_periods=transient_periods, periods=periods,
-                                          max_events=max_events, chatter_tol=chatter_tol)
+        try:
+            r = impact_describing_function(m1, m2, h, restitution, fw[0], fw[1], effects=effects,
+                                           transient_periods=transient_periods, periods=periods,
+                                           max_events=max_events, chatter_tol=chatter_tol,
+                                           max_transient_periods=max_transient_periods,
+                                           initial=initial(*fw) if callable(initial) else initial)
+            out = ({k: getattr(r, k) for k in _BATCH_FIELDS}, "")
+        except EventLimitError as exc:
+            if on_event_limit == "raise":
+                raise
+            out = (_FAILED, f"event limit: {exc}")
+        if callback is not None:
+            callback()
+        return out
 
     pairs = list(zip(f.ravel().tolist(), w.ravel().tolist()))
-    if workers == 1:
+    if workers == 1 or len(pairs) == 1:
         results = [one(fw) for fw in pairs]
     else:
         with ThreadPoolExecutor(max_workers=workers) as pool:
             results = list(pool.map(one, pairs))
-
-    def field_array(name, dtype):
-        return np.array([getattr(r, name) for r in results], dtype=dtype).reshape(f.shape)
-
-    return ImpactDFBatch(N=field_array("N", complex), periodicity=field_array("periodicity", float),
-                         period=field_array("period", np.int64),
-                         impacts_per_period=field_array("impacts_per_period", float),
-                         max_run_A=field_array("max_run_A", np.int64), max_run_B=field_array("max_run_B", np.int64),
-                         stuck_fraction=field_array("stuck_fraction", float),
-                         periods_used=field_array("periods_used", np.int64),
-                         n_impacts=field_array("n_impacts", np.int64), beta=field_array("beta", float),
-                         below_wc=field_array("below_wc", bool))
+    arrays = {k: np.array([r[0][k] for r in results], dtype=t).reshape(f.shape) for k, t in _BATCH_FIELDS.items()}
+    failure = np.array([r[1] for r in results], dtype=str).reshape(f.shape)
+    return ImpactDFBatch(**arrays, failure=failure)

@@ -23,10 +23,31 @@ from . import _core
 from ._core import (FREE, GAP, IMPACT_A, IMPACT_B, PHI0, STUCK_B, T0, U, U_POST, U_PRE, V1, V1_POST,
                     V1_PRE, X1)
 
-__all__ = ["ImpactParameters", "Trajectory", "simulate", "EventLimitError"]
+__all__ = ["ImpactParameters", "Trajectory", "simulate", "EventLimitError", "default_max_events", "KernelRun"]
 
-DEFAULT_MAX_EVENTS = 5_000_000
+DEFAULT_MAX_EVENTS = 5_000_000      # floor of the default event bound
 DEFAULT_CHATTER_TOL = 1e-9
+_FREE_IMPACTS_PER_PERIOD = 64       # impacts per forcing period outside chatter sequences, in the default bound
+
+
+def default_max_events(restitution: float, chatter_tol: float, periods: float) -> int:
+    """Default bound on the number of events of a run of ``periods`` forcing periods.
+
+    A converging chatter (impacts whose relative speed shrinks by eps each time) reaches the cut speed
+    ``chatter_tol`` after about ln(chatter_tol) / ln(eps) impacts; a period holds at most two such sequences
+    (one per side) plus a few free impacts. The bound is that count per period times ``periods``, and never
+    less than ``DEFAULT_MAX_EVENTS``.
+    """
+    eps = min(max(float(restitution), 1e-3), 1.0 - 1e-3)
+    chatter = math.ceil(math.log(chatter_tol) / math.log(eps)) + 2
+    per_period = 2 * chatter + _FREE_IMPACTS_PER_PERIOD
+    return int(max(DEFAULT_MAX_EVENTS, math.ceil(per_period * max(float(periods), 1.0))))
+
+
+def _event_limit_message(max_events: int, t: float, t_end: float, period: float) -> str:
+    return (f"max_events = {max_events} reached at t = {t:.6g} s (t_end = {t_end:g} s, "
+            f"{t / period:.6g} of {t_end / period:.6g} forcing periods): pass a larger max_events "
+            f"(e.g. max_events={2 * max_events}) to simulate further")
 
 
 class EventLimitError(RuntimeError):
@@ -145,10 +166,10 @@ class Trajectory(ImpactEvents):
 
     # --- evaluation -------------------------------------------------------------------------------
     def evaluate(self, t) -> dict:
-        """x1, v1, x2, v2 (m, m/s) and the gap at times ``t`` (s, array_like within [0, t_end])."""
+        """x1, v1, x2, v2 (m, m/s) and the gap at times ``t`` (s, array_like within [t0[0], t_end])."""
         t = np.asarray(t, dtype=float)
-        if np.any(~np.isfinite(t)) or np.any(t < 0.0) or np.any(t > self.t_end):
-            raise ValueError(f"t must lie in [0, t_end = {self.t_end}]")
+        if np.any(~np.isfinite(t)) or np.any(t < self.t0[0]) or np.any(t > self.t_end):
+            raise ValueError(f"t must lie in [{self.t0[0]:g}, t_end = {self.t_end}]")
         k = np.searchsorted(self.t0, t, side="right") - 1
         s = t - self.t0[k]
         p = self.params
@@ -219,9 +240,9 @@ def _sin_minus_x(th: np.ndarray) -> np.ndarray:
 
 
 def simulate(m1: float, m2: float, h: float, restitution: float, force: float, omega: float, t_end: float, *,
-             effects=(), max_events: int = DEFAULT_MAX_EVENTS,
-             chatter_tol: float = DEFAULT_CHATTER_TOL) -> Trajectory:
-    """Simulate the two-mass impact system from rest (g = h/2, x1 = 0) over [0, t_end].
+             effects=(), max_events: int | None = None,
+             chatter_tol: float = DEFAULT_CHATTER_TOL, initial=None) -> Trajectory:
+    """Simulate the two-mass impact system over [0, t_end], from rest (g = h/2, x1 = 0) by default.
 
     Parameters
     ----------
@@ -237,11 +258,15 @@ def simulate(m1: float, m2: float, h: float, restitution: float, force: float, o
         End time (s).
     effects : sequence of effect objects, optional
         Optional physics (:mod:`dfloop.impact.effects`). Empty: the paper's model, JIT kernel.
-    max_events : int
+    max_events : int, optional
         Bound on the number of events (impacts and separations); reaching it raises EventLimitError.
+        Default: :func:`default_max_events` for the number of forcing periods in [0, t_end].
     chatter_tol : float
         Relative post-impact speed (of max(h w, F/(M2 w))) below which a converging chatter is cut into
         a stuck phase.
+    initial : (x1, v1, gap, u), optional
+        Initial state at t = 0 (m, m/s; gap = x2 - x1 in [0, h], u = v2 - v1), free flight. Default: rest
+        with a centred gap, (0, 0, h/2, 0). Paper's model only.
 
     Returns
     -------
@@ -250,40 +275,108 @@ def simulate(m1: float, m2: float, h: float, restitution: float, force: float, o
     p = ImpactParameters(m1, m2, h, restitution, force, omega)
     t_end = _checks.positive("t_end", t_end)
     chatter_tol = _checks.positive("chatter_tol", chatter_tol)
+    if max_events is None:
+        max_events = default_max_events(p.restitution, chatter_tol, t_end / p.period)
     if int(max_events) < 1:
         raise ValueError(f"max_events must be >= 1, got {max_events}")
     if effects:
+        if initial is not None:
+            raise ValueError("initial: a start other than rest is supported by the paper's model only "
+                             "(no effects)")
         from .effects import simulate_with_effects
         return simulate_with_effects(p, t_end, tuple(effects), int(max_events), chatter_tol)
-    return _simulate_paper_model(p, t_end, int(max_events), chatter_tol)
+    run = KernelRun(p, chatter_tol, initial)
+    run.advance(t_end, int(max_events))
+    return run.trajectory()
 
 
-def _simulate_paper_model(p: ImpactParameters, t_end: float, max_events: int, chatter_tol: float) -> Trajectory:
-    v_stick = chatter_tol * max(p.h * p.omega, p.force / (p.m2 * p.omega))
-    params = np.array([p.m1, p.m2, p.h, p.force, p.omega, p.restitution, v_stick])
-    state = np.array([0.0, 0.0, 0.0, 0.0, 0.5 * p.h, 0.0, float(FREE), -1.0])
-    # expected events: about 2 impacts per period in the regular regime; grow geometrically when needed
-    capacity = int(min(max_events + 1, max(64, 4 * t_end / p.period + 16)))
-    seg, mode, cause = _core.empty_buffers(capacity)
-    seg[0] = [0.0, 0.0, 0.0, 0.0, 0.5 * p.h, 0.0, 0.0, 0.0, 0.0, 0.0]
-    mode[0] = FREE
-    cause[0] = _core.START
-    n = 1
-    while True:
-        n, status = _core.run_kernel(params, state, t_end, seg, mode, cause, n)
-        if status == _core.DONE:
-            break
-        if n - 1 >= max_events:
-            raise EventLimitError(f"max_events = {max_events} reached at t = {state[0]:.6g} s "
-                                  f"(t_end = {t_end:g} s)")
-        new_cap = int(min(max_events + 1, 2 * capacity))
-        seg2, mode2, cause2 = _core.empty_buffers(new_cap)
-        seg2[:n], mode2[:n], cause2[:n] = seg[:n], mode[:n], cause[:n]
-        seg, mode, cause, capacity = seg2, mode2, cause2, new_cap
-    seg = seg[:n]
-    return Trajectory(params=p, t_end=t_end, t0=seg[:, T0].copy(), phase0=seg[:, PHI0].copy(),
-                      x1=seg[:, X1].copy(), v1=seg[:, V1].copy(), gap=seg[:, GAP].copy(), u=seg[:, U].copy(),
-                      v1_pre=seg[:, V1_PRE].copy(), u_pre=seg[:, U_PRE].copy(),
-                      v1_post=seg[:, V1_POST].copy(), u_post=seg[:, U_POST].copy(),
-                      mode=mode[:n].astype(np.int64), cause=cause[:n].astype(np.int64))
+class KernelRun:
+    """A continuable run of the paper's model (JIT kernel) that keeps only the segments since :meth:`forget`.
+
+    ``advance(t)`` moves the motion on to time t (s); ``forget()`` drops the stored segments except the
+    current one (bounded memory for long transients); ``trajectory()`` is the motion since the last forget.
+
+    Parameters
+    ----------
+    params : ImpactParameters
+    chatter_tol : float
+        See :func:`simulate`.
+    initial : (x1, v1, gap, u), optional
+        Free-flight state at t = 0 (m, m/s); default rest with a centred gap.
+    """
+
+    def __init__(self, params: ImpactParameters, chatter_tol: float = DEFAULT_CHATTER_TOL, initial=None,
+                 capacity: int = 256):
+        p = self.params = params
+        x1, v1, gap, u = (0.0, 0.0, 0.5 * p.h, 0.0) if initial is None else _initial_state(initial, p.h)
+        v_stick = chatter_tol * max(p.h * p.omega, p.force / (p.m2 * p.omega))
+        self._kernel_params = np.array([p.m1, p.m2, p.h, p.force, p.omega, p.restitution, v_stick])
+        self._state = np.array([0.0, 0.0, x1, v1, gap, u, float(FREE), -1.0])
+        self._seg, self._mode, self._cause = _core.empty_buffers(max(int(capacity), 2))
+        self._seg[0] = [0.0, 0.0, x1, v1, gap, u, v1, u, v1, u]
+        self._mode[0] = FREE
+        self._cause[0] = _core.START
+        self._n = 1
+        self.n_events = 0           # events since t = 0
+        self.t = 0.0                # time reached (s); the kernel state holds the last event
+
+
+    def advance(self, t_end: float, max_events: int, keep: bool = True) -> None:
+        """Run on to ``t_end`` (s); raises EventLimitError when the events since t = 0 would exceed max_events.
+
+        ``keep=False`` drops stored segments whenever the buffer fills (memory bounded by its capacity).
+        """
+        while True:
+            cap = self._seg.shape[0]
+            limit = min(cap, self._n + max(max_events - self.n_events, 0))
+            n0 = self._n
+            n, status = _core.run_kernel(self._kernel_params, self._state, t_end, self._seg[:limit],
+                                         self._mode[:limit], self._cause[:limit], self._n)
+            self.n_events += n - n0
+            self._n = n
+            if status == _core.DONE:
+                self.t = max(self.t, float(t_end))
+                return
+            t_now = float(self._state[0])
+            if self.n_events >= max_events:
+                raise EventLimitError(_event_limit_message(max_events, t_now, t_end, self.params.period))
+            if keep:
+                expected = 4 * (t_end - t_now) / self.params.period + 16
+                self._grow(int(max(2 * cap, cap + expected)))
+            else:
+                self.forget()
+
+    def _grow(self, capacity: int) -> None:
+        seg, mode, cause = _core.empty_buffers(capacity)
+        n = self._n
+        seg[:n], mode[:n], cause[:n] = self._seg[:n], self._mode[:n], self._cause[:n]
+        self._seg, self._mode, self._cause = seg, mode, cause
+
+    def forget(self) -> None:
+        """Drop every stored segment but the current one (the motion stays exact)."""
+        last = self._n - 1
+        self._seg[0], self._mode[0], self._cause[0] = self._seg[last], self._mode[last], self._cause[last]
+        self._n = 1
+
+    def trajectory(self) -> "Trajectory":
+        """The motion from the last :meth:`forget` (or t = 0) to the current time."""
+        n = self._n
+        seg = self._seg[:n]
+        return Trajectory(params=self.params, t_end=self.t, t0=seg[:, T0].copy(), phase0=seg[:, PHI0].copy(),
+                          x1=seg[:, X1].copy(), v1=seg[:, V1].copy(), gap=seg[:, GAP].copy(),
+                          u=seg[:, U].copy(), v1_pre=seg[:, V1_PRE].copy(), u_pre=seg[:, U_PRE].copy(),
+                          v1_post=seg[:, V1_POST].copy(), u_post=seg[:, U_POST].copy(),
+                          mode=self._mode[:n].astype(np.int64), cause=self._cause[:n].astype(np.int64))
+
+
+def _initial_state(initial, h: float) -> tuple[float, float, float, float]:
+    try:
+        x1, v1, gap, u = (float(v) for v in initial)
+    except (TypeError, ValueError):
+        raise ValueError(f"initial must be four numbers (x1, v1, gap, u), got {initial!r}") from None
+    if not all(math.isfinite(v) for v in (x1, v1, gap, u)):
+        raise ValueError(f"initial must be finite, got {initial!r}")
+    if not 0.0 <= gap <= h:
+        raise ValueError(f"initial gap must lie in [0, h = {h:g}], got {gap!r}")
+    return x1, v1, gap, u
 

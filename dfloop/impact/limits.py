@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import in_closed_interval, positive
+from .._checks import in_closed_interval, positive, real_array
+from ..errors import DfloopError
 
 __all__ = ["static_limit_frequency", "lower_limit_frequency", "no_impact_frequency", "jump_frequency",
            "beta_of", "omega_of", "beta_lower_limit", "BETA_NO_IMPACT", "BETA_JUMP",
@@ -23,9 +24,10 @@ BETA_JUMP = 1.0         # eq. (12), approximate
 
 
 def _arr(name, value):
-    a = np.asarray(value, dtype=float)
-    if np.any(np.isnan(a)) or np.any(~np.isfinite(a)) or np.any(a <= 0):
-        raise ValueError(f"{name} must be finite and > 0")
+    a = real_array(value, name)
+    bad = ~np.isfinite(a) | (a <= 0)
+    if np.any(bad):
+        raise DfloopError(f"{name} must be finite and > 0, got {float(a[bad].ravel()[0])!r}")
     return a
 
 
@@ -44,7 +46,7 @@ def omega_of(beta, F, m2: float, h: float):
 def static_limit_frequency(F, m1: float, m2: float, h: float):
     """Eq. (5): w_L = sqrt(2 F / (h (M1 + M2))), upper limit of the static (geometric) backlash model."""
     m1, m2, h = positive("m1", m1), positive("m2", m2), positive("h", h)
-    return np.sqrt(2 * _arr("F", F) / (h * (m1 + m2)))
+    return np.sqrt(_arr("F", F)) * math.sqrt(2.0 / (h * (m1 + m2)))
 
 
 def beta_lower_limit(restitution: float) -> float:
@@ -57,19 +59,20 @@ def lower_limit_frequency(F, m2: float, h: float, restitution: float):
     """Eq. (10): w_c ~ [(2 F / (M2 h))^2 (1 - eps)^5]^(1/4), below which the motion is irregular."""
     m2, h = positive("m2", m2), positive("h", h)
     eps = in_closed_interval("restitution", restitution, 0.0, 1.0)
-    return ((2 * _arr("F", F) / (m2 * h)) ** 2 * (1.0 - eps) ** 5) ** 0.25
+    # written as sqrt(F) sqrt(2/(M2 h)) (1 - eps)^(5/4): no intermediate square of F to overflow
+    return np.sqrt(_arr("F", F)) * math.sqrt(2.0 / (m2 * h)) * (1.0 - eps) ** 1.25
 
 
 def no_impact_frequency(F, m2: float, h: float):
     """Eq. (11): w_L = 2 sqrt(F / (h M2)); for w >= w_L the masses never collide (N = 0)."""
     m2, h = positive("m2", m2), positive("h", h)
-    return 2.0 * np.sqrt(_arr("F", F) / (h * m2))
+    return 2.0 * np.sqrt(_arr("F", F)) / math.sqrt(h * m2)
 
 
 def jump_frequency(F, m2: float, h: float):
     """Eq. (12): w_J ~ sqrt(F / (h M2)), the approximate frequency of the jump phenomenon."""
     m2, h = positive("m2", m2), positive("h", h)
-    return np.sqrt(_arr("F", F) / (h * m2))
+    return np.sqrt(_arr("F", F)) / math.sqrt(h * m2)
 
 
 def x2_peak_excursion(F, omega, m2: float):

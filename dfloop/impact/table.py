@@ -7,18 +7,24 @@ varies fast (midpoint-versus-interpolant check against a relative tolerance), br
 between regimes (or in value) by bisection and never interpolates across one. Every interpolated
 value comes with an error estimate (the discrepancy measured by the check that accepted its interval)
 and a validity flag. :class:`Table2D` stacks adaptive 1-D tables (lines) along a second coordinate.
+
+Determinism: a 1-D table is a union of canonical *blocks* [origin + k block_dx, origin + (k+1) block_dx]
+(``TableSettings.origin`` and ``block_dx``). Each block is sampled on its own base grid and refined using
+its own samples only, and interpolation never crosses a block edge, so the value at x depends on x's block
+alone: extending a table (in any order) only adds blocks, never changes existing ones. A sampler may also
+report a per-sample ``spread`` (how far other branches of a non-unique function lie from the value, inf
+for a failed sample): it is added to the error estimate and makes the value invalid.
 """
 from __future__ import annotations
 
 import math
-import sys
 from dataclasses import asdict, dataclass, field
 from typing import Callable
 
 import numpy as np
 from scipy.interpolate import CubicSpline, PchipInterpolator
 
-__all__ = ["Samples", "TableSettings", "Table1D", "Table2D", "TableValues", "stderr_progress"]
+__all__ = ["Samples", "TableSettings", "Table1D", "Table2D", "TableValues"]
 
 IRREGULAR = -1          # regime label used internally for every non-regular sample
 _METHODS = ("linear", "pchip", "cubic")
@@ -37,12 +43,20 @@ class Samples:
         False where the value is not trustworthy as a smooth function (irregular motion).
     extra : dict of str -> array (n,)
         Diagnostics stored with each sample (impact counts, periodicity, ...).
+    spread : float array (n,) or None
+        Distance from ``value`` to the farthest other branch found at the point (0: unique; inf: the
+        sample failed). Where > 0 the table's value is not valid and its error estimate includes it.
+    uncertainty : float array (n,) or None
+        Absolute uncertainty of each sampled value itself (e.g. an unconverged transient); added to the
+        error estimate of the intervals it bounds, without making them invalid.
     """
 
     value: np.ndarray
     regime: np.ndarray
     regular: np.ndarray
     extra: dict = field(default_factory=dict)
+    spread: np.ndarray | None = None
+    uncertainty: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -60,6 +74,11 @@ class TableSettings:
     jump_rel : a failing interval at min_dx whose end values differ by more than jump_rel * scale is a jump.
     method : interpolation inside smooth segments: 'linear', 'pchip' or 'cubic' (not-a-knot spline).
     max_samples : bound on the number of samples; exceeding it raises RuntimeError.
+    probe_dx : widest interval between two regular samples that is accepted without a probe inside it
+        (intervals wider than this are split even when the value check passed, so a regime window wider
+        than probe_dx cannot hide between two samples of the same regime).
+    block_dx : length of the canonical blocks (a multiple of base_dx is best).
+    origin : anchor of the block lattice (x = origin + k block_dx are block edges).
     """
 
     tol: float = 1e-4
@@ -71,9 +90,16 @@ class TableSettings:
     jump_rel: float = 1e-2
     method: str = "cubic"
     max_samples: int = 50_000
+    probe_dx: float = math.inf
+    block_dx: float = 1.0
+    origin: float = 0.0
 
     def __post_init__(self):
-        for name in ("tol", "base_dx", "min_dx", "jump_dx", "edge_dx", "jump_rel"):
+        if not (isinstance(self.probe_dx, (int, float)) and self.probe_dx > 0 and not math.isnan(self.probe_dx)):
+            raise ValueError(f"probe_dx must be a number > 0 (inf: no probes), got {self.probe_dx!r}")
+        if not (isinstance(self.origin, (int, float)) and math.isfinite(self.origin)):
+            raise ValueError(f"origin must be a finite number, got {self.origin!r}")
+        for name in ("tol", "base_dx", "min_dx", "jump_dx", "edge_dx", "jump_rel", "block_dx"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
@@ -99,25 +125,16 @@ class TableValues:
                 f"max_error={float(np.max(self.error, initial=0.0)):.3g})")
 
 
-def stderr_progress(label: str) -> Callable[[int, str], None]:
-    """A progress callback printing one updating line on stderr: ``label: <n> samples (<stage>)``."""
-    def report(n: int, stage: str) -> None:
-        sys.stderr.write(f"\r{label}: {n} samples ({stage})\x1b[K")
-        if stage == "done":
-            sys.stderr.write("\n")
-        sys.stderr.flush()
-    return report
-
-
 def _regime_key(regime: np.ndarray, regular: np.ndarray) -> np.ndarray:
     return np.where(regular, regime, IRREGULAR).astype(np.int64)
 
 
 class Table1D:
-    """Adaptive table of a complex function of one variable x over a growing window [lo, hi].
+    """Adaptive table of a complex function of one variable x over a growing union of canonical blocks.
 
     Build with :meth:`build`; grow with :meth:`extend`; evaluate with :meth:`evaluate`.
     ``n_sampled`` counts every sampler evaluation made by this object (0 for a table loaded from disk).
+    Adjacent blocks share their edge x, sampled once in each (``block`` says which block a sample is in).
     """
 
     def __init__(self, settings: TableSettings | None = None):
@@ -126,6 +143,9 @@ class Table1D:
         self.value = np.empty(0, dtype=complex)
         self.regime = np.empty(0, dtype=np.int64)
         self.regular = np.empty(0, dtype=bool)
+        self.spread = np.empty(0)
+        self.uncertainty = np.empty(0)
+        self.block = np.empty(0, dtype=np.int64)
         self.extra: dict[str, np.ndarray] = {}
         # per interval (len n - 1)
         self.err = np.empty(0)          # absolute error estimate of the interpolant on the interval
@@ -137,11 +157,11 @@ class Table1D:
     # ------------------------------------------------------------------ building
     @classmethod
     def build(cls, sampler: Callable[[np.ndarray], Samples], lo: float, hi: float,
-              settings: TableSettings | None = None, progress: Callable[[int, str], None] | None = None
-              ) -> "Table1D":
-        """Tabulate ``sampler`` over [lo, hi] (x units), refined to ``settings.tol``."""
+              settings: TableSettings | None = None, progress: Callable[[int, str], None] | None = None,
+              checkpoint: Callable[[], None] | None = None) -> "Table1D":
+        """Tabulate ``sampler`` over the blocks covering [lo, hi] (x units), refined to ``settings.tol``."""
         table = cls(settings)
-        table.extend(sampler, lo, hi, progress)
+        table.extend(sampler, lo, hi, progress, checkpoint)
         return table
 
     @property
@@ -152,37 +172,89 @@ class Table1D:
     def hi(self) -> float:
         return float(self.x[-1]) if self.x.size else math.nan
 
+    def blocks_for(self, lo: float, hi: float) -> np.ndarray:
+        """Indices of the canonical blocks that cover [lo, hi]."""
+        st = self.settings
+        k_lo = math.floor((lo - st.origin) / st.block_dx + 1e-12)
+        k_hi = max(math.ceil((hi - st.origin) / st.block_dx - 1e-12), k_lo + 1)
+        return np.arange(k_lo, k_hi, dtype=np.int64)
+
+    def missing_blocks(self, lo: float, hi: float) -> np.ndarray:
+        """Blocks covering [lo, hi] that this table does not hold yet."""
+        need = self.blocks_for(lo, hi)
+        return need[~np.isin(need, self.block)]
+
     def covers(self, lo: float, hi: float) -> bool:
-        return bool(self.x.size) and self.x[0] <= lo and hi <= self.x[-1]
+        return bool(self.x.size) and self.missing_blocks(lo, hi).size == 0
 
     def extend(self, sampler: Callable[[np.ndarray], Samples], lo: float, hi: float,
-               progress: Callable[[int, str], None] | None = None) -> None:
-        """Grow the table to cover [lo, hi] (base grid on the new part), then refine."""
+               progress: Callable[[int, str], None] | None = None,
+               checkpoint: Callable[[], None] | None = None) -> None:
+        """Add the missing canonical blocks covering [lo, hi], each built and refined on its own.
+
+        ``checkpoint()``, if given, is called after every finished block (e.g. to save the table).
+        """
         lo, hi = float(lo), float(hi)
         if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
             raise ValueError(f"table window must satisfy lo < hi (finite), got ({lo}, {hi})")
-        dx = self.settings.base_dx
-        if not self.x.size:
-            n = max(2, int(math.ceil((hi - lo) / dx)) + 1)
-            new = np.linspace(lo, hi, n)
-        else:
-            parts = []
-            if lo < self.x[0]:
-                n = max(1, int(math.ceil((self.x[0] - lo) / dx)))
-                parts.append(np.linspace(lo, self.x[0], n + 1)[:-1])
-            if hi > self.x[-1]:
-                n = max(1, int(math.ceil((hi - self.x[-1]) / dx)))
-                parts.append(np.linspace(self.x[-1], hi, n + 1)[1:])
-            if not parts:
-                return
-            new = np.concatenate(parts)
-        self._insert(new, self._sample(sampler, new, progress, "base grid"))
-        self._refine(sampler, progress)
+        st = self.settings
+        n_base = max(1, int(round(st.block_dx / st.base_dx)))
+        for k in self.missing_blocks(lo, hi):
+            a, b = st.origin + k * st.block_dx, st.origin + (k + 1) * st.block_dx   # shared edges, exactly
+            part = Table1D(st)
+            part.n_sampled = self.n_sampled
+            x = np.linspace(a, b, n_base + 1)
+            x[0], x[-1] = a, b
+            part._insert(x, part._sample(sampler, x, progress, f"block {k}: base grid", self.x.size))
+            part._refine(sampler, progress, self.x.size)
+            part.block = np.full(part.x.size, k, dtype=np.int64)
+            self.n_sampled = part.n_sampled
+            self._merge(part)
+            if checkpoint is not None:
+                checkpoint()
+        if progress is not None:
+            progress(self.n_sampled, "done")
 
-    def _sample(self, sampler, x, progress, stage) -> Samples:
-        if self.x.size + x.size > self.settings.max_samples:
+    def _merge(self, part: "Table1D") -> None:
+        """Add a finished block; a zero-width interval joins it to an adjacent block (a seam, no jump)."""
+        names = ("x", "value", "regime", "regular", "spread", "uncertainty", "block")
+        cat = {n: np.concatenate([getattr(self, n), getattr(part, n)]) for n in names}
+        order = np.lexsort((cat["block"], cat["x"]))
+        n_self = self.x.size
+        keys = set(self.extra) | set(part.extra)
+        extra = {}
+        for k in keys:
+            a = self.extra.get(k, np.full(n_self, np.nan))
+            b = part.extra.get(k, np.full(part.x.size, np.nan))
+            extra[k] = np.concatenate([a, b])[order]
+        # interval attributes travel with their left sample; seams (block changes) get (0, checked, no jump)
+        def right_attr(src, name, fill):
+            out = np.full(src.x.size, fill, dtype=getattr(src, name).dtype)
+            out[:-1] = getattr(src, name)
+            return out
+
+        blk = cat["block"][order]
+        seam = blk[:-1] != blk[1:]
+        attrs = []
+        for name, fill in (("err", 0.0), ("checked", True), ("value_jump", False)):
+            a = np.concatenate([right_attr(self, name, fill), right_attr(part, name, fill)])[order][:-1]
+            a[seam] = fill
+            attrs.append(a)
+        for n in names:
+            setattr(self, n, cat[n][order])
+        self.extra = extra
+        self.err, self.checked, self.value_jump = attrs
+        self._segments = None
+
+    def seams(self) -> np.ndarray:
+        """Boolean per interval: True for the zero-width joints between blocks."""
+        return self.block[:-1] != self.block[1:]
+
+    def _sample(self, sampler, x, progress, stage, offset: int = 0) -> Samples:
+        if offset + self.x.size + x.size > self.settings.max_samples:
             raise RuntimeError(f"table bound max_samples={self.settings.max_samples} reached "
-                               f"(tolerance {self.settings.tol:g} too tight or window too wide)")
+                               f"(tolerance {self.settings.tol:g} too tight or window too wide): raise "
+                               f"TableSettings.max_samples")
         s = sampler(x)
         value = np.asarray(s.value, dtype=complex).reshape(x.shape)
         if not np.all(np.isfinite(value)):
@@ -190,9 +262,11 @@ class Table1D:
         self.n_sampled += x.size
         if progress is not None:
             progress(self.n_sampled, stage)
+        spread, unc = (np.zeros(x.shape) if a is None else np.asarray(a, dtype=float).reshape(x.shape)
+                       for a in (s.spread, s.uncertainty))
         return Samples(value, np.asarray(s.regime, dtype=np.int64).reshape(x.shape),
                        np.asarray(s.regular, dtype=bool).reshape(x.shape),
-                       {k: np.asarray(v).reshape(x.shape) for k, v in s.extra.items()})
+                       {k: np.asarray(v).reshape(x.shape) for k, v in s.extra.items()}, spread, unc)
 
     def _insert(self, xn: np.ndarray, s: Samples, err=None, checked=None, value_jump=None) -> None:
         """Insert samples; new intervals get (err, checked, value_jump) pairs (left, right) if given."""
@@ -203,6 +277,9 @@ class Table1D:
         self.value = np.concatenate([self.value, s.value])[order]
         self.regime = np.concatenate([self.regime, s.regime])[order]
         self.regular = np.concatenate([self.regular, s.regular])[order]
+        self.spread = np.concatenate([self.spread, s.spread])[order]
+        self.uncertainty = np.concatenate([self.uncertainty, s.uncertainty])[order]
+        self.block = np.zeros(self.x.size, dtype=np.int64)
         keys = set(self.extra) | set(s.extra)
         for k in keys:
             old = self.extra.get(k, np.full(n_old, np.nan))
@@ -238,7 +315,7 @@ class Table1D:
         key = _regime_key(self.regime, self.regular)
         return (key[:-1] != key[1:]) | self.value_jump
 
-    def _refine(self, sampler, progress) -> None:
+    def _refine(self, sampler, progress, offset: int = 0) -> None:
         st = self.settings
         max_gen = 2 * int(math.ceil(math.log2(max(self.x[-1] - self.x[0], st.jump_dx) / st.jump_dx))) + 16
         for generation in range(max_gen):
@@ -261,7 +338,8 @@ class Table1D:
                 self._reopen_neighbours(new_vj)
                 jump = self.jumps()
                 smooth = ~jump & self.regular[:-1] & self.regular[1:]
-            check = np.flatnonzero(smooth & ~self.checked)
+            # unchecked intervals, and regime probes inside accepted ones wider than probe_dx
+            check = np.flatnonzero(smooth & (~self.checked | (width > st.probe_dx)))
             # value jumps between regular samples are bracketed to jump_dx; edges of irregular regions and
             # regime changes with a continuous value (bifurcations) only to edge_dx
             dv = np.abs(np.diff(self.value))
@@ -273,7 +351,7 @@ class Table1D:
             idx = np.concatenate([check, bisect])
             xm = 0.5 * (self.x[idx] + self.x[idx + 1])
             predicted = self._interpolate(xm[:check.size], check)
-            s = self._sample(sampler, xm, progress, f"refine {generation}")
+            s = self._sample(sampler, xm, progress, f"refine {generation}", offset)
             err = np.empty((idx.size, 2))
             checked = np.zeros((idx.size, 2), dtype=bool)
             vj = np.zeros((idx.size, 2), dtype=bool)
@@ -299,8 +377,6 @@ class Table1D:
         else:
             raise RuntimeError(f"table refinement bound of {max_gen} generations reached")
         self._segments = None
-        if progress is not None:
-            progress(self.n_sampled, "done")
 
     def _reopen_neighbours(self, new_jump: np.ndarray, reach: int = 2) -> None:
         for i in np.flatnonzero(new_jump):
@@ -318,7 +394,7 @@ class Table1D:
     # ------------------------------------------------------------------ evaluation
     def _segment_ids(self):
         if self._segments is None:
-            breaks = self.jumps()
+            breaks = self.jumps() | self.seams()      # interpolation never crosses a jump or a block edge
             self._segments = (np.concatenate([[0], np.cumsum(breaks)]), breaks, {})
         return self._segments
 
@@ -373,8 +449,11 @@ class Table1D:
             raise ValueError(f"table query [{flat.min():.6g}, {flat.max():.6g}] outside the table window "
                              f"[{self.x[0]:.6g}, {self.x[-1]:.6g}]: extend the table first")
         i = np.clip(np.searchsorted(self.x, flat, side="right") - 1, 0, self.x.size - 2)
-        _, breaks, _ = self._segment_ids()
-        jump = breaks[i]
+        gap = np.diff(self.block) > 1                  # two blocks with missing ones between them
+        if np.any(gap[i]):
+            raise ValueError(f"table query at x = {flat[gap[i]][0]:.6g} falls between two blocks that were "
+                             f"built apart: extend the table over it first")
+        jump = self.jumps()[i]
         value = np.empty(flat.size, dtype=complex)
         err = np.empty(flat.size)
         smooth = ~jump
@@ -384,8 +463,11 @@ class Table1D:
         nearer = np.where(flat[jump] - self.x[ij] <= self.x[ij + 1] - flat[jump], ij, ij + 1)
         value[jump] = self.value[nearer]
         err[jump] = np.abs(self.value[ij + 1] - self.value[ij])
+        # other branches found at the ends (non-unique N) or failed samples: in the error, and not valid
+        spread = np.maximum(self.spread[i], self.spread[i + 1])
+        err = err + spread + np.maximum(self.uncertainty[i], self.uncertainty[i + 1])
         key = _regime_key(self.regime, self.regular)
-        valid = smooth & self.regular[i] & self.regular[i + 1]
+        valid = smooth & self.regular[i] & self.regular[i + 1] & (spread == 0)
         regime = key[i]
         regime[jump] = key[nearer]
         shape = q.shape
@@ -395,6 +477,7 @@ class Table1D:
     def to_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
         """The table's state as named arrays (for :mod:`dfloop.impact.cache`)."""
         arrays = {"x": self.x, "value": self.value, "regime": self.regime, "regular": self.regular,
+                  "spread": self.spread, "uncertainty": self.uncertainty, "block": self.block,
                   "err": self.err, "checked": self.checked, "value_jump": self.value_jump}
         arrays.update({f"extra.{k}": v for k, v in self.extra.items()})
         return {prefix + k: v for k, v in arrays.items()}
@@ -402,7 +485,8 @@ class Table1D:
     @classmethod
     def from_arrays(cls, arrays: dict[str, np.ndarray], settings: TableSettings, prefix: str = "") -> "Table1D":
         table = cls(settings)
-        for name in ("x", "value", "regime", "regular", "err", "checked", "value_jump"):
+        for name in ("x", "value", "regime", "regular", "spread", "uncertainty", "block", "err", "checked",
+                     "value_jump"):
             setattr(table, name, np.asarray(arrays[prefix + name]))
         table.extra = {k[len(prefix) + 6:]: np.asarray(v) for k, v in arrays.items()
                        if k.startswith(prefix + "extra.")}
@@ -411,7 +495,8 @@ class Table1D:
     def __repr__(self) -> str:
         if not self.x.size:
             return "Table1D(empty)"
-        return (f"Table1D(x=[{self.lo:.4g}, {self.hi:.4g}], samples={self.x.size}, "
+        return (f"Table1D(x=[{self.lo:.4g}, {self.hi:.4g}], blocks={np.unique(self.block).size}, "
+                f"samples={self.x.size}, "
                 f"jumps={int(np.count_nonzero(self.jumps()))}, regular={int(np.count_nonzero(self.regular))}, "
                 f"method={self.settings.method!r}, tol={self.settings.tol:g})")
 

@@ -3,9 +3,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._labels import FREQUENCY, TIME, legend
+
 __all__ = ["plot_time_response", "plot_collision_map"]
 
-_LABELS = {"x1": "x1 (m)", "x2": "x2 (m)", "v1": "dx1/dt (m/s)", "v2": "dx2/dt (m/s)", "gap": "x2 - x1 (m)"}
+_LABELS = {"x1": "Position x1 [m]", "x2": "Position x2 [m]", "v1": "Velocity dx1/dt [m/s]",
+           "v2": "Velocity dx2/dt [m/s]", "gap": "Gap x2 - x1 [m]"}
 
 
 def plot_time_response(traj, quantity: str = "v1", ax=None, t_range=None, samples: int = 4000):
@@ -54,7 +57,7 @@ def plot_time_response(traj, quantity: str = "v1", ax=None, t_range=None, sample
     y_plot = np.insert(y_plot, idx, np.nan)
     p = traj.params
     ax.plot(t_plot, y_plot, lw=0.8, label=f"eps = {p.restitution:g}, w = {p.omega:g} rad/s")
-    ax.set_xlabel("t (s)")
+    ax.set_xlabel(TIME)
     ax.set_ylabel(_LABELS[quantity])
     return ax
 
@@ -98,7 +101,7 @@ def plot_collision_map(m1: float, m2: float, h: float, force: float, omega, rest
         irregular = ~res.regular
         ax.plot(w[~irregular], runs[~irregular], "o", ms=3, color=line.get_color())
         ax.plot(w[irregular], runs[irregular], "o", ms=4, mfc="none", color=line.get_color())
-    ax.set_xlabel("omega (rad/s)")
-    ax.set_ylabel(f"n_{side}: consecutive collisions on side {side}")
-    ax.legend()
+    ax.set_xlabel(FREQUENCY)
+    ax.set_ylabel(f"Consecutive collisions on side {side}, n_{side}")
+    legend(ax)
     return ax

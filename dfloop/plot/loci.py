@@ -4,6 +4,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..describing.base import DescribingFunction, negative_inverse
+from ._curves import add_direction_arrow, curve_with_gaps
+from ._labels import IMAG, REAL, legend
 
 __all__ = ["plot_loci", "default_amplitudes"]
 
@@ -24,11 +26,14 @@ def default_amplitudes(N: DescribingFunction, n: int = 300) -> np.ndarray:
 
 
 def plot_loci(N: DescribingFunction, amplitudes=None, omega=None, ax=None, **kw):
-    """Draw -1/N in the complex plane and return the axes.
+    """Draw -1/N in the complex plane (python-control's Nyquist conventions) and return what was drawn.
 
     Amplitude-only elements: one curve over ``amplitudes`` (default :func:`default_amplitudes`).
     Frequency-dependent elements: one curve per amplitude over ``omega`` (rad/s), both required, as in
-    the paper's Fig. 3. Points where N = 0 (outside the domain, -1/N infinite) are left out.
+    the paper's Fig. 3. Points where N = 0 (outside the domain, -1/N infinite) are left out, and every
+    curve breaks at jumps of N (located by bisection) instead of bridging them. An arrow on each curve
+    points the way of increasing amplitude (increasing frequency for the family), and the point -1
+    (N = 1) is marked with a red "+".
 
     Parameters
     ----------
@@ -44,29 +49,33 @@ def plot_loci(N: DescribingFunction, amplitudes=None, omega=None, ax=None, **kw)
 
     Returns
     -------
-    matplotlib.axes.Axes
+    control.ControlPlot
+        ``lines``: [the -1/N curves (Line2D)], [the -1 marker]; ``axes[0, 0]``, ``figure``.
     """
     import matplotlib.pyplot as plt
 
+    from .nyquist import _control_plot
+
     if ax is None:
         _, ax = plt.subplots()
+    curves = []
     if N.frequency_dependent:
         if amplitudes is None or omega is None:
             raise ValueError("amplitudes and omega are required for a frequency-dependent N")
-        w = np.asarray(omega, dtype=float).ravel()
+        w = np.sort(np.asarray(omega, dtype=float).ravel())
         for A in np.atleast_1d(np.asarray(amplitudes, dtype=float)):
-            z = negative_inverse(N, A, w)
-            keep = np.isfinite(z)
+            _, z = curve_with_gaps(lambda x, A=A: negative_inverse(N, A, x), w)
             label = f"{N.input_name} = {A:g} {N.input_unit}".rstrip()
-            ax.plot(z.real[keep], z.imag[keep], label=label, **kw)
-        ax.legend()
+            curves += ax.plot(z.real, z.imag, label=label, **kw)
     else:
-        A = default_amplitudes(N) if amplitudes is None else np.asarray(amplitudes, dtype=float).ravel()
-        z = negative_inverse(N, A)
-        keep = np.isfinite(z)
-        ax.plot(z.real[keep], z.imag[keep], label=f"-1/N({N.input_name})", **kw)
-    ax.set_xlabel("Re{-1/N}")
-    ax.set_ylabel("Im{-1/N}")
+        A = default_amplitudes(N) if amplitudes is None else np.sort(np.asarray(amplitudes, dtype=float).ravel())
+        _, z = curve_with_gaps(lambda a: negative_inverse(N, a), A)
+        curves += ax.plot(z.real, z.imag, label=f"-1/N({N.input_name})", **kw)
+    critical = ax.plot([-1.0], [0.0], "r+", ms=10, mew=1.5, label="-1")
+    ax.set_xlabel(REAL)
+    ax.set_ylabel(IMAG)
     ax.axhline(0.0, color="0.8", lw=0.5)
     ax.axvline(0.0, color="0.8", lw=0.5)
-    return ax
+    for line in curves:
+        add_direction_arrow(ax, line.get_xdata() + 1j * line.get_ydata(), line.get_color())
+    return _control_plot([curves, critical], ax, legend(ax))

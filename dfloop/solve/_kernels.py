@@ -6,7 +6,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["edge_steps", "nonzero_windings", "tangent_seeds"]
+__all__ = ["edge_steps", "nonzero_windings", "tangent_seeds", "candidate_cells"]
 
 _TWO_PI = 2.0 * math.pi
 
@@ -76,17 +76,47 @@ def nonzero_windings(ph_a, ph_v):
 
 
 @njit(cache=True)
-def tangent_seeds(P, ci, cj, threshold):
+def candidate_cells(ln_n, eps_a, ln_g, eps_v):
+    """Cells (i, j) of the tensor grid that may hold a root of 1 + G N (amplitude-only N).
+
+    ln_n, ln_g: complex logs of N at the amplitude nodes and of G at the frequency nodes; eps_a, eps_v:
+    bounds on the change of those logs within each interval (from its left node). A root needs
+    ln(N G) = j pi (mod 2 pi j), so the cell is kept iff |ln(N_i G_j) - j pi| (phase wrapped) is at most
+    eps_a[i] + eps_v[j]. Returns index arrays (i, j), sorted by i then j.
+    """
+    ci, cj = [0], [0]
+    ci.pop(), cj.pop()
+    for i in range(ln_n.size - 1):
+        ea = eps_a[i]
+        for j in range(ln_g.size - 1):
+            re = ln_n[i].real + ln_g[j].real
+            e = ea + eps_v[j]
+            if abs(re) > e:
+                continue
+            im = _wrap(ln_n[i].imag + ln_g[j].imag - math.pi)  # args in (-pi, pi]: one wrap suffices
+            if re * re + im * im <= e * e:
+                ci.append(i)
+                cj.append(j)
+    return np.array(ci, dtype=np.int64), np.array(cj, dtype=np.int64)
+
+
+@njit(cache=True)
+def tangent_seeds(P, ci, cj, threshold, allowed):
     """Grid nodes where m = |1 + P|^2 / (1 + |P|^2) (scale-free, 0 only at roots) is a local minimum
     (8 neighbours) below ``threshold``, excluding nodes within one node of a cell of non-zero winding
-    (cells ci, cj)."""
+    (cells ci, cj) and nodes where ``allowed`` is False."""
     na, nv = P.shape
-    m = np.empty((na, nv))
+    m = np.full((na, nv), np.inf)  # filled only around allowed nodes (all a local-minimum test reads)
     for i in range(na):
         for j in range(nv):
-            pr, pi = P[i, j].real, P[i, j].imag
-            q = pr * pr + pi * pi
-            m[i, j] = (q + 2.0 * pr + 1.0) / (1.0 + q)
+            if not allowed[i, j]:
+                continue
+            for ii in range(max(i - 1, 0), min(i + 2, na)):
+                for jj in range(max(j - 1, 0), min(j + 2, nv)):
+                    if m[ii, jj] == np.inf:
+                        pr, pi = P[ii, jj].real, P[ii, jj].imag
+                        q = pr * pr + pi * pi
+                        m[ii, jj] = (q + 2.0 * pr + 1.0) / (1.0 + q)
     explained = np.zeros((na, nv), dtype=np.bool_)
     for k in range(ci.size):
         for i in range(max(ci[k] - 1, 0), min(ci[k] + 3, na)):
@@ -97,7 +127,7 @@ def tangent_seeds(P, ci, cj, threshold):
     for i in range(na):
         for j in range(nv):
             x = m[i, j]
-            if x >= threshold or explained[i, j]:
+            if x >= threshold or explained[i, j] or not allowed[i, j]:
                 continue
             is_min = True
             for di in range(-1, 2):

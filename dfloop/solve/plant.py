@@ -5,6 +5,7 @@ where the response has features (lightly damped poles and zeros), so the solver'
 """
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -40,18 +41,65 @@ class Plant:
     feature_frequencies: np.ndarray = field(default_factory=lambda: np.empty(0))
     domain: tuple[float, float] = (0.0, np.inf)
     lti: object = None
+    roots: tuple[np.ndarray, np.ndarray] | None = None
 
     def __call__(self, omega) -> np.ndarray:
-        """G(j omega) as a complex array; raises ValueError if G is NaN or infinite anywhere."""
+        """G(j omega) as a complex array; raises ValueError if G is NaN or infinite anywhere, or if a
+        callable returns an array of the wrong shape."""
         w = np.asarray(omega, dtype=float)
-        g = np.asarray(self.response(w), dtype=complex)
+        try:
+            g = np.asarray(self.response(w), dtype=complex)
+        except (TypeError, ValueError) as exc:
+            if "omega outside" in str(exc):
+                raise
+            raise ValueError(f"G(omega) must return complex numbers for an array omega; it raised {exc!r}") from None
         if g.shape != w.shape:
-            g = np.broadcast_to(g, w.shape) if g.size == 1 else g.reshape(w.shape)
+            if g.size != 1:
+                raise ValueError(f"G(omega) must return an array of the same shape as omega; got shape {g.shape} "
+                                 f"for omega of shape {w.shape}")
+            g = np.broadcast_to(g, w.shape)
         bad = ~np.isfinite(g)
         if bad.any():
             w_bad = w[bad].flat[0]
             raise ValueError(f"G(jw) is not finite (NaN or pole on the imaginary axis) at omega={w_bad:g} rad/s")
         return g
+
+    @property
+    def exact(self) -> bool:
+        """True when G is rational with known poles and zeros (then its variation is known exactly)."""
+        return self.roots is not None
+
+    def log_slope(self, omega) -> np.ndarray:
+        """d ln G / d ln w = sum_z jw / (jw - z) - sum_p jw / (jw - p) (exact; rational G only)."""
+        zeros, poles = self.roots
+        s = 1j * np.asarray(omega, float)[..., None]
+        return (s / (s - zeros)).sum(axis=-1) - (s / (s - poles)).sum(axis=-1)
+
+    def log_variation(self, w0, w1) -> np.ndarray:
+        """Upper bound on |ln G(w) - ln G(w0)| for every w in [w0, w1] (rational G only).
+
+        Each factor (jw - r), r = x + jy, moves along a vertical line as w grows: its argument turns
+        monotonically, by exactly atan2(x (w1 - w0), x^2 + (w0 - y)(w1 - y)), and ln|jw - r| has one
+        minimum (at w = y). So the change of arg G over the interval lies between the sums of the
+        negative and of the positive turns (zeros count +, poles -), the change of ln|G| likewise between
+        the sums of the decreases and increases; the bound is the hypotenuse of the two extremes.
+        Infinite when a zero lies on the interval of the imaginary axis.
+        """
+        zeros, poles = self.roots
+        r = np.concatenate([zeros, poles])
+        sign = np.concatenate([np.ones(zeros.size), -np.ones(poles.size)])
+        w0, w1 = np.asarray(w0, float)[..., None], np.asarray(w1, float)[..., None]
+        x, y = -r.real, r.imag  # jw - r = x + j (w - y)
+        turn = sign * np.arctan2(x * (w1 - w0), x * x + (w0 - y) * (w1 - y))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            m0, m1 = 0.5 * np.log(x * x + (w0 - y) ** 2), 0.5 * np.log(x * x + (w1 - y) ** 2)
+            inside = (w0 < y) & (y < w1)
+            low = np.where(inside, np.log(np.abs(x)), np.minimum(m0, m1))
+            up, down = m1 - low, m0 - low  # total rise and fall of ln|jw - r| on the interval
+            rise = np.where(sign > 0, up, down).sum(axis=-1)
+            fall = np.where(sign > 0, down, up).sum(axis=-1)
+        arg = np.maximum(np.where(turn > 0, turn, 0).sum(axis=-1), -np.where(turn < 0, turn, 0).sum(axis=-1))
+        return np.hypot(arg, np.maximum(rise, fall))
 
 
 def _check_siso(sys) -> None:
@@ -85,16 +133,21 @@ def _from_tf(sys) -> Plant:
     import control as ct
 
     tf = sys if isinstance(sys, ct.TransferFunction) else ct.tf(sys)
-    num = np.asarray(tf.num[0][0], dtype=float)
-    den = np.asarray(tf.den[0][0], dtype=float)
+    num, den = (np.asarray(x, dtype=float) for x in (tf.num[0][0], tf.den[0][0]))
+    num, den = (x[np.argmax(x != 0):] if np.any(x) else x[:0] for x in (num, den))  # leading zeros off
+    if num.size == 0:
+        raise ValueError("G is zero (its numerator is 0): no loop, no limit cycle")
+    if num.size > den.size:
+        raise ValueError(f"G must be proper (numerator degree <= denominator degree); got degrees "
+                         f"{num.size - 1} > {den.size - 1}")
 
     def response(w):
         s = 1j * w
         return np.polyval(num, s) / np.polyval(den, s)
 
-    roots = np.concatenate([np.roots(den), np.roots(num)]) if num.size > 1 else np.roots(den)
-    features, window = _feature_grid(roots)
-    return Plant(response, window, features, lti=sys)
+    zeros, poles = np.roots(num), np.roots(den)
+    features, window = _feature_grid(np.concatenate([poles, zeros]))
+    return Plant(response, window, features, lti=sys, roots=(zeros, poles))
 
 
 def _from_frd(sys) -> Plant:
@@ -127,10 +180,7 @@ def as_plant(G) -> Plant:
     """
     if isinstance(G, Plant):
         return G
-    try:
-        import control as ct
-    except ImportError:  # pragma: no cover - control is a dependency
-        ct = None
+    ct = sys.modules.get("control")  # an LTI exists only once python-control is imported
     if ct is not None and isinstance(G, ct.LTI):
         _check_siso(G)
         if isinstance(G, ct.FrequencyResponseData):

@@ -1,23 +1,29 @@
 """``predict_limit_cycles``: all roots of 1 + G(jw) N(A, w) = 0 in an (A, w) window, with stability."""
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 import warnings
 
 import numpy as np
 
+from .._checks import finite
+from ..describing.interop import as_element
+from ._kernels import candidate_cells
+from .grid import FD_MIN_WIDTH, STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
 from .plant import as_plant
-from .result import JumpCrossing, LimitCycle, LimitCycles
-from .roots import _JUMP_BOX, Residual, dominant_steps, find_roots
-from .stability import MARGINAL_TOL, loeb
+from .result import GridReport, JumpCrossing, LimitCycle, LimitCycles
+from .roots import _JUMP_BOX, Residual, dominant_steps, find_roots, greedy_unique
+from .stability import MARGINAL_TOL, classify
 
 __all__ = ["predict_limit_cycles"]
 
 _MAX_REFINE_ROUNDS = 30
-_MAX_GRID = 50_000  # points per axis
-_MAX_GRID_POINTS = 4_000_000
+_MAX_GRID = 1_000_000  # points per axis of the initial grid
 _MIN_LOG_STEP = 1e-6  # grid intervals narrower than this (in ln A or ln w) are not split further
-_PHASE_STEP = np.pi / 3  # max turn of arg G, arg N (per half interval) or arg(G N) between neighbours
+_FD_ROWS = 16  # amplitudes (frequencies) at which a frequency-dependent N is resolved along w (A)
+_PHASE_STEP = np.pi / 3  # max turn of arg(G N) between neighbours (frequency-dependent N)
 _NEAR_UNIT = math.log(20.0)  # "near 1": 1/20 <= |G N| <= 20
 
 
@@ -42,6 +48,7 @@ def _grid_size(grid) -> tuple[int, int]:
         raise ValueError(f"grid must be a pair (n_amplitudes, n_frequencies); got {grid!r}") from None
     if na < 2 or nw < 2 or na > _MAX_GRID or nw > _MAX_GRID:
         raise ValueError(f"grid sizes must lie in [2, {_MAX_GRID}]; got {grid!r}")
+    check_memory(na, nw)
     return na, nw
 
 
@@ -56,17 +63,28 @@ def _amplitude_domain(N, v: np.ndarray) -> tuple[float, float]:
 def _default_amplitude_window(res: Residual, v: np.ndarray, dom: tuple[float, float]):
     """Amplitudes where |G N| = 1 can hold for some w of the window (the only place for roots)."""
     lo, hi = dom
-    cand = lo * (1 + np.logspace(-9, 8, 171)) if lo > 0 else np.logspace(-12, 12, 241)
+    cand = lo * (1 + np.logspace(-9, 8, 171)) if lo > 0 else np.logspace(-30, 30, 601)
     if math.isfinite(hi):
         cand = np.concatenate([cand, hi * (1 - np.logspace(-9, -0.3, 88))])
     cand = np.unique(cand[(cand > lo) & (cand < hi)])
-    P = res.grid(np.log(cand), v)
-    if not np.any(P):
-        raise ValueError("N is zero everywhere in its amplitude domain: no limit cycle is possible")
-    M = np.abs(P)
-    band = np.any((M >= 0.5) & (M <= 2.0), axis=1)
-    cross = np.any((M[1:] - 1) * (M[:-1] - 1) < 0, axis=1)
-    varying = np.any(np.abs(np.diff(P, axis=0)) > 1e-9 * np.abs(P[:-1]), axis=1)
+    if res.frequency_dependent:
+        P = res.grid(np.log(cand), v)
+        if not np.any(P):
+            raise ValueError("N is zero everywhere in its amplitude domain: no limit cycle is possible")
+        M = np.abs(P)
+        band = np.any((M >= 0.5) & (M <= 2.0), axis=1)
+        cross = np.any((M[1:] - 1) * (M[:-1] - 1) < 0, axis=1)
+        varying = np.any(np.abs(np.diff(P, axis=0)) > 1e-9 * np.abs(P[:-1]), axis=1)
+    else:  # |G N| = |N| |G| and |G| takes every value between its extremes over the window
+        n = res.N(cand)
+        if not np.any(n):
+            raise ValueError("N is zero everywhere in its amplitude domain: no limit cycle is possible")
+        g = np.abs(res.plant(np.exp(v)))
+        g_lo, g_hi = g.min(), g.max()
+        m = np.abs(n)
+        band = (m * g_lo <= 2.0) & (m * g_hi >= 0.5)
+        cross = (np.minimum(m[1:], m[:-1]) * g_lo <= 1.0) & (np.maximum(m[1:], m[:-1]) * g_hi >= 1.0)
+        varying = np.abs(np.diff(n)) > 1e-9 * np.abs(n[:-1])
     rows = np.zeros(cand.size, bool)
     rows[:-1] |= (band[:-1] | cross) & varying
     rows[1:] |= (band[1:] | cross) & varying
@@ -94,34 +112,9 @@ def _split_mask(P: np.ndarray, axis: int, x: np.ndarray) -> np.ndarray:
     return np.any(bad, axis=1) & (np.diff(x) > _MIN_LOG_STEP)
 
 
-def _resolve_axis(f, x: np.ndarray) -> np.ndarray:
-    """Insert midpoints until arg f turns by at most pi/6 from each point to the next midpoint and on
-    to the next point (the midpoint test guards against whole turns between samples; bounded)."""
-    for _ in range(_MAX_REFINE_ROUNDS):
-        mid = (x[:-1] + x[1:]) / 2
-        fx, fm = f(x), f(mid)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t1 = np.abs(np.angle(fm / fx[:-1]))
-            t2 = np.abs(np.angle(fx[1:] / fm))
-        zero = (fx[:-1] == 0) | (fx[1:] == 0) | (fm == 0)
-        split = ~zero & ((t1 > _PHASE_STEP) | (t2 > _PHASE_STEP)) & (np.diff(x) > _MIN_LOG_STEP)
-        if not split.any():
-            return x
-        x = np.sort(np.concatenate([x, mid[split]]))
-        if x.size > _MAX_GRID:
-            raise RuntimeError(f"grid refinement exceeded max_grid={_MAX_GRID} points per axis; "
-                               "narrow the omega or amplitude window")
-    raise RuntimeError(f"grid refinement did not settle within max_rounds={_MAX_REFINE_ROUNDS}")
-
-
 def _resolve_grid(res: Residual, a: np.ndarray, v: np.ndarray):
-    """Refine the grid: first each factor on its own axis (G along w; N along A when amplitude-only,
-    which then also resolves arg(G N) = arg G + arg N), else G N on the tensor grid where |G N| is
-    near 1 (bounded)."""
-    v = _resolve_axis(lambda x: res.plant(np.exp(x)), v)
-    if not res.frequency_dependent:
-        a = _resolve_axis(lambda x: res.N(np.exp(x)), a)
-        return a, v, res.grid(a, v)
+    """Refine a tensor grid whose v axis already resolves G, for a frequency-dependent N: G N sampled
+    on the grid, intervals split where arg(G N) turns fast while |G N| is near 1 (bounded)."""
     for _ in range(_MAX_REFINE_ROUNDS):
         P = res.grid(a, v)
         split_a, split_v = _split_mask(P, 0, a), _split_mask(P, 1, v)
@@ -129,30 +122,27 @@ def _resolve_grid(res: Residual, a: np.ndarray, v: np.ndarray):
             return a, v, P
         a = np.sort(np.concatenate([a, (a[:-1] + a[1:])[split_a] / 2]))
         v = np.sort(np.concatenate([v, (v[:-1] + v[1:])[split_v] / 2]))
-        if a.size > _MAX_GRID or v.size > _MAX_GRID or a.size * v.size > _MAX_GRID_POINTS:
-            raise RuntimeError(f"grid refinement exceeded max_grid={_MAX_GRID} points per axis or "
-                               f"{_MAX_GRID_POINTS} in all; narrow the omega or amplitude window")
+        check_memory(a.size, v.size)
     raise RuntimeError(f"grid refinement did not settle within max_rounds={_MAX_REFINE_ROUNDS}")
 
 
-def _classify(res, a, v, marginal_tol):
-    det, cond = loeb(res, a, v)
-    return det, cond, np.where(np.abs(cond) < marginal_tol, "marginal", np.where(det > 0, "stable", "unstable"))
-
-
 def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), tol: float = 1e-10,
-                         marginal_tol: float = MARGINAL_TOL) -> LimitCycles:
+                         marginal_tol: float = MARGINAL_TOL, exact: bool = False) -> LimitCycles:
     """Predict the limit cycles of the loop of the paper's Fig. 1 by the describing-function method.
 
     Solves 1 + G(jw) N(A, w) = 0 for all (A, w) in the window, refines each root to
-    |1 + G N| <= tol (1 + |G N|), and classifies it by the Loeb criterion.
+    |1 + G N| <= tol (1 + |G N|) (or to the rounding of ln A, ln w where the root is steeper than that
+    allows), and classifies it by the Loeb criterion. The grid is chosen from G and N themselves so
+    that no root can fall between samples (docs/solver.md).
 
     Parameters
     ----------
     G : python-control tf, ss or frd (SISO), or callable
-        The linear part; a callable gets an array of frequencies (rad/s) and returns G(j omega).
-    N : DescribingFunction
-        The nonlinear element, amplitude-only or frequency-dependent.
+        The linear part (proper, not zero); a callable gets an array of frequencies (rad/s) and returns
+        G(j omega) of the same shape, finite.
+    N : DescribingFunction, python-control nonlinearity or static function
+        The nonlinear element, amplitude-only or frequency-dependent. python-control's nonlinearity objects
+        and plain functions f(x) are converted by :func:`dfloop.as_element`.
     omega : (float, float), optional
         Frequency window in rad/s. Default: two decades beyond the plant's poles and zeros, or the
         frd's own grid. Required for a callable G.
@@ -160,34 +150,56 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
         Amplitude window (N's input unit). Default: the part of N's amplitude domain where |G N| can
         reach 1 for some frequency of the window. Clipped to N's amplitude domain.
     grid : (int, int)
-        Initial log-spaced grid (amplitudes, frequencies); refined where G N varies fast near |G N| = 1.
+        Initial log-spaced grid (amplitudes, frequencies). Each axis is then refined until ln G (along
+        ln w; exactly from the poles and zeros for tf/ss, by sampling with an aliasing check otherwise)
+        and ln N (along ln A) change by at most ``grid.STEP`` per interval; see ``.grid_report``.
     tol : float
-        Residual tolerance relative to 1 + |G N|.
+        Residual tolerance relative to 1 + |G N|, in (0, 1e-3).
     marginal_tol : float
-        Cycles whose normalised Loeb determinant is below this are reported as marginal.
+        Cycles whose crossing-angle sine (``loeb_conditioning``) is below this, or whose Loeb sign changes
+        within their position uncertainty, are reported as marginal. In [0, 1).
+    exact : bool
+        Also find the true periodic orbit near each prediction (:func:`dfloop.exact_cycle`, attached as
+        ``cycle.exact``). Every cycle carries ``cycle.confidence`` (cheap) whatever this says.
 
     Returns
     -------
     LimitCycles
-        List of :class:`LimitCycle` sorted by frequency, with the windows used and the grid size, and
-        ``jump_crossings``: places where G(jw) passes through the gap of a jump of -1/N (a winding of
-        1 + G N that comes from a discontinuity of N, not from a root; a warning names them). Roots
-        where ``N.validity`` is False are kept with ``valid=False``.
+        List of :class:`LimitCycle` sorted by frequency, with the windows used, the grid size, a
+        :class:`GridReport` (``.grid_report``: how the grid was chosen) and ``jump_crossings``: places
+        where G(jw) passes through the gap of a jump of -1/N (a winding of 1 + G N that comes from a
+        discontinuity of N, not from a root; a warning names them). Roots where ``N.validity`` is False
+        are kept with ``valid=False``.
+
+    Raises
+    ------
+    ContinuumError
+        (a ValueError) when 1 + G N = 0 along a whole curve (G lies on -1/N there); it names the
+        amplitude and frequency ranges.
+    ValueError
+        For bad input: improper or zero G, a callable G of wrong shape or non-finite values, windows,
+        grid sizes beyond memory, NaN or out-of-range tolerances.
+    RuntimeError
+        When a work bound is reached (the message says which window to narrow).
 
     Notes
     -----
     Discontinuities of N (regime jumps of a tabulated DF, N = 0 beyond a limit frequency) are resolved
     to a bounded size only: grid steps of G N that dominate their neighbours are not refined, edge
     bisection stops at 1e-9 (relative), and a winding box that shrinks to 1e-7 (relative) next to a
-    discontinuity without a refinable root is a jump crossing. Roots are accepted only at
-    |1 + G N| <= tol (1 + |G N|), which a jump cannot fake.
+    discontinuity without a refinable root is a jump crossing. Roots are accepted only at a small
+    residual, which a jump cannot fake.
     """
     plant = as_plant(G)
-    if not (callable(N) and hasattr(N, "frequency_dependent") and hasattr(N, "amplitude_domain")):
-        raise ValueError(f"N must be a DescribingFunction; got {type(N).__name__}")
-    tol = float(tol)
+    N = as_element(N)
+    if not isinstance(exact, (bool, np.bool_)):
+        raise ValueError(f"exact must be True or False; got {exact!r}")
+    tol = finite("tol", tol)
     if not (0 < tol < 1e-3):
         raise ValueError(f"tol must lie in (0, 1e-3); got {tol}")
+    marginal_tol = finite("marginal_tol", marginal_tol)
+    if not (0 <= marginal_tol < 1):
+        raise ValueError(f"marginal_tol must lie in [0, 1); got {marginal_tol}")
     na, nw = _grid_size(grid)
     res = Residual(plant, N)
 
@@ -202,14 +214,20 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     if w_lo < plant.domain[0] * (1 - 1e-12) or w_hi > plant.domain[1] * (1 + 1e-12):
         raise ValueError(f"omega window ({w_lo:g}, {w_hi:g}) leaves the plant's frequency range {plant.domain}")
     v_lo, v_hi = math.log(w_lo), math.log(w_hi)
-    features = np.log(plant.feature_frequencies[(plant.feature_frequencies > w_lo)
-                                                & (plant.feature_frequencies < w_hi)])
-    v = np.unique(np.concatenate([np.linspace(v_lo, v_hi, nw), features]))
+    v = np.linspace(v_lo, v_hi, nw)
+    if not plant.exact:  # rational plants need no hints: their grid is placed from the poles and zeros
+        features = plant.feature_frequencies[(plant.feature_frequencies > w_lo) & (plant.feature_frequencies < w_hi)]
+        v = np.unique(np.concatenate([v, np.log(features)]))
+    v, g, eps_v, n_eval = resolve_plant(plant, v)
+    if not np.any(g):
+        raise ValueError(f"G is zero at every frequency of the window ({w_lo:g}, {w_hi:g}) rad/s: no loop")
 
     dom = _amplitude_domain(N, v)
     if amplitude is None:
-        coarse = np.unique(np.concatenate([np.linspace(v_lo, v_hi, 100), features]))
-        (A_lo, A_hi), a_src = _default_amplitude_window(res, coarse, dom)
+        # every node of G's resolved grid (|G| changes by at most a factor e^STEP between them, well inside
+        # the band 1/2..2 used), so a narrow resonance peak is seen; a frequency-dependent N on a subset
+        sub = v if not res.frequency_dependent else v[np.unique(np.linspace(0, v.size - 1, min(v.size, 400)).astype(int))]
+        (A_lo, A_hi), a_src = _default_amplitude_window(res, sub, dom)
     else:
         A_lo, A_hi = _window("amplitude", amplitude)
         a_src = "given"
@@ -221,19 +239,67 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
             raise ValueError(f"amplitude window {tuple(amplitude)} lies outside N's amplitude domain {dom}")
     a = np.linspace(math.log(A_lo), math.log(A_hi), na)
 
-    a, v, P = _resolve_grid(res, a, v)
-    if not np.any(P):
+    if res.frequency_dependent:
+        # N turns along w too (a delay inside N): resolve G N along w at _FD_ROWS initial amplitudes, then
+        # N along A at _FD_ROWS frequencies, then refine the tensor grid near |G N| = 1
+        A0 = np.exp(a[np.unique(np.linspace(0, a.size - 1, min(a.size, _FD_ROWS)).astype(int))])
+        v, _, eps_v, n_gn = resolve_sampled(lambda w: res.plant(w)[:, None] * res._n(A0[None, :], w[:, None]),
+                                            v, "G N along omega", min_width=FD_MIN_WIDTH)
+        w_sub = np.exp(v[np.unique(np.linspace(0, v.size - 1, min(v.size, _FD_ROWS)).astype(int))])
+        a, _, eps_a, n_n = resolve_sampled(lambda A: res._n(A[:, None], w_sub[None, :]), a, "N along the amplitude",
+                                           min_width=FD_MIN_WIDTH)
+        n_eval += n_gn * A0.size + n_n * w_sub.size
+        check_memory(a.size, v.size)
+        a, v, P = _resolve_grid(res, a, v)
+        cells, a_rule, n_cand, n = None, f"sampled at {w_sub.size} frequencies, then 2-D near |G N| = 1", None, None
+    else:
+        a, n, eps_a, n_n = resolve_sampled(lambda A: res._n(A, None), a, "N along the amplitude")
+        n_eval += n_n
+        check_memory(a.size, v.size)
+        P = n[:, None] * g[None, :]
+        cells = candidate_cells(clog(n), eps_a, clog(g), eps_v)
+        a_rule, n_cand = "sampled", int(cells[0].size)
+    if not (np.any(n) if not res.frequency_dependent else np.any(P)):
         raise ValueError("N is zero everywhere in the amplitude window: no limit cycle is possible")
-    ra, rv, jumps = find_roots(res, a, v, P, tol)
-    cycles = _build(res, ra, rv, (a[0], a[-1], v[0], v[-1]), marginal_tol)
+    w_rule = f"sampled (G N at {A0.size} amplitudes)" if res.frequency_dependent else (
+        "exact" if plant.exact else "sampled")
+    report = GridReport(shape=(a.size, v.size), frequency_rule=w_rule,
+                        amplitude_rule=a_rule, max_step_frequency=largest_step(eps_v),
+                        max_step_amplitude=largest_step(eps_a),
+                        n_jumps=int(np.count_nonzero(eps_v > STEP) + np.count_nonzero(eps_a > STEP)),
+                        candidate_cells=n_cand, n_evaluations=int(n_eval))
+    window = (a[0], a[-1], v[0], v[-1])
+    ra, rv, jumps = find_roots(res, a, v, P, tol, cells)
+    cycles = _build(res, ra, rv, window, marginal_tol)
     crossings = _jump_crossings(res, jumps)
     if crossings:
         where = "; ".join(f"A={c.amplitude:.4g}, omega={c.frequency:.4g} rad/s" for c in crossings[:5])
         warnings.warn(f"{len(crossings)} jump crossing(s): G(jw) passes through the gap of a jump of -1/N at "
                       f"{where}{' ...' if len(crossings) > 5 else ''}; no limit cycle of the DF equation there "
                       "(see .jump_crossings)", stacklevel=2)
-    return LimitCycles(cycles, (A_lo, A_hi), (w_lo, w_hi), {"amplitude": a_src, "omega": w_src},
-                       (a.size, v.size), res.n_points, crossings)
+    cycles = _attach_confidence(G, N, cycles, exact)
+    result = LimitCycles(cycles, (A_lo, A_hi), (w_lo, w_hi), {"amplitude": a_src, "omega": w_src},
+                         (a.size, v.size), res.n_points, crossings, report)
+    result.plant, result.element = G, N
+    return result
+
+
+def _attach_confidence(G, N, cycles: list[LimitCycle], exact: bool) -> list[LimitCycle]:
+    """Every cycle with its confidence (computed on first access) and, when asked, its exact orbit."""
+    from ..exact import exact_cycle
+
+    return [dataclasses.replace(c, _confidence=functools.partial(_confidence, G, N, c.amplitude, c.frequency),
+                                exact=exact_cycle(G, N, c) if exact else None) for c in cycles]
+
+
+def _confidence(G, N, amplitude: float, frequency: float):
+    """cycle_confidence, or an unavailable Confidence that says why it could not be computed."""
+    from ..confidence import cycle_confidence, unavailable
+
+    try:
+        return cycle_confidence(G, N, amplitude, frequency)
+    except ValueError as exc:
+        return unavailable(str(exc))
 
 
 def _jump_crossings(res: Residual, jumps: np.ndarray) -> list[JumpCrossing]:
@@ -257,13 +323,13 @@ def _jump_crossings(res: Residual, jumps: np.ndarray) -> list[JumpCrossing]:
 def _build(res: Residual, ra, rv, bounds, marginal_tol) -> list[LimitCycle]:
     if ra.size == 0:
         return []
-    det, cond, label = _classify(res, ra, rv, marginal_tol)
+    det, cond, label = classify(res, ra, rv, marginal_tol)
     # a double root may be reached from several seeds: merge marginal roots closer than 1e-4 (log units)
     keep = np.ones(ra.size, bool)
-    for i in range(ra.size):
-        for j in range(i):
-            if keep[j] and label[i] == label[j] == "marginal" and max(abs(ra[i] - ra[j]), abs(rv[i] - rv[j])) < 1e-4:
-                keep[i] = False
+    marg = np.flatnonzero(label == "marginal")
+    if marg.size > 1:
+        keep[marg] = False
+        keep[marg[greedy_unique(ra[marg], rv[marg], 0.5e-4)]] = True
     ra, rv, det, cond, label = ra[keep], rv[keep], det[keep], cond[keep], label[keep]
     A, w = np.exp(ra), np.exp(rv)
     g = res.plant(w)

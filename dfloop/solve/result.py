@@ -1,9 +1,9 @@
 """Result objects of :func:`dfloop.predict_limit_cycles`."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
-__all__ = ["LimitCycle", "LimitCycles", "JumpCrossing"]
+__all__ = ["LimitCycle", "LimitCycles", "JumpCrossing", "GridReport"]
 
 
 @dataclass(frozen=True)
@@ -23,8 +23,8 @@ class LimitCycle:
     loeb_determinant : float
         U_A V_w - U_w V_A with R = U + jV (per unit amplitude, per rad/s); > 0 means stable.
     loeb_conditioning : float
-        The determinant's conditioning in log coordinates, 2 det J / |J|_F^2 in [-1, 1] (0 for a
-        double root), used for the marginal decision.
+        The signed sine of the angle between dR/d(ln A) and dR/d(ln w), in [-1, 1] (0 for a double
+        root); scale-free, used for the marginal decision.
     G : complex
         G(jw) at the answer (the point on the Nyquist plane, equal to -1/N there).
     N : complex
@@ -36,6 +36,13 @@ class LimitCycle:
         is an average over irregular motion: the cycle solves the equation for that average only.
     n_error : float
         N's ``error_estimate`` at the answer (0 for closed forms; inf where N gives no estimate).
+    confidence : dfloop.Confidence or None
+        How far the prediction can be trusted: the harmonic distortion at the element's input that the
+        DF neglects and the estimated errors of amplitude and frequency it implies (always available on
+        cycles from :func:`dfloop.predict_limit_cycles`, computed on first access; "unavailable" with a
+        reason for elements without a static time-domain response).
+    exact : dfloop.ExactCycle or None
+        The true periodic orbit near this prediction, when ``predict_limit_cycles(..., exact=True)``.
     """
 
     amplitude: float
@@ -50,6 +57,17 @@ class LimitCycle:
     on_edge: bool = False
     valid: bool = True
     n_error: float = 0.0
+    exact: object = None
+    _confidence: object = field(default=None, repr=False, compare=False)
+
+    @property
+    def confidence(self):
+        """The cycle's :class:`dfloop.Confidence`, computed on first access (a few ms) and kept."""
+        conf = self._confidence
+        if callable(conf):
+            conf = conf()
+            object.__setattr__(self, "_confidence", conf)
+        return conf
 
     @property
     def stable(self) -> bool:
@@ -70,6 +88,14 @@ class LimitCycle:
     def __str__(self) -> str:
         flags = ("" if self.valid else " [N not valid here: an average over irregular motion]")
         flags += " [on window edge]" if self.on_edge else ""
+        conf = self.confidence
+        if conf is not None and getattr(conf, "available", False):
+            flags += (f" [distortion {100 * conf.distortion:.2g} %, est. DF error A {100 * conf.amplitude_error:+.2g} %, "
+                      f"omega {100 * conf.frequency_error:+.2g} %]")
+        if self.exact is not None:
+            ex = self.exact
+            flags += (f" [exact: A={ex.amplitude:.6g}, omega={ex.frequency:.6g} rad/s, {'stable' if ex.stable else 'unstable'}]"
+                      if ex.success else f" [exact: no orbit ({ex.message})]")
         return (f"LimitCycle(A={self.amplitude:.6g}, omega={self.frequency:.6g} rad/s, {self.stability}, "
                 f"|1+GN|={self.residual:.1e}{flags})")
 
@@ -108,6 +134,47 @@ class JumpCrossing:
                 f"{lo:.4g} -> {hi:.4g}, winding {self.winding:+d})")
 
 
+@dataclass(frozen=True)
+class GridReport:
+    """How the solver's grid was chosen (see docs/solver.md).
+
+    Attributes
+    ----------
+    shape : (int, int)
+        Final (amplitudes, frequencies) grid size.
+    frequency_rule, amplitude_rule : str
+        How each axis was resolved: ``"exact"`` (bound from G's poles and zeros), ``"sampled"`` (dense
+        scan with midpoint and golden-section aliasing check), or for a frequency-dependent N the sampled
+        rules applied to G N along omega and to N along A.
+    max_step_frequency, max_step_amplitude : float
+        The largest bound left on |d ln G| (|d ln G N| for a frequency-dependent N) resp. |d ln N| within
+        one interval of the axis (jumps of N, which no refinement shrinks, excepted: ``n_jumps`` counts
+        those intervals).
+    n_jumps : int
+        Intervals left with an unbounded step (a discontinuity of N or a zero of G or N at a node).
+    candidate_cells : int or None
+        Cells that the variation bounds could not exclude (amplitude-only N); every other cell provably
+        holds no root. None when every cell's winding was computed.
+    n_evaluations : int
+        Points at which G or N was sampled to choose the grid.
+    """
+
+    shape: tuple
+    frequency_rule: str
+    amplitude_rule: str
+    max_step_frequency: float
+    max_step_amplitude: float
+    n_jumps: int
+    candidate_cells: int | None
+    n_evaluations: int
+
+    def __str__(self) -> str:
+        cand = "" if self.candidate_cells is None else f", {self.candidate_cells} candidate cells"
+        return (f"grid {self.shape[0]} x {self.shape[1]} (omega: {self.frequency_rule}, max step "
+                f"{self.max_step_frequency:.3g}; A: {self.amplitude_rule}, max step "
+                f"{self.max_step_amplitude:.3g}; {self.n_jumps} jump interval(s){cand})")
+
+
 class LimitCycles(list):
     """The predicted cycles (a list of :class:`LimitCycle`, sorted by frequency) and how they were found.
 
@@ -123,11 +190,14 @@ class LimitCycles(list):
         Number of (A, w) points at which 1 + G N was evaluated.
     jump_crossings : list of JumpCrossing
         Where the winding of 1 + G N comes from a discontinuity of N, not a root (sorted by frequency).
+    grid_report : GridReport or None
+        How the grid was chosen (sizes, rules, largest step left).
     """
 
     def __init__(self, cycles, amplitude_window, omega_window, window_source, grid_shape, n_evaluations,
-                 jump_crossings=()):
+                 jump_crossings=(), grid_report=None):
         super().__init__(cycles)
+        self.grid_report = grid_report
         self.jump_crossings = list(jump_crossings)
         self.amplitude_window = amplitude_window
         self.omega_window = omega_window
@@ -141,17 +211,51 @@ class LimitCycles(list):
                 f"[{self.omega_window[0]:.4g}, {self.omega_window[1]:.4g}] rad/s ({self.window_source['omega']})")
         if self.jump_crossings:
             head += f"; {len(self.jump_crossings)} jump crossing(s) of N (no cycle there)"
+        if self.grid_report is not None:
+            head += f"\n{self.grid_report}"
         jumps = (["jump crossings (G passes through the gap of a jump of -1/N; not limit cycles):"]
                  + [f"  {j}" for j in self.jump_crossings]) if self.jump_crossings else []
         if not self:
             return "\n".join([head] + jumps)
         rows = [f"{'#':>3} {'amplitude':>12} {'omega [rad/s]':>14} {'stability':>10} {'|1+GN|':>9} "
-                f"{'Loeb det':>10} {'Re G':>11} {'Im G':>11}  notes"]
+                f"{'Loeb det':>10} {'Re G':>11} {'Im G':>11} {'distortion':>10}  notes"]
         for i, c in enumerate(self):
+            conf = c.confidence
+            available = conf is not None and getattr(conf, "available", False)
+            distortion = f"{100 * conf.distortion:.2g} %" if available else "-"
             notes = ", ".join(n for n, on in (("on edge", c.on_edge),
-                                               ("N not valid: average over irregular motion", not c.valid)) if on)
+                                               ("N not valid: average over irregular motion", not c.valid),
+                                               ("DF unreliable (distortion > 5 %)", available and not conf.reliable))
+                              if on)
+            if c.exact is not None:
+                ex = c.exact
+                notes += ("; " if notes else "") + (
+                    f"exact A={ex.amplitude:.6g}, omega={ex.frequency:.6g}, {'stable' if ex.stable else 'unstable'}"
+                    if ex.success else "exact: no orbit")
             rows.append(f"{i:>3} {c.amplitude:>12.6g} {c.frequency:>14.6g} {c.stability:>10} {c.residual:>9.1e} "
-                        f"{c.loeb_determinant:>10.3g} {c.G.real:>11.4g} {c.G.imag:>11.4g}  {notes}")
+                        f"{c.loeb_determinant:>10.3g} {c.G.real:>11.4g} {c.G.imag:>11.4g} {distortion:>10}  {notes}")
         return "\n".join([head] + rows + jumps)
 
     __str__ = __repr__
+
+    def plot(self, G=None, N=None, **kwargs):
+        """Nyquist picture of these cycles (python-control conventions): see :func:`dfloop.plot_nyquist`.
+
+        Parameters
+        ----------
+        G, N : plant and describing function, optional
+            Default: the ones ``predict_limit_cycles`` was called with (its ``plant`` and ``element``).
+        **kwargs
+            Passed to :func:`dfloop.plot_nyquist` (``ax``, ``n_loci``, windows).
+
+        Returns
+        -------
+        control.ControlPlot
+        """
+        from ..plot.nyquist import plot_nyquist
+
+        G = getattr(self, "plant", None) if G is None else G
+        N = getattr(self, "element", None) if N is None else N
+        if G is None or N is None:
+            raise ValueError("G and N are required: these cycles do not record the plant and element they came from")
+        return plot_nyquist(G, N, self, **kwargs)

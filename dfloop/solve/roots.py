@@ -19,10 +19,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..describing.base import DescribingFunction
+from .errors import ContinuumError
 from ._kernels import edge_steps, nonzero_windings, tangent_seeds
 from .plant import Plant
 
-__all__ = ["Residual", "Box", "find_roots", "dominant_steps"]
+__all__ = ["Residual", "Box", "find_roots", "dominant_steps", "greedy_unique"]
 
 _SPLIT_PHASE = np.pi / 2  # an edge step whose phase change exceeds this is bisected
 _MAX_EDGE_DEPTH = 50  # bisection levels along an edge (2**-50 of its length)
@@ -30,7 +31,10 @@ _MAX_SEGMENTS = 4_000_000  # live edge segments at one level
 _FD_STEP = 1e-6  # central-difference step in log coordinates
 _MAX_LM_ITER = 100
 _POLISH = 1e-4  # refinement continues (while it improves) down to this fraction of the tolerance
-_MAX_ISOLATE_DEPTH = 30
+_MAX_ISOLATE_DEPTH = 40  # quadrisections of a box: 2**-40 of a grid cell, below any resolvable separation
+_MAX_LIVE_BOXES = 4096  # boxes alive at one level of one isolation; more means a curve of zeros, not points
+_EARLY_CONTINUUM_CHECK = 64  # edge zeros + multiple windings on the grid beyond which a continuum is sought first
+_MERGE_RADIUS = 1e-12  # refined points closer than this (log units) plus their uncertainty are one root
 _TANGENT_THRESHOLD = 0.1  # local minima of |R|^2 / (1 + |GN|^2) below this are searched for hidden roots
 _MAX_TANGENT_SEEDS = 5000
 _JUMP_LENGTH = 1e-9  # segments shorter than this (log units, i.e. relative in A and w) ...
@@ -93,14 +97,35 @@ class Residual:
             n = self._n(np.exp(a), None)[:, None]
         return n * g[None, :]
 
+    def slopes(self, a, v) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """P = G N and its derivatives dP/da, dP/dv at points (a, v) (1-D arrays, log coordinates).
+
+        dG/dv is exact for rational G (:meth:`Plant.log_slope`), a central difference otherwise; N is
+        differentiated by central differences of step ``_FD_STEP`` (log units).
+        """
+        a, v = np.broadcast_arrays(np.atleast_1d(np.asarray(a, float)), np.atleast_1d(np.asarray(v, float)))
+        k, h = a.size, _FD_STEP
+        A, w = np.exp(a), np.exp(v)
+        up, dn = np.exp(h), np.exp(-h)
+        if self.plant.exact:
+            g = self.plant(w)
+            g_v = g * self.plant.log_slope(w)
+        else:
+            gg = self.plant(np.concatenate([w, w * up, w * dn]))
+            g, g_v = gg[:k], (gg[k:2 * k] - gg[2 * k:]) / (2 * h)
+        if self.frequency_dependent:
+            nn = self._n(np.concatenate([A, A * up, A * dn, A, A]), np.concatenate([w, w, w, w * up, w * dn]))
+            n_v = (nn[3 * k:4 * k] - nn[4 * k:]) / (2 * h)
+        else:
+            nn = self._n(np.concatenate([A, A * up, A * dn]), None)
+            n_v = 0.0
+        self.n_points += nn.size
+        n, n_a = nn[:k], (nn[k:2 * k] - nn[2 * k:3 * k]) / (2 * h)
+        return g * n, g * n_a, g_v * n + g * n_v
+
     def jacobian(self, a: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """dR/da and dR/dv (complex) by central differences in log coordinates."""
-        h = _FD_STEP
-        k = a.size
-        aa = np.concatenate([a + h, a - h, a, a])
-        vv = np.concatenate([v, v, v + h, v - h])
-        p = self.terms(aa, vv)
-        return (p[:k] - p[k:2 * k]) / (2 * h), (p[2 * k:3 * k] - p[3 * k:]) / (2 * h)
+        """dR/da and dR/dv (complex) at points (a, v) (see :meth:`slopes`)."""
+        return self.slopes(a, v)[1:]
 
 
 class Box:
@@ -172,24 +197,43 @@ def edge_phases(res: Residual, a0, v0, a1, v1, P0, P1) -> tuple[np.ndarray, list
     return total, suspects, jumps
 
 
-def grid_windings(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray):
+def grid_windings(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, cells=None):
     """Cells of the tensor grid with non-zero winding of R (counter-clockwise in (a, v)).
 
     Phase steps between neighbouring nodes come from arg R at the nodes; only edges whose step exceeds
-    pi/2 (or touch a zero of R) are followed by adaptive bisection. Returns cell indices (i, j), their
+    pi/2 (or touch a zero of R) are followed by adaptive bisection. ``cells`` = (i, j) restricts the
+    work to those cells (all others are known to hold no root). Returns cell indices (i, j), their
     windings, and suspected roots on edges.
     """
-    R = 1.0 + P
-    ph_a, ph_v, ai, aj, vi, vj = edge_steps(np.angle(R), R, _SPLIT_PHASE)
+    if cells is None:
+        R = 1.0 + P
+        ph_a, ph_v, ai, aj, vi, vj = edge_steps(np.angle(R), R, _SPLIT_PHASE)
+        suspects = []
+        if ai.size:
+            ph_a[ai, aj], s1, _ = edge_phases(res, a[ai], v[aj], a[ai + 1], v[aj], P[ai, aj], P[ai + 1, aj])
+            suspects += s1
+        if vi.size:
+            ph_v[vi, vj], s2, _ = edge_phases(res, a[vi], v[vj], a[vi], v[vj + 1], P[vi, vj], P[vi, vj + 1])
+            suspects += s2
+        ii, jj, wind = nonzero_windings(ph_a, ph_v)
+        return ii, jj, wind, suspects
+    i, j = cells
+    # corners counter-clockwise: (i, j) -> (i+1, j) -> (i+1, j+1) -> (i, j+1) -> (i, j)
+    ci = np.concatenate([i, i + 1, i + 1, i])
+    cj = np.concatenate([j, j, j + 1, j + 1])
+    nxt = np.concatenate([np.arange(i.size, 4 * i.size), np.arange(i.size)])
+    Pc = P[ci, cj]
+    R0, R1 = 1.0 + Pc, 1.0 + Pc[nxt]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = np.angle(R1 / R0)
+    hard = (np.abs(d) > _SPLIT_PHASE) | (R0 == 0) | (R1 == 0)
     suspects = []
-    if ai.size:
-        ph_a[ai, aj], s1, _ = edge_phases(res, a[ai], v[aj], a[ai + 1], v[aj], P[ai, aj], P[ai + 1, aj])
-        suspects += s1
-    if vi.size:
-        ph_v[vi, vj], s2, _ = edge_phases(res, a[vi], v[vj], a[vi], v[vj + 1], P[vi, vj], P[vi, vj + 1])
-        suspects += s2
-    ii, jj, wind = nonzero_windings(ph_a, ph_v)
-    return ii, jj, wind, suspects
+    if hard.any():
+        d[hard], suspects, _ = edge_phases(res, a[ci[hard]], v[cj[hard]], a[ci[nxt][hard]], v[cj[nxt][hard]],
+                                           Pc[hard], Pc[nxt][hard])
+    wind = np.rint(d.reshape(4, i.size).sum(axis=0) / (2 * np.pi)).astype(int)
+    nz = wind != 0
+    return i[nz], j[nz], wind[nz], suspects
 
 
 def box_windings(res: Residual, box: Box) -> tuple[np.ndarray, list, list]:
@@ -205,26 +249,46 @@ def box_windings(res: Residual, box: Box) -> tuple[np.ndarray, list, list]:
     return np.rint(turn / (2 * np.pi)).astype(int), suspects, jumps
 
 
-def _with_slopes(res: Residual, a: np.ndarray, v: np.ndarray):
-    """P at (a, v) and forward-difference slopes dR/da, dR/dv there, in one evaluation."""
-    k, h = a.size, _FD_STEP
-    p = res.terms(np.concatenate([a, a + h, a]), np.concatenate([v, v, v + h]))
-    return p[:k], (p[k:2 * k] - p[:k]) / h, (p[2 * k:] - p[:k]) / h
+def at_rounding_level(P, P_a, P_v, a, v) -> np.ndarray:
+    """Whether the Newton step J^-1 R at (a, v) is below the rounding of a and v (8 float spacings, plus
+    what the rounding of the other coordinate implies through their coupling):
+    the root is then located as well as double precision allows, even where |1 + G N| cannot reach
+    tol (1 + |G N|) because R turns too steeply (e.g. a resonance of damping 1e-9: |dR/d ln w| ~ 1e9)."""
+    r = 1 + P
+    det = P_a.real * P_v.imag - P_v.real * P_a.imag
+    with np.errstate(divide="ignore", invalid="ignore"):
+        da = (P_v.imag * r.real - P_v.real * r.imag) / det
+        dv = (P_a.real * r.imag - P_a.imag * r.real) / det
+    # the best a for a given v moves by -(Re(conj(R_a) R_v) / |R_a|^2) per unit of v (and symmetrically):
+    # the rounding of one coordinate limits the other through that coupling
+    with np.errstate(divide="ignore", invalid="ignore"):
+        jav = (P_a.conj() * P_v).real
+        ka, kv = np.abs(jav / np.abs(P_a) ** 2), np.abs(jav / np.abs(P_v) ** 2)
+    ua, uv = 8 * _rounding(a), 8 * _rounding(v)
+    ka, kv = np.where(np.isfinite(ka), ka, 0.0), np.where(np.isfinite(kv), kv, 0.0)
+    return (np.abs(da) <= ua + ka * uv) & (np.abs(dv) <= uv + kv * ua)
+
+
+def _rounding(x: np.ndarray) -> np.ndarray:
+    """The rounding unit of log coordinates x: their float spacing, at least one roundoff (exp(x)
+    carries a relative error of that size however small x is)."""
+    return np.maximum(np.spacing(np.abs(x)), np.finfo(float).eps)
 
 
 def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Levenberg-Marquardt on (Re R, Im R) from (a, v), each point clipped to its box.
 
     Every trial point is evaluated together with its finite-difference neighbours, so an accepted step
-    costs one call. Returns the final (a, v) and a mask of points with |R| <= tol (1 + |G N|).
+    costs one call. Returns the final (a, v) and a mask of points with |R| <= tol (1 + |G N|) or
+    a Newton step at the rounding level of (a, v) (:func:`at_rounding_level`).
     Bounded by 100 iterations.
     """
     a, v = np.array(a, float), np.array(v, float)
-    P, ra, rv = _with_slopes(res, a, v)
+    P, ra, rv = res.slopes(a, v)
     rel = np.abs(1 + P) / (1 + np.abs(P))
     lam = np.full(a.size, 1e-12)
     polish = tol * _POLISH  # keep going past tol while it pays: flat residuals need it for position
-    done = rel <= polish
+    done = (rel <= polish) | at_rounding_level(P, ra, rv, a, v)
     failed = np.zeros(a.size, bool)
     for _ in range(_MAX_LM_ITER):
         act = np.flatnonzero(~done & ~failed)
@@ -237,31 +301,43 @@ def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.nd
         jav = (ja.conj() * jv).real
         ga = (ja.conj() * r).real
         gv = (jv.conj() * r).real
-        damp = lam[act] * (jaa + jvv)
-        m11, m22 = jaa + damp, jvv + damp
+        # Marquardt's diagonal damping: invariant under rescaling either coordinate (a resonance makes
+        # |dR/dv| 1e9 times |dR/da|, which an isotropic damping would let freeze the a-step)
+        m11, m22 = jaa * (1 + lam[act]), jvv * (1 + lam[act])
         det = m11 * m22 - jav ** 2
         with np.errstate(divide="ignore", invalid="ignore"):
             da = -(m22 * ga - jav * gv) / det
             dv = -(m11 * gv - jav * ga) / det
         ok_step = np.isfinite(da) & np.isfinite(dv)
         da, dv = np.where(ok_step, da, 0.0), np.where(ok_step, dv, 0.0)
+        # a step below the rounding of its coordinate only flips between neighbouring floats: drop it so
+        # the other coordinate can converge (a root between two adjacent floats of ln w at a resonance)
+        # (then the step of the other coordinate alone is taken)
+        fine_a = np.abs(da) <= 2 * _rounding(a[act])
+        fine_v = np.abs(dv) <= 2 * _rounding(v[act])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            da = np.where(fine_a, 0.0, np.where(fine_v, -ga / jaa, da))
+            dv = np.where(fine_v, 0.0, np.where(fine_a, -gv / jvv, dv))
+        da, dv = np.where(np.isfinite(da), da, 0.0), np.where(np.isfinite(dv), dv, 0.0)
         at = np.clip(a[act] + da, box.a_lo[act], box.a_hi[act])
         vt = np.clip(v[act] + dv, box.v_lo[act], box.v_hi[act])
-        Pt, rat, rvt = _with_slopes(res, at, vt)
+        Pt, rat, rvt = res.slopes(at, vt)
         relt = np.abs(1 + Pt) / (1 + np.abs(Pt))
         better = (relt < rel[act]) & ok_step
         pinned = ((at == box.a_lo[act]) | (at == box.a_hi[act]) | (vt == box.v_lo[act]) | (vt == box.v_hi[act]))
         # converging to a non-zero minimum, or pressed against the box towards a root outside it
-        stalled = better & ((relt > (1 - 1e-3) * rel[act]) | (pinned & (relt > 0.5 * rel[act])))
+        # (a slow decrease with a sizeable step is not a stall: the other coordinate is still converging)
+        small = (np.abs(da) <= 1e-9 * (1 + np.abs(a[act]))) & (np.abs(dv) <= 1e-9 * (1 + np.abs(v[act])))
+        stalled = better & (((relt > (1 - 1e-3) * rel[act]) & small) | (pinned & (relt > 0.5 * rel[act])))
         acc, rej = act[better], act[~better]
         failed[act[stalled]] = True
         a[acc], v[acc], P[acc], rel[acc] = at[better], vt[better], Pt[better], relt[better]
         ra[acc], rv[acc] = rat[better], rvt[better]
         lam[acc] = np.maximum(lam[acc] / 10, 1e-15)
         lam[rej] *= 100
-        done = rel <= polish
+        done = (rel <= polish) | at_rounding_level(P, ra, rv, a, v)
         failed |= (lam > 1e8) & ~done
-    return a, v, rel <= tol
+    return a, v, (rel <= tol) | at_rounding_level(P, ra, rv, a, v)
 
 
 def _touches(box: Box, points: list) -> np.ndarray:
@@ -303,9 +379,17 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
         keep &= ~crossing
         if hint is not None:
             keep |= (wind == 0) & kids.contains(*hint)
-        for sa, sv in suspects:
-            keep |= kids.contains(sa, sv)
+        if len(suspects) > _MAX_LIVE_BOXES:  # zeros on that many edges: a curve of zeros, not points
+            sa, sv = np.array(suspects).T
+            check_continuum(res, sa, sv, window, tol)
+        keep |= _touches(kids, suspects[:_MAX_LIVE_BOXES])
         queue = kids.take(keep)
+        if len(queue) > _MAX_LIVE_BOXES:
+            check_continuum(res, (queue.a_lo + queue.a_hi) / 2, (queue.v_lo + queue.v_hi) / 2, window, tol)
+            raise RuntimeError(f"root isolation kept {len(queue)} boxes alive (bound {_MAX_LIVE_BOXES}) without "
+                               "isolating the roots; narrow the window around "
+                               f"A in [{np.exp(queue.a_lo.min()):.6g}, {np.exp(queue.a_hi.max()):.6g}], omega in "
+                               f"[{np.exp(queue.v_lo.min()):.6g}, {np.exp(queue.v_hi.max()):.6g}] rad/s")
     if len(queue):
         # bound reached: what is left is a multiple (e.g. tangent) root smaller than the box size
         a, v, ok = refine(res, (queue.a_lo + queue.a_hi) / 2, (queue.v_lo + queue.v_hi) / 2,
@@ -313,6 +397,68 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
         found_a.extend(a[ok])
         found_v.extend(v[ok])
     return found_a, found_v, crossings
+
+
+_DEGENERATE_SIN = 1e-4  # |sin| of the crossing angle below which a root is checked for a curve of zeros
+_MAX_WALK = 60  # predictor-corrector steps along a curve of zeros, each way
+_MAX_WALK_ROOTS = 4  # degenerate roots walked from
+
+
+def _null_direction(ra: complex, rv: complex) -> np.ndarray:
+    """Unit vector (da, dv) along which R does not change to first order (smallest singular vector)."""
+    J = np.array([[ra.real, rv.real], [ra.imag, rv.imag]])
+    return np.linalg.svd(J)[2][-1]
+
+
+def check_continuum(res: Residual, a: np.ndarray, v: np.ndarray, window: Box, tol: float,
+                    refined: bool = False) -> None:
+    """Raise :class:`ContinuumError` (a ValueError) when points near (a, v) lie on a whole curve of zeros of R (a continuum of
+    solutions, where G(jw) lies on -1/N): no isolated limit cycle exists there.
+
+    From up to ``_MAX_WALK_ROOTS`` points whose refined root has a degenerate Jacobian (|sin| of the angle
+    between dR/da and dR/dv below ``_DEGENERATE_SIN``), walk along the null direction of the Jacobian by
+    predictor-corrector steps (each corrected by :func:`refine` in a box that excludes the previous point).
+    Three consecutive successful steps make a curve: an isolated (tangent) root has no neighbour. Bounded
+    by ``_MAX_WALK`` steps each way.
+    """
+    a, v = np.asarray(a, float), np.asarray(v, float)
+    if a.size == 0:
+        return
+    pick = np.unique(np.linspace(0, a.size - 1, min(a.size, 16)).astype(int))
+    ext = max(window.a_hi[0] - window.a_lo[0], window.v_hi[0] - window.v_lo[0])
+    if refined:
+        ra_, rv_ = a[pick], v[pick]
+    else:
+        ra_, rv_, ok = refine(res, a[pick], v[pick], window.take(np.zeros(pick.size, int)), tol)
+        ra_, rv_ = ra_[ok], rv_[ok]
+    if ra_.size == 0:
+        return
+    _, da, dv = res.slopes(ra_, rv_)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sin = np.abs(da.real * dv.imag - dv.real * da.imag) / (np.abs(da) * np.abs(dv))
+    sin = np.where(np.isfinite(sin), sin, 0.0)
+    for k in np.flatnonzero(sin < _DEGENERATE_SIN)[:_MAX_WALK_ROOTS]:
+        visited = [(ra_[k], rv_[k])]
+        for sign in (1.0, -1.0):
+            pos, d, step = np.array([ra_[k], rv_[k]]), sign * _null_direction(da[k], dv[k]), 1e-3 * ext
+            for _ in range(_MAX_WALK):
+                trial = pos + step * d
+                box = Box(trial[0] - step / 2, trial[0] + step / 2, trial[1] - step / 2, trial[1] + step / 2)
+                box = Box(np.maximum(box.a_lo, window.a_lo), np.minimum(box.a_hi, window.a_hi),
+                          np.maximum(box.v_lo, window.v_lo), np.minimum(box.v_hi, window.v_hi))
+                if box.a_lo[0] >= box.a_hi[0] or box.v_lo[0] >= box.v_hi[0]:
+                    break
+                na_, nv_, good = refine(res, trial[:1], trial[1:], box, tol)
+                new = np.array([na_[0], nv_[0]])
+                if not good[0] or np.max(np.abs(new - pos)) < step / 4:
+                    break
+                _, ja, jv = res.slopes(new[:1], new[1:])
+                nd = _null_direction(ja[0], jv[0])
+                d, pos, step = (nd if nd @ d >= 0 else -nd), new, min(2 * step, 0.05 * ext)
+                visited.append(tuple(new))
+        if len(visited) >= 4:
+            pa, pv = np.exp(np.array(visited).T)
+            raise ContinuumError((float(pa.min()), float(pa.max())), (float(pv.min()), float(pv.max())))
 
 
 def _merge_crossings(crossings: list) -> np.ndarray:
@@ -327,26 +473,37 @@ def _merge_crossings(crossings: list) -> np.ndarray:
 def merge(res: Residual, a: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Merge refined points that are the same root; sorted by v.
 
-    Two points are the same root when closer (max norm, log coordinates) than 1e-6 plus four times
+    Two points are the same root when closer (max norm, log coordinates) than 1e-12 plus four times
     their position uncertainties |R| / s_min(J), s_min the smaller singular value of the Jacobian.
     """
     order = np.lexsort((a, v))
     a, v = a[order], v[order]
     if a.size < 2:
         return a, v
-    P, ra, rv = _with_slopes(res, a, v)
+    P, ra, rv = res.slopes(a, v)
     jaa, jvv, jav = np.abs(ra) ** 2, np.abs(rv) ** 2, (ra.conj() * rv).real
     half_tr, det = (jaa + jvv) / 2, jaa * jvv - jav ** 2
     s_min = np.sqrt(np.maximum(half_tr - np.sqrt(np.maximum(half_tr ** 2 - det, 0)), 0))
     with np.errstate(divide="ignore", invalid="ignore"):
-        radius = 1e-6 + 4 * np.where(s_min > 0, np.abs(1 + P) / s_min, np.inf)
+        radius = _MERGE_RADIUS + 4 * np.where(s_min > 0, np.abs(1 + P) / s_min, np.inf)
     radius = np.minimum(radius, 1e-2)
-    keep: list[int] = []
-    for k in range(a.size):
-        if any(max(abs(a[k] - a[m]), abs(v[k] - v[m])) <= radius[k] + radius[m] for m in keep):
-            continue
-        keep.append(k)
+    keep = greedy_unique(a, v, radius)
     return a[keep], v[keep]
+
+
+def greedy_unique(a: np.ndarray, v: np.ndarray, radius) -> np.ndarray:
+    """Indices of points kept in order, dropping each point within radius[k] + radius[m] (max norm) of
+    an earlier kept point m. Vectorised over pairs (the python loop runs only over points with a
+    neighbour)."""
+    radius = np.broadcast_to(np.asarray(radius, float), a.shape)
+    close = (np.maximum(np.abs(a[:, None] - a[None, :]), np.abs(v[:, None] - v[None, :]))
+             <= radius[:, None] + radius[None, :])
+    np.fill_diagonal(close, False)
+    keep = np.ones(a.size, bool)
+    for k in np.flatnonzero(close.any(axis=1)):
+        if keep[k] and close[k, :k][keep[:k]].any():
+            keep[k] = False
+    return np.flatnonzero(keep)
 
 
 def _linear_guess(P: np.ndarray, i: np.ndarray, j: np.ndarray, cells: Box) -> tuple[np.ndarray, np.ndarray]:
@@ -380,14 +537,26 @@ def _node_boxes(a: np.ndarray, v: np.ndarray, i: np.ndarray, j: np.ndarray, n: i
                v[np.maximum(j - n, 0)], v[np.minimum(j + n, v.size - 1)])
 
 
-def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: float):
+def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: float, cells=None):
     """All roots of R in the window spanned by the grid (a, v) with loop products P = G N on it.
 
+    ``cells`` = (i, j): the only cells that can hold a root (see ``candidate_cells``); None for all.
     Returns arrays (a, v) of refined roots (|R| <= tol (1 + |GN|)), merged and sorted by frequency,
-    and the jump crossings of N as rows (a, v, winding) sorted by frequency.
+    and the jump crossings of N as rows (a, v, winding) sorted by frequency. Raises ValueError when
+    the roots form a continuum (:func:`check_continuum`).
     """
     window = Box(a[0], a[-1], v[0], v[-1])
-    ii, jj, wind, suspects = grid_windings(res, a, v, P)
+    ii, jj, wind, suspects = grid_windings(res, a, v, P, cells)
+    if len(suspects) + np.count_nonzero(np.abs(wind) > 1) > _EARLY_CONTINUUM_CHECK:
+        # many zeros on grid edges or multiple windings: look for a curve of zeros before isolating
+        pts = np.array(suspects + list(zip((a[ii] + a[ii + 1]) / 2, (v[jj] + v[jj + 1]) / 2))).T
+        check_continuum(res, pts[0], pts[1], window, tol)
+    allowed = np.ones(P.shape, bool)
+    if cells is not None:
+        allowed[:] = False
+        for di in (0, 1):
+            for dj in (0, 1):
+                allowed[cells[0] + di, cells[1] + dj] = True
     cells = Box(a[ii], a[ii + 1], v[jj], v[jj + 1])
     single = np.abs(wind) == 1
     roots_a, roots_v, crossings = [], [], []
@@ -414,8 +583,17 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
         xa, xv, ok = refine(res, sa, sv, sbox, tol)
         roots_a.extend(xa[ok])
         roots_v.extend(xv[ok])
+        # a root on a grid edge leaves the windings of the cells around it undefined, so a partner of opposite
+        # degree next to it (a clustered pair) shows in no winding: isolate each such root's neighbourhood
+        # (distinct roots only: several suspects usually refine to the same one)
+        _, first = np.unique(np.round(np.column_stack([xa[ok], xv[ok]]), 12), axis=0, return_index=True)
+        for k in np.flatnonzero(ok)[np.sort(first)]:
+            fa, fv, fc = _isolate(res, sbox.take([k]), window, tol, hint=(xa[k], xv[k]))
+            roots_a.extend(fa)
+            roots_v.extend(fv)
+            crossings.extend(fc)
     # tangent-like pairs cancel in a cell's winding: search from local minima of the relative residual
-    si, sj, sm = tangent_seeds(P, ii, jj, _TANGENT_THRESHOLD)
+    si, sj, sm = tangent_seeds(P, ii, jj, _TANGENT_THRESHOLD, allowed)
     if si.size > _MAX_TANGENT_SEEDS:
         best = np.argsort(sm)[:_MAX_TANGENT_SEEDS]
         si, sj = si[best], sj[best]
@@ -433,15 +611,14 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
             ta[retry], tv[retry], ok[retry] = refine(res, a[si[retry]], v[sj[retry]], wide, tol)
             for name in ("a_lo", "a_hi", "v_lo", "v_hi"):
                 getattr(sbox, name)[retry] = getattr(wide, name)
-        known_a, known_v = np.asarray(roots_a), np.asarray(roots_v)
         for k in np.flatnonzero(ok):
-            if known_a.size and np.min(np.maximum(np.abs(known_a - ta[k]), np.abs(known_v - tv[k]))) < 1e-5:
-                continue
-            # a root the windings did not show: isolate everything in its neighbourhood
+            # a root the windings did not show (or showed only on a grid edge, where its partner of opposite
+            # degree may hide in the same cell): isolate everything in its neighbourhood
             fa, fv, fc = _isolate(res, sbox.take([k]), window, tol, hint=(ta[k], tv[k]))
             roots_a.extend(fa + [ta[k]])
             roots_v.extend(fv + [tv[k]])
             crossings.extend(fc)
     if not roots_a:
         return np.empty(0), np.empty(0), _merge_crossings(crossings)
+    check_continuum(res, np.asarray(roots_a), np.asarray(roots_v), window, tol, refined=True)
     return (*merge(res, np.asarray(roots_a), np.asarray(roots_v)), _merge_crossings(crossings))

@@ -2,7 +2,9 @@
 
 Loeb (docs/design.md section 1): with R = 1 + G(jw) N(A, w) = U + jV, a cycle at (A0, w0) is stable iff
 U_A V_w - U_w V_A > 0. This is the sign of the Jacobian of (A, w) -> (U, V), i.e. the local degree.
-Near-zero determinants (tangent / double roots) are reported as marginal instead of guessed.
+Tangent / double roots are reported as marginal instead of guessed. The marginal test is scale-free: it uses
+the sine of the angle between dR/d(ln A) and dR/d(ln w) (the angle at which the Nyquist curve of G crosses
+the -1/N locus), which does not change when A, w, G or N are rescaled, nor with the damping of the plant.
 """
 from __future__ import annotations
 
@@ -10,23 +12,61 @@ import numpy as np
 
 from .roots import Residual
 
-__all__ = ["loeb", "graphical_stability", "MARGINAL_TOL"]
+__all__ = ["loeb", "classify", "graphical_stability", "MARGINAL_TOL"]
 
 MARGINAL_TOL = 1e-4
-"""Conditioning 2 |det J| / |J|_F^2 (log coordinates) below which a cycle is called marginal."""
+"""|sin| of the crossing angle, det J / (|R_a| |R_w|), below which a cycle is called marginal."""
 
 
 def loeb(res: Residual, a: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Loeb determinant U_A V_w - U_w V_A in natural units (per unit amplitude, per rad/s) and its
-    conditioning 2 det J / |J|_F^2 in log coordinates a = ln A, v = ln w (= 2 s1 s2 / (s1^2 + s2^2)
-    with s1, s2 the singular values of J; signed, in [-1, 1]), at log-coordinate points (a, v).
+    conditioning det J / (|R_a| |R_v|) at log-coordinate points (a, v): the signed sine of the angle
+    between the two columns of J (a = ln A, v = ln w), in [-1, 1], invariant under any rescaling of
+    A, w, G and N, and 0 for a tangent (double) root.
     """
-    ra, rv = res.jacobian(np.asarray(a, float), np.asarray(v, float))
+    a, v = np.asarray(a, float), np.asarray(v, float)
+    return _loeb_from(a, v, *res.jacobian(a, v))
+
+
+def _loeb_from(a, v, ra, rv):
     det_log = ra.real * rv.imag - rv.real * ra.imag
-    scale = 0.5 * (np.abs(ra) ** 2 + np.abs(rv) ** 2)
+    scale = np.abs(ra) * np.abs(rv)
     with np.errstate(divide="ignore", invalid="ignore"):
         cond = np.where(scale > 0, det_log / np.where(scale > 0, scale, 1.0), 0.0)
     return det_log / (np.exp(a) * np.exp(v)), cond
+
+
+def classify(res: Residual, a: np.ndarray, v: np.ndarray, marginal_tol: float = MARGINAL_TOL):
+    """Loeb determinant, conditioning and label ("stable", "unstable", "marginal") of roots (a, v).
+
+    A root is marginal when its Loeb sign is not decided: the crossing angle's sine is below
+    ``marginal_tol``, or the sign of the determinant changes within the root's position uncertainty
+    (4 |R| / s_min(J) in log units along the Jacobian's weakest direction, which is how far the true
+    root may lie; a tangent (double) root is found at a distance of that order, with a determinant of
+    either sign). Both tests are invariant under rescaling A, w, G and N.
+    """
+    a, v = np.asarray(a, float), np.asarray(v, float)
+    P, ra, rv = res.slopes(a, v)
+    det, cond = _loeb_from(a, v, ra, rv)
+    jaa, jvv, jav = np.abs(ra) ** 2, np.abs(rv) ** 2, (ra.conj() * rv).real
+    half_tr, dj = (jaa + jvv) / 2, jaa * jvv - jav ** 2
+    s_min = np.sqrt(np.maximum(half_tr - np.sqrt(np.maximum(half_tr ** 2 - dj, 0)), 0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dx = np.minimum(np.where(s_min > 0, 4 * np.abs(1 + P) / s_min, np.inf), 1e-2)
+    # weakest direction: eigenvector of J^T J for the smaller eigenvalue s_min^2
+    ea, ev = jav, s_min ** 2 - jaa
+    norm = np.hypot(ea, ev)
+    flat = norm == 0
+    ea, ev = np.where(flat, np.where(jaa <= jvv, 1.0, 0.0), ea), np.where(flat, np.where(jaa <= jvv, 0.0, 1.0), ev)
+    norm = np.hypot(ea, ev)
+    ea, ev = ea / norm, ev / norm
+    k = a.size
+    ap, vp = np.concatenate([a + dx * ea, a - dx * ea]), np.concatenate([v + dx * ev, v - dx * ev])
+    d_pm, _ = _loeb_from(ap, vp, *res.slopes(ap, vp)[1:])
+    d_plus, d_minus = d_pm[:k], d_pm[k:]
+    undecided = (np.sign(d_plus) != np.sign(det)) | (np.sign(d_minus) != np.sign(det))
+    label = np.where((np.abs(cond) < marginal_tol) | undecided, "marginal", np.where(det > 0, "stable", "unstable"))
+    return det, cond, label
 
 
 def graphical_stability(G, N, amplitude: float, frequency: float, step: float = 1e-6) -> bool:

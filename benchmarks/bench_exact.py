@@ -1,0 +1,93 @@
+"""Predicted versus exact limit cycles: how well the cheap confidence brackets the DF's true error, and cost.
+
+For each loop (relays, saturation, dead zone, backlash, cubic stiffness, an open-loop-unstable plant) the table
+gives the DF prediction, the exact cycle (:func:`dfloop.exact_cycle`), the true relative errors of the
+prediction, the confidence's estimated errors (:func:`dfloop.confidence.cycle_confidence`) with the ratio
+true / estimate, whether the bracket (2x the estimate) holds, and the distortion at the element's input. A
+second table gives the cost of the confidence and of exact_cycle as ratios to the cost of
+predict_limit_cycles for the same loop (one run each, after a warm-up run of all three that compiles the JIT
+functions).
+
+Run: python benchmarks/bench_exact.py [--write]   (--write also writes benchmarks/results/bench_exact.md)
+"""
+from __future__ import annotations
+
+import pathlib
+import sys
+import time
+
+import control as ct
+
+import dfloop as df
+from dfloop.confidence import BRACKET, cycle_confidence
+from dfloop.exact import exact_cycle
+
+LOOPS = [
+    ("relay, 1/(s(s+1)(s+2))", ct.tf([1], [1, 3, 2, 0]), df.Relay()),
+    ("relay + hysteresis 0.1, 2/(s(s+1)(s+2))", ct.tf([2], [1, 3, 2, 0]), df.Relay(M=1.0, hysteresis=0.1)),
+    ("relay + dead zone 0.1, 2/(s(s+1)(s+2))", ct.tf([2], [1, 3, 2, 0]), df.Relay(M=1.0, dead_zone=0.1)),
+    ("relay, dz 0.2 + hyst 0.1, 3/(s^3+2s^2+3s+1)", ct.tf([3], [1, 2, 3, 1]),
+     df.Relay(M=1.5, dead_zone=0.2, hysteresis=0.1)),
+    ("saturation, 8/(s^3+2s^2+2s+1)", ct.tf([8], [1, 2, 2, 1]), df.Saturation(1.0)),
+    ("saturation, 30/((s-1)(s+2)(s+3))", ct.tf([30], [1, 4, 1, -6]), df.Saturation(1.0)),
+    ("dead zone 0.5, 12/(s+1)^3 (unstable)", ct.tf([12], [1, 3, 3, 1]), df.DeadZone(0.5)),
+    ("backlash servo h=1, 5/(s(s+1))", ct.tf([5], [1, 1, 0]), df.Backlash(h=1.0)),
+    ("backlash h=0.2, 1.5/(s(s+1)^2)", ct.tf([1.5], [1, 2, 1, 0]), df.Backlash(h=0.2)),
+    ("cubic 10x - x^3, 1/(s+1)^3", ct.tf([1], [1, 3, 3, 1]), df.CubicStiffness(10.0, -1.0)),
+]
+
+
+def timed(fn):
+    t0 = time.perf_counter()
+    out = fn()
+    return time.perf_counter() - t0, out
+
+
+def main() -> str:
+    acc = ["| loop | cycle | predicted A, w | exact A, w | true error A, w | estimated A, w | true / estimated A, w "
+           "| within 2x | distortion |", "|---|---|---|---|---|---|---|---|---|"]
+    cost = ["| loop | predict (ms) | confidence / predict | exact_cycle / predict | method |", "|---|---|---|---|---|"]
+    for name, G, N in LOOPS:
+        t_pred, cycles = timed(lambda: df.predict_limit_cycles(G, N))     # warm-up (JIT compilation, caches)
+        cycle_confidence(G, N, cycles[0].amplitude, cycles[0].frequency)
+        exact_cycle(G, N, cycles[0])
+        t_pred, cycles = timed(lambda: df.predict_limit_cycles(G, N))
+        t_conf = t_exact = 0.0
+        method = ""
+        for i, c in enumerate(cycles):
+            dt, conf = timed(lambda: cycle_confidence(G, N, c.amplitude, c.frequency))
+            t_conf += dt
+            dt, e = timed(lambda: exact_cycle(G, N, c))
+            t_exact += dt
+            method = e.method.split(" (")[0]
+            pred = f"{c.amplitude:.5g}, {c.frequency:.5g}"
+            if not e.success:
+                acc.append(f"| {name} | {i} ({c.stability}) | {pred} | no orbit: {e.message.split(':')[0]} | | "
+                           f"{100 * conf.amplitude_error:+.2f} %, {100 * conf.frequency_error:+.2f} % | | | "
+                           f"{100 * conf.distortion:.2f} % |")
+                continue
+            ok = abs(e.amplitude_error) <= BRACKET * abs(conf.amplitude_error) and \
+                abs(e.frequency_error) <= BRACKET * abs(conf.frequency_error)
+            flag = ("yes" if ok else "no") + ("" if conf.reliable else " (distortion > 5 %: unreliable)")
+            acc.append(f"| {name} | {i} ({'stable' if e.stable else 'unstable'}) | {pred} | "
+                       f"{e.amplitude:.5g}, {e.frequency:.5g} | {100 * e.amplitude_error:+.2f} %, "
+                       f"{100 * e.frequency_error:+.2f} % | {100 * conf.amplitude_error:+.2f} %, "
+                       f"{100 * conf.frequency_error:+.2f} % | {e.amplitude_error / conf.amplitude_error:.2f}, "
+                       f"{e.frequency_error / conf.frequency_error:.2f} | {flag} | "
+                       f"{100 * conf.distortion:.2f} % |")
+        cost.append(f"| {name} | {1e3 * t_pred:.1f} | {t_conf / t_pred:.2f} | {t_exact / t_pred:.2f} | {method} |")
+    return ("# Predicted versus exact limit cycles, confidence and cost\n\n"
+            "Errors are (predicted - exact) / exact. Estimated: `cycle_confidence` (one two-term harmonic-balance "
+            "step); within 2x: |true| <= 2 |estimated| for both amplitude and frequency (the bracket `Confidence.bracket` "
+            "claims when the distortion is at most 5 %).\n\n" + "\n".join(acc)
+            + "\n\nCost of all cycles of a loop, one run each, as ratios to `predict_limit_cycles` on the same loop "
+            "(timings on a shared machine vary ~2x between runs):\n\n" + "\n".join(cost) + "\n")
+
+
+if __name__ == "__main__":
+    text = main()
+    print(text)
+    if "--write" in sys.argv[1:]:
+        out = pathlib.Path(__file__).parent / "results" / "bench_exact.md"
+        out.write_text(text)
+        print(f"wrote {out}")

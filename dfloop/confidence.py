@@ -1,0 +1,191 @@
+"""A cheap confidence on every prediction: the harmonic distortion the describing function neglects.
+
+For a predicted cycle (A, w): drive the element with x = A sin(w t), pass its output's harmonics through G
+(X_k = -G(jkw) Y_k, k >= 2) and measure the distortion d = sqrt(sum_k |X_k|^2) / A at the element's input (the
+filter hypothesis in one number). Then drive the element once more with the distorted input
+x = A sin(w t) + sum_k Im(X_k e^{jkwt}); the change of its fundamental, dN, is the first correction the
+harmonics make to the balance 1 + G(jw) N = 0. Solving the balance linearised in (A, w),
+
+    R_A dA + R_w dw = -G(jw) dN,      R(A, w) = 1 + G(jw) N(A, w),
+
+gives estimates of the prediction's errors, (predicted - exact) / exact ~ -dA / (A + dA) and -dw / (w + dw):
+one step of a two-term harmonic balance. Cost: two passes of the element over one sampled period (a few ms).
+How well the estimates bracket the true errors from :func:`dfloop.exact_cycle` is measured by
+``benchmarks/bench_exact.py`` (docs/exact.md).
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._checks import positive
+
+__all__ = ["Confidence", "cycle_confidence"]
+
+_SAMPLES = 2048       # samples of one period
+_HARMONICS = 15       # harmonics carried through G
+_STEP = 1e-6          # relative step of the finite differences of the balance
+BRACKET = 2.0         # |true error| <= BRACKET |estimate| held on every reliable loop of benchmarks/bench_exact.py
+DISTORTION_LIMIT = 0.05   # above this distortion the filter hypothesis fails: estimates are indicators only
+
+
+@dataclass(frozen=True, repr=False)
+class Confidence:
+    """Distortion and estimated errors of one predicted cycle (:func:`cycle_confidence`).
+
+    Attributes
+    ----------
+    distortion : float or None
+        RMS of the harmonics k >= 2 of the element's input relative to its fundamental amplitude A.
+    amplitude_error, frequency_error : float or None
+        Estimated relative errors of the prediction, (predicted - exact) / exact (signed).
+    harmonics : ndarray or None
+        Estimated complex amplitudes X_k of the input, k = 1..K (X_1 = A; x ~ sum Im(X_k e^{jkwt})).
+    available : bool
+        False when the element has no time-domain model here (frequency-dependent elements such as the
+        dynamic backlash, elements without an operator); ``note`` says why and the numbers are None.
+    note : str
+        How the numbers were obtained, or why they are missing.
+    """
+
+    distortion: float | None
+    amplitude_error: float | None
+    frequency_error: float | None
+    harmonics: np.ndarray | None
+    available: bool
+    note: str
+
+    @property
+    def reliable(self) -> bool:
+        """True when the distortion is at most ``DISTORTION_LIMIT`` (5 %): the estimates and the bracket are
+        then trustworthy. Above it the DF's premise fails and the errors may be several times the estimates
+        (they still say the prediction is poor); ``benchmarks/bench_exact.py`` shows both cases."""
+        return self.available and self.distortion <= DISTORTION_LIMIT
+
+    @property
+    def bracket(self) -> tuple[float, float] | None:
+        """(amplitude, frequency) relative error bounds, ``BRACKET`` (2) times the estimates' sizes: the bound
+        held on every reliable loop of ``benchmarks/bench_exact.py`` (an empirical factor, not a theorem).
+        None when unavailable or not :attr:`reliable`."""
+        if not self.reliable:
+            return None
+        return BRACKET * abs(self.amplitude_error), BRACKET * abs(self.frequency_error)
+
+    def __repr__(self) -> str:
+        if not self.available:
+            return f"Confidence(unavailable: {self.note})"
+        warn = "" if self.reliable else "; distortion above 5 %: the DF is unreliable here, errors may be larger"
+        return (f"Confidence(distortion {100 * self.distortion:.3g} %, estimated DF error: amplitude "
+                f"{100 * self.amplitude_error:+.3g} %, frequency {100 * self.frequency_error:+.3g} %{warn})")
+
+
+def _element_response(N):
+    """A function x_samples -> y_samples over one period (after one warm-up period), or None."""
+    from .describing.numeric import NumericDF
+    from .describing.static import StaticElement
+
+    if isinstance(N, StaticElement):
+        return lambda x: np.asarray(N.output(x), dtype=float)
+    if isinstance(N, NumericDF) and not N.hysteretic:
+        return lambda x: np.asarray(N.element(x), dtype=float)
+    try:
+        op0 = N.operator() if not isinstance(N, NumericDF) else N.element
+    except NotImplementedError:
+        return None
+    from .hybrid._operators_core import play_response, relay_response
+    from .describing.static import PlayOperator, RelayOperator
+
+    if type(op0) is RelayOperator:
+        return lambda x: relay_response(np.ascontiguousarray(x, dtype=float), op0.M, op0.on, op0.off)
+    if type(op0) is PlayOperator:
+        return lambda x: play_response(np.ascontiguousarray(x, dtype=float), op0.h, op0.k)
+
+    def run(x):   # any other operator: a Python loop (slower)
+        op = copy.deepcopy(op0)
+        for v in x:                          # warm-up period: the state of the periodic regime
+            op(float(v))
+        return np.array([op(float(v)) for v in x])
+
+    return run
+
+
+def _fundamentals(y: np.ndarray, K: int) -> np.ndarray:
+    """Complex amplitudes Y_k, k = 1..K, of uniform samples of one period (y ~ sum Im(Y_k e^{jk theta}))."""
+    return 2j * np.fft.rfft(y)[1:K + 1] / y.size
+
+
+def unavailable(note: str) -> Confidence:
+    """A Confidence without numbers, saying why."""
+    return Confidence(None, None, None, None, False, note)
+
+
+def cycle_confidence(G, N, amplitude: float, frequency: float, *, samples: int = _SAMPLES,
+                     harmonics: int = _HARMONICS) -> Confidence:
+    """Harmonic distortion at the element's input and estimated errors of a predicted cycle.
+
+    Parameters
+    ----------
+    G : python-control LTI or callable G(jw)
+        The plant (any form :func:`dfloop.predict_limit_cycles` accepts).
+    N : DescribingFunction
+        The element (amplitude-only elements with an ``output`` or ``operator``; others give an unavailable
+        Confidence that says why).
+    amplitude, frequency : float
+        The predicted cycle: amplitude of x's fundamental and angular frequency (rad/s), > 0.
+    samples : int
+        Samples of one period (>= 64).
+    harmonics : int
+        Harmonics carried through G (>= 2).
+
+    Returns
+    -------
+    Confidence
+    """
+    from ._checks import in_closed_interval
+    from .solve.plant import as_plant
+
+    A = positive("amplitude", amplitude)
+    w = positive("frequency", frequency)
+    S = int(in_closed_interval("samples", samples, 64, 2**20))
+    K = int(in_closed_interval("harmonics", harmonics, 2, S // 4))
+    if N.frequency_dependent:
+        return unavailable(f"{type(N).__name__} depends on frequency (its harmonic response is not a static map)")
+    response = _element_response(N)
+    if response is None:
+        return unavailable(f"{type(N).__name__} has no time-domain operator")
+    plant = as_plant(G)
+    k = np.arange(1, K + 1)
+    lo, hi = plant.domain
+    usable = (k * w >= lo) & (k * w <= hi)
+    Gk = np.zeros(K, complex)
+    Gk[usable] = plant(k[usable] * w)
+    theta = 2 * np.pi * np.arange(S) / S
+    x1 = A * np.sin(theta)
+    Y = _fundamentals(response(x1), K)
+    X = -Gk * Y
+    X[0] = A
+    distortion = float(np.sqrt(np.sum(np.abs(X[1:]) ** 2)) / A)
+    spectrum = np.zeros(S // 2 + 1, complex)
+    spectrum[2:K + 1] = -0.5j * S * X[1:]          # irfft: sum_k Re(-j X_k e^{jk theta}) = sum_k Im(X_k e^{jk theta})
+    x2 = x1 + np.fft.irfft(spectrum, n=S)
+    dN = (_fundamentals(response(x2), 1)[0] - Y[0]) / A
+
+    def residual(a, om):
+        n = complex(N(a))
+        return 1.0 + complex(plant(np.array(om))) * n
+
+    dA_, dw_ = _STEP * A, _STEP * w
+    R_A = (residual(A + dA_, w) - residual(A - dA_, w)) / (2 * dA_)
+    R_w = (residual(A, w + dw_) - residual(A, w - dw_)) / (2 * dw_)
+    J = np.array([[R_A.real, R_w.real], [R_A.imag, R_w.imag]])
+    rhs = -Gk[0] * dN
+    try:
+        dA, dw = np.linalg.solve(J, [rhs.real, rhs.imag])
+    except np.linalg.LinAlgError:
+        return Confidence(distortion, np.inf, np.inf, X, True,
+                          "the balance is singular in (A, w) here (a marginal cycle): no error estimate")
+    note = (f"{S} samples per period, {K} harmonics; errors from one two-term harmonic-balance step"
+            + ("" if usable.all() else f"; G known for {int(usable.sum())} of {K} harmonics"))
+    return Confidence(distortion, float(-dA / (A + dA)), float(-dw / (w + dw)), X, True, note)

@@ -1,0 +1,269 @@
+"""The closed loop of a strictly proper plant and a piecewise-linear element as an exact hybrid system.
+
+Loop of the paper's Fig. 1: plant state s (s' = A s + B y, c = C s), element input x = -c, element output y
+and element state e (the driven side of a backlash; none for static elements and relays). With the augmented
+state z = [s, e, 1] every mode of the element (:mod:`dfloop.hybrid.elements`) is a linear ODE z' = A_m z,
+solved exactly by the matrix exponential. Guards are linear rows r (r.z >= 0 in the mode). Events are
+bracketed on steps of 1/32 of the fastest time scale of the mode (turning points inside a step found from
+r.A z) and refined to rounding level on the Taylor series of exp(A s) z, with the compiled scan and refine
+of the impact engine (:mod:`dfloop.impact._effects_core`).
+
+:meth:`HybridLoop.flow` also returns the monodromy (the Jacobian of the flow map), including the saltation
+matrix of every switch, S = R + (f+ - R f-) r^T / (r . f-) (R: Jacobian of the reset, f-/f+: the vector field
+before/after), so Floquet multipliers are right for discontinuous elements (relays).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import expm
+
+from ..impact._effects_core import admissible, propagate, rows_on_zero, scan_steps
+from .elements import OUT_OF_RANGE, ElementModel
+
+__all__ = ["HybridLoop", "Flow", "HybridError", "plant_matrices"]
+
+STEPS_PER_SCALE = 32
+_NEVER = -2                   # target of the dummy guard of a mode without guards (1 >= 0 always holds)
+_GRAZING = 1e-10              # |r.f| below this fraction of |r||f| at a switch: a grazing contact
+
+
+class HybridError(RuntimeError):
+    """The hybrid flow cannot continue: sliding on a switching surface, grazing, range or event bound."""
+
+
+def plant_matrices(G, *, what: str = "the exact flow"):
+    """(A, B, C) of a strictly proper SISO tf/ss plant G (``ValueError`` naming G otherwise)."""
+    import control as ct
+
+    from ..solve.plant import as_plant
+
+    lti = as_plant(G).lti
+    if lti is None or isinstance(lti, ct.FrequencyResponseData):
+        raise ValueError(f"G must be a python-control tf or ss system for {what}, got {type(G).__name__}")
+    sys = ct.ss(lti)
+    if np.any(np.asarray(sys.D) != 0):
+        raise ValueError(f"G must be strictly proper (D = 0) for {what} (a direct feedthrough closes an "
+                         f"algebraic loop through the element); got D = {float(np.asarray(sys.D).ravel()[0])!r}")
+    return np.asarray(sys.A, float), np.asarray(sys.B, float)[:, 0], np.asarray(sys.C, float)[0]
+
+
+@dataclass
+class Flow:
+    """Result of :meth:`HybridLoop.flow` over [0, t_end].
+
+    ``z`` / ``mode``: end state and mode; ``monodromy``: d z(t_end) / d z(0) (augmented, or None);
+    ``t0, z0, modes``: start time, state and mode of every segment; ``events``: (time, guard index, from mode,
+    to mode) of every switch.
+    """
+
+    z: np.ndarray
+    mode: int
+    monodromy: np.ndarray | None
+    t0: np.ndarray
+    z0: np.ndarray
+    modes: np.ndarray
+    events: list
+    dense: object = None     # dense output of an integrator (smooth loops only)
+
+
+class HybridLoop:
+    """Exact hybrid model of the loop of plant (A, B, C) and a piecewise-linear element model.
+
+    Parameters
+    ----------
+    A, B, C : ndarray
+        Strictly proper plant (see :func:`plant_matrices`).
+    element : ElementModel
+        From :func:`dfloop.hybrid.elements.element_model`.
+    time_scale : float
+        Longest step allowed (s) times 32, e.g. the expected period; steps are also bounded by the fastest
+        time constant of every mode.
+    """
+
+    def __init__(self, A, B, C, element: ElementModel, time_scale: float):
+        n = A.shape[0]
+        self.n, self.element = n, element
+        self.size = n + element.n_states + 1
+        N = self.size
+        self.x_row = np.zeros(N)
+        self.x_row[:n] = -C
+        one = np.zeros(N)
+        one[-1] = 1.0
+        e_unit = np.zeros(N)
+        if element.n_states:
+            e_unit[n] = 1.0
+        self.matrices, self.rows, self.targets, self.resets, self.steps, self.exps = [], [], [], [], [], []
+        self.y_rows = []
+        for mode in element.modes:
+            y_row = mode.gx * self.x_row + mode.ge * e_unit + mode.g1 * one
+            Am = np.zeros((N, N))
+            Am[:n, :n] = A
+            Am[:n] += np.outer(B, y_row)
+            xd_row = self.x_row @ Am
+            if element.n_states:
+                Am[n] = mode.de * xd_row
+            rows, targets, resets = [], [], []
+            for g in mode.guards:
+                rows.append(g.cx * self.x_row + g.cxd * xd_row + g.ce * e_unit + g.c1 * one)
+                targets.append(g.target)
+                R = np.eye(N)
+                if g.reset is not None:
+                    R[n] = g.reset[0] * self.x_row + g.reset[1] * one
+                resets.append(R)
+            if not rows:
+                rows, targets, resets = [one.copy()], [_NEVER], [np.eye(N)]
+            lam = np.abs(np.linalg.eigvals(Am))
+            lam = lam[lam > 1e-12 * max(lam.max(), 1e-300)]
+            scale = min(time_scale, float(1.0 / lam.max()) if lam.size else time_scale)
+            dt = scale / STEPS_PER_SCALE
+            self.matrices.append(Am)
+            self.y_rows.append(y_row)
+            self.rows.append(np.array(rows))
+            self.targets.append(targets)
+            self.resets.append(resets)
+            self.steps.append(dt)
+            self.exps.append(expm(Am * dt))
+
+    # ----------------------------------------------------------------------------------------- helpers
+
+    def x(self, z) -> np.ndarray:
+        """Element input x = -C s for state(s) z (last axis)."""
+        return np.asarray(z) @ self.x_row
+
+    def output(self, z, mode) -> np.ndarray:
+        """Element output y for state(s) z in mode(s) ``mode`` (broadcast)."""
+        z = np.atleast_2d(z)
+        return np.einsum("ij,ij->i", z, np.array(self.y_rows)[np.broadcast_to(mode, z.shape[:1])])
+
+    def field(self, z, mode: int) -> np.ndarray:
+        """Vector field z' = A_mode z."""
+        return self.matrices[mode] @ z
+
+    def start(self, s0: np.ndarray, x_history: np.ndarray) -> tuple[np.ndarray, int]:
+        """Augmented state and mode from a plant state and the element input's recent history."""
+        z = np.zeros(self.size)
+        z[:self.n] = s0
+        z[-1] = 1.0
+        # x' does not depend on the mode through e when CB = 0; use any mode for the rate
+        xdot = float(self.x_row @ (self.matrices[0] @ z))
+        mode, e = self.element.initial(np.append(x_history, self.x(z)), xdot)
+        if self.element.n_states:
+            z[self.n] = e
+        return self.admissible_mode(z, mode)   # on a switching surface and leaving it: switch now
+
+    def admissible_mode(self, z: np.ndarray, mode: int) -> tuple[np.ndarray, int]:
+        """(z, mode) unchanged when z satisfies the mode's guards; otherwise the switches a guard violated at
+        z calls for are taken at once (at most one per mode; ``HybridError`` when none settles)."""
+        z = np.array(z, dtype=float)
+        for _ in range(len(self.matrices) + 1):
+            A, rows = self.matrices[mode], self.rows[mode]
+            if admissible(A, rows, z):
+                return z, mode
+            j = int(np.argmin(rows @ z))
+            target = self.targets[mode][j]
+            if target < 0:
+                break
+            z = self.resets[mode][j] @ z
+            mode = target
+        raise HybridError(f"no admissible mode of the {self.element.name} model at x = {self.x(z):.6g}")
+
+    def states(self, flow: Flow, t) -> np.ndarray:
+        """States z at times t (within the flow's span), one row per time."""
+        t = np.atleast_1d(np.asarray(t, float))
+        k = np.clip(np.searchsorted(flow.t0, t, side="right") - 1, 0, flow.t0.size - 1)
+        out = np.empty((t.size, self.size))
+        for seg in np.unique(k):
+            m = k == seg
+            mode = flow.modes[seg]
+            out[m] = propagate(self.matrices[mode], self.exps[mode], flow.z0[seg], t[m] - flow.t0[seg],
+                               self.steps[mode])
+        return out
+
+    def fourier(self, flow: Flow, t_end: float, omega: float, harmonics: int) -> np.ndarray:
+        """Exact (1/T) int_0^T z(t) e^{-j k w t} dt for k = 1..harmonics, T = t_end, as a (K, size) array.
+
+        Each segment's integral comes from one block exponential (Van Loan) per harmonic.
+        """
+        N = self.size
+        ends = np.append(flow.t0[1:], t_end)
+        out = np.zeros((harmonics, N), complex)
+        big = np.zeros((2 * N, 2 * N), complex)
+        big[N:, :N] = np.eye(N)
+        for t0, z0, mode, t1 in zip(flow.t0, flow.z0, flow.modes, ends):
+            if t1 <= t0:
+                continue
+            for k in range(1, harmonics + 1):
+                big[:N, :N] = self.matrices[mode] - 1j * k * omega * np.eye(N)
+                y = expm(big * (t1 - t0)) @ np.concatenate([z0, np.zeros(N)])
+                out[k - 1] += np.exp(-1j * k * omega * t0) * y[N:]
+        return out / t_end
+
+    # -------------------------------------------------------------------------------------------- flow
+
+    def flow(self, z0: np.ndarray, mode0: int, t_end: float, *, monodromy: bool = False,
+             max_events: int = 10_000) -> Flow:
+        """Flow from (z0, mode0) over [0, t_end] (s), switches located to rounding level.
+
+        Raises
+        ------
+        HybridError
+            Sliding motion or an inadmissible mode after a switch, a grazing switch (monodromy undefined),
+            the input leaving the modelled range, or more than ``max_events`` switches (raise the bound for
+            long runs).
+        """
+        z = np.array(z0, dtype=float)
+        mode = int(mode0)
+        if not admissible(self.matrices[mode], self.rows[mode], z):
+            raise HybridError(f"the start state violates a guard of mode {self.element.modes[mode].label!r}")
+        if t_end == 0.0:
+            return Flow(z, mode, np.eye(self.size) if monodromy else None, np.array([0.0]), z[None, :].copy(),
+                        np.array([mode]), [])
+        t = 0.0
+        M = np.eye(self.size) if monodromy else None
+        t0s, z0s, modes, events = [0.0], [z.copy()], [mode], []
+        seg_t = 0.0
+        leaving = rows_on_zero(self.rows[mode], z)
+        while t < t_end:
+            A, E, dt, rows = self.matrices[mode], self.exps[mode], self.steps[mode], self.rows[mode]
+            rows_a = rows @ A
+            t, j = scan_steps(A, E, dt, rows, rows_a, rows_a @ A, leaving, z, t, t_end)  # to t_end, or an event
+            if j < 0:
+                leaving[:] = False
+                continue
+            target = self.targets[mode][j]
+            if target == OUT_OF_RANGE:
+                raise HybridError(f"at t = {t:.6g} s the input x = {self.x(z):.6g} left the range the "
+                                  f"{self.element.name} model covers")
+            if len(events) >= max_events:
+                raise HybridError(f"max_events = {max_events} switches reached at t = {t:.6g} s of {t_end:.6g} s "
+                                  "(raise max_events for longer runs; many switches in a short time mean a "
+                                  "sliding or chattering motion)")
+            r, R = rows[j], self.resets[mode][j]
+            f_minus = A @ z
+            z_plus = R @ z
+            A_new = self.matrices[target]
+            f_plus = A_new @ z_plus
+            if M is not None:
+                denom = float(r @ f_minus)
+                if abs(denom) <= _GRAZING * np.linalg.norm(r) * np.linalg.norm(f_minus):
+                    raise HybridError(f"grazing switch at t = {t:.6g} s (the guard is tangent to the flow): "
+                                      "the monodromy is undefined there")
+                S = R + np.outer(f_plus - R @ f_minus, r) / denom
+                M = S @ (expm(A * (t - seg_t)) @ M)
+            z = z_plus
+            if not admissible(A_new, self.rows[target], z):
+                raise HybridError(f"no admissible mode after the switch at t = {t:.6g} s, x = {self.x(z):.6g}: "
+                                  "the motion slides on the switching surface (sliding / chattering motion is "
+                                  "not modelled)")
+            events.append((t, j, mode, target))
+            mode = target
+            seg_t = t
+            t0s.append(t)
+            z0s.append(z.copy())
+            modes.append(mode)
+            leaving = rows_on_zero(self.rows[mode], z)
+        if M is not None:
+            M = expm(self.matrices[mode] * (t_end - seg_t)) @ M
+        return Flow(z, mode, M, np.array(t0s), np.array(z0s), np.array(modes, dtype=int), events)

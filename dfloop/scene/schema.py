@@ -1,0 +1,353 @@
+"""The scene-file schema: pydantic models of every section, and their errors translated into scene terms.
+
+Why pydantic: it is already a dependency, its v2 core validates strictly (``verify = "false"`` is a type error,
+not a truthy string), forbids unknown keys, and reports every error with its location, which is exactly what a
+scene needs; the field descriptions below double as the reference page (:mod:`dfloop.scene.reference`).
+
+The ``[element]`` table is checked here only for being a table: its keys depend on its ``type`` and are checked
+against the element's constructor in :mod:`dfloop.scene.elements`.
+"""
+from __future__ import annotations
+
+import types
+import typing
+from functools import lru_cache
+from typing import Annotated, Any, Literal, Union
+
+from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Field, Tag, TypeAdapter, ValidationError,
+                      model_validator)
+
+from .errors import Problem, closest, dotted
+
+__all__ = ["SceneFile", "SceneMeta", "TfPlant", "ZpkPlant", "SsPlant", "Analysis", "Sweep", "SweepRange", "Figure",
+           "validate_scene", "validate_plant", "type_name", "PLANT_TYPES", "FIGURE_KINDS"]
+
+MAX_SWEEP_VALUES = 100_000
+MAX_FIGURE_POINTS = 5_000
+FIGURE_KINDS = ("nyquist", "loglog", "time_response", "collisions")
+
+
+class _Table(BaseModel):
+    # defer_build: the validators are compiled on first use, not when dfloop.scene is imported
+    model_config = ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False, defer_build=True)
+
+
+class _WindowName(str):
+    """Marks the window type for :func:`type_name`."""
+
+
+def _ordered(window: list[float]) -> list[float]:
+    if not 0 < window[0] < window[1]:
+        raise ValueError(f"must be [lo, hi] with 0 < lo < hi, got {window}")
+    return window
+
+
+Window = Annotated[list[float], Field(min_length=2, max_length=2), AfterValidator(_ordered),
+                   _WindowName("[lo, hi] with 0 < lo < hi")]
+
+
+class SceneMeta(_Table):
+    """Names of the study."""
+
+    name: str | None = Field(None, description="Short name, used for output files (default: the file name).")
+    title: str | None = Field(None, description="Title of the plots and the report, and the line `dfloop list` "
+                                                "shows (default: the name).")
+
+
+class _Plant(_Table):
+    delay: float = Field(0.0, ge=0.0, description="Pure delay in seconds; G becomes a callable G(jw).")
+
+
+class TfPlant(_Plant):
+    """Transfer function num(s)/den(s), coefficients in descending powers of s."""
+
+    type: Literal["tf"] = Field("tf", description="Transfer function (the default when `type` is absent).")
+    num: list[float] = Field(min_length=1, description="Numerator coefficients, highest power first.")
+    den: list[float] = Field(min_length=1, description="Denominator coefficients, highest power first.")
+
+
+class ZpkPlant(_Plant):
+    """Real zeros, real poles and a gain."""
+
+    type: Literal["zpk"] = Field(description="Zeros, poles and gain.")
+    zeros: list[float] = Field([], description="Zeros (real).")
+    poles: list[float] = Field([], description="Poles (real).")
+    gain: float = Field(description="Gain k of k prod(s - z) / prod(s - p).")
+
+
+class SsPlant(_Plant):
+    """State space x' = A x + B u, y = C x + D u (SISO)."""
+
+    type: Literal["ss"] = Field(description="State space.")
+    A: list[list[float]] = Field(description="State matrix, one list per row.")
+    B: list[list[float]] = Field(description="Input matrix (n x 1).")
+    C: list[list[float]] = Field(description="Output matrix (1 x n).")
+    D: list[list[float]] = Field([[0.0]], description="Feedthrough (1 x 1).")
+
+
+def _plant_tag(value: Any) -> str | None:
+    if isinstance(value, dict):
+        return value.get("type", "tf")
+    return getattr(value, "type", None)
+
+
+Plant = Annotated[Union[Annotated[TfPlant, Tag("tf")], Annotated[ZpkPlant, Tag("zpk")],
+                        Annotated[SsPlant, Tag("ss")]], Discriminator(_plant_tag)]
+PLANT_TYPES = {"tf": TfPlant, "zpk": ZpkPlant, "ss": SsPlant}
+
+
+class Analysis(_Table):
+    """Windows and the optional stages."""
+
+    omega: Window | None = Field(None, description="Frequency window [lo, hi] in rad/s (default: automatic).")
+    amplitude: Window | None = Field(None, description="Amplitude window [lo, hi] of the element's input "
+                                                       "(default: automatic).")
+    verify: bool = Field(False, description="Closed-loop time simulation of each predicted cycle.")
+    verify_perturbation: float = Field(0.3, ge=1e-3, le=0.95, description="Relative offset of the simulation's "
+                                                                         "starts inside and outside each cycle.")
+    plots: list[Literal["nyquist", "residual"]] = Field(["nyquist"], description="Plots to draw.")
+    exact: bool = Field(False, description="Attach exact cycles (harmonic-balance correction) to the predicted "
+                                           "ones.")
+    predict: bool = Field(True, description="Predict the loop's limit cycles; false for a study of the element "
+                                            "alone (a `[figure]`), which then skips prediction, verification "
+                                            "and plots.")
+
+    @model_validator(mode="after")
+    def _stages_need_prediction(self) -> "Analysis":
+        if not self.predict:
+            asked = [k for k in ("verify", "exact", "plots") if k in self.model_fields_set and getattr(self, k)]
+            if asked:
+                raise ValueError(f"{', '.join(asked)} need predict = true (with predict = false there are no "
+                                 f"cycles: use plots = [] and leave verify and exact out)")
+        return self
+
+
+class SweepRange(_Table):
+    """Evenly spaced values, on a linear or a logarithmic scale (both ends included)."""
+
+    start: float = Field(description="First value.")
+    stop: float = Field(description="Last value.")
+    num: int = Field(ge=2, le=MAX_SWEEP_VALUES, description="Number of values.")
+    scale: Literal["linear", "log"] = Field("linear", description="Spacing.")
+
+    @model_validator(mode="after")
+    def _positive_log(self) -> "SweepRange":
+        if self.scale == "log" and not (self.start > 0 and self.stop > 0):
+            raise ValueError(f"a log scale needs start > 0 and stop > 0, got start={self.start}, stop={self.stop}")
+        if self.start == self.stop:
+            raise ValueError(f"start and stop must differ, got {self.start}")
+        return self
+
+
+def _values_tag(value: Any) -> str | None:
+    return "list" if isinstance(value, list) else "range" if isinstance(value, (dict, SweepRange)) else None
+
+
+class Sweep(_Table):
+    """A parameter sweep that follows each cycle from value to value."""
+
+    parameter: str = Field(description='Dotted path of a number in the scene, e.g. "element.h", '
+                                       '"plant.num.0", "element.restitution", "element.effects.0.c".')
+    values: Annotated[Union[Annotated[list[float], Tag("list"), Field(min_length=2, max_length=MAX_SWEEP_VALUES)],
+                            Annotated[SweepRange, Tag("range")]], Discriminator(_values_tag)] = Field(
+        description="The values: a list, or a table {start, stop, num, scale}.")
+    csv: bool = Field(True, description="Write the branches to <name>_sweep.csv.")
+
+
+class Figure(_Table):
+    """A figure of the element alone: its -1/N loci, or (dynamic backlash) the forced motion's time responses
+    and collision runs, for several input amplitudes and values of one parameter."""
+
+    kind: Literal["nyquist", "loglog", "time_response", "collisions"] = Field(
+        description="nyquist: -1/N(A, w) in the complex plane; loglog: |Re{-1/N}| and |Im{-1/N}| vs w; "
+                    "time_response: dx1/dt of the forced two-mass motion at each of `frequencies` "
+                    "(DynamicBacklash only); collisions: longest run of consecutive impacts on side A (n_A) vs w "
+                    "(DynamicBacklash only).")
+    amplitudes: list[float] = Field(min_length=1, max_length=50, description="Input amplitudes A of the element "
+                                                                            "(the force F in N for backlash "
+                                                                            "with masses), each > 0.")
+    parameter: str | None = Field(None, description='Optional dotted path of a number in the scene varied from '
+                                                    'curve to curve, e.g. "element.restitution".')
+    values: list[float] = Field([], max_length=50, description="The values of `parameter` (required with it).")
+    omega: Window | None = Field(None, description="Frequency window [lo, hi] in rad/s of the nyquist, loglog "
+                                                   "and collisions kinds (required for them).")
+    points: int = Field(400, ge=10, le=MAX_FIGURE_POINTS, description="Frequencies, log-spaced over `omega`.")
+    frequencies: list[float] = Field([], max_length=20, description="Forcing frequencies (rad/s) of "
+                                                                    "time_response, one panel row each "
+                                                                    "(required for it).")
+    periods: int = Field(10, ge=1, le=1000, description="Forcing periods shown by time_response (the time axis "
+                                                       "of a panel), and simulated after the transient by "
+                                                       "collisions.")
+    transient_periods: int = Field(0, ge=0, le=10_000, description="Forcing periods simulated before the window "
+                                                                  "(time_response shows the motion from rest "
+                                                                  "when 0).")
+    mark_lower_limit: bool = Field(True, description="time_response: mark the panels where w is below the "
+                                                     "paper's lower limit w_c of eq. (10), where it says the "
+                                                     "model does not apply.")
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "Figure":
+        if any(a <= 0 for a in self.amplitudes):
+            raise ValueError(f"amplitudes must all be > 0, got {self.amplitudes}")
+        if (self.parameter is None) != (not self.values):
+            raise ValueError("parameter and values go together: give both or neither")
+        if self.kind == "time_response":
+            if not self.frequencies or any(w <= 0 for w in self.frequencies):
+                raise ValueError(f"kind = 'time_response' needs frequencies, all > 0, got {self.frequencies}")
+        elif self.omega is None:
+            raise ValueError(f"kind = {self.kind!r} needs omega = [lo, hi]")
+        return self
+
+
+class SceneFile(_Table):
+    """A whole scene file."""
+
+    scene: SceneMeta = Field(default_factory=SceneMeta, description="Names of the study.")
+    plant: Plant = Field(description="The linear part G seen by the element (after the controller, if any).")
+    controller: Plant | None = Field(None, description="Optional controller C: the loop is C * plant.")
+    element: dict[str, Any] = Field(description="The nonlinear element: `type` names a describing-function "
+                                                "class, the other keys are its parameters (see below).")
+    analysis: Analysis = Field(default_factory=Analysis, description="Windows and the optional stages.")
+    sweep: Sweep | None = Field(None, description="A parameter sweep (continuation of every cycle).")
+    figure: Figure | None = Field(None, description="A figure of the element alone: its -1/N loci, or (dynamic "
+                                                    "backlash) the forced motion's time responses and collision "
+                                                    "runs, for several input amplitudes and values of one "
+                                                    "parameter.")
+
+
+# ---------------------------------------------------------------------------------------------- type names
+def _unwrap(annotation: Any) -> Any:
+    """The type inside ``Annotated[...]`` layers."""
+    while typing.get_origin(annotation) is Annotated:
+        annotation = typing.get_args(annotation)[0]
+    return annotation
+
+
+def type_name(annotation: Any) -> str:
+    """A short, readable name of a type annotation: ``float``, ``list of float``, ``'tf' | 'zpk'``, ``table``."""
+    if typing.get_origin(annotation) is Annotated:
+        names = [m for m in annotation.__metadata__ if isinstance(m, _WindowName)]
+        if names:
+            return str(names[0])
+    annotation = _unwrap(annotation)
+    origin = typing.get_origin(annotation)
+    if annotation is Any:
+        return "any"
+    if origin is Literal:
+        return " | ".join(repr(v) for v in typing.get_args(annotation))
+    if origin in (Union, types.UnionType):
+        parts = [type_name(a) for a in typing.get_args(annotation) if a is not type(None)]
+        if not parts:
+            return "none"
+        return " or ".join(dict.fromkeys(parts))
+    if origin in (list, tuple):
+        args = typing.get_args(annotation)
+        return f"list of {type_name(args[0])}" if args else "list"
+    if origin is dict or annotation is dict:
+        return "table"
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return "table"
+    if isinstance(annotation, type):
+        return {"float": "number (float)", "int": "integer", "str": "string", "bool": "bool (true/false)"}.get(
+            annotation.__name__, annotation.__name__)
+    return str(annotation)
+
+
+# ---------------------------------------------------------------------------------- errors in scene terms
+def _variants(annotation: Any) -> dict[str, Any]:
+    """The variants of a tagged union, keyed by tag (empty for any other annotation)."""
+    found: dict[str, Any] = {}
+    for arg in typing.get_args(_unwrap(annotation)):
+        if typing.get_origin(arg) is Annotated:
+            tag = next((m.tag for m in arg.__metadata__ if isinstance(m, Tag)), None)
+            if tag is not None:
+                found[tag] = _unwrap(arg)
+        found.update(_variants(arg))
+    return found
+
+
+def _model(annotation: Any) -> type[BaseModel] | None:
+    """The one model an annotation holds (``M``, ``M | None``), or None."""
+    annotation = _unwrap(annotation)
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    models = [m for m in map(_model, typing.get_args(annotation)) if m is not None]
+    return models[0] if len(models) == 1 and not _variants(annotation) else None
+
+
+def _resolve(loc: tuple) -> tuple[type[BaseModel] | None, Any, tuple]:
+    """Walk a pydantic error location: (model reached, FieldInfo of the last key, the location without tags)."""
+    model: type[BaseModel] | None = SceneFile
+    field, variants, clean = None, {}, []
+    for part in loc:
+        if isinstance(part, str) and part in variants:  # a union tag, not a key
+            model, variants = _model(variants[part]), {}
+            continue
+        clean.append(part)
+        if isinstance(part, int):  # a list index: still inside the same field
+            continue
+        if model is None or part not in model.model_fields:
+            return model, None, tuple(clean)
+        field = model.model_fields[part]
+        variants = _variants(field.annotation)
+        model = _model(field.annotation)
+    return model, field, tuple(clean)
+
+
+def _problem(error: dict) -> Problem:
+    loc = tuple(error["loc"])
+    kind = error["type"]
+    value = error.get("input")
+    if kind == "extra_forbidden":
+        parent, _, clean = _resolve(loc[:-1])
+        key = dotted(clean + (loc[-1],))
+        valid = list(parent.model_fields) if parent is not None else []
+        guess = closest(loc[-1], valid)
+        expected = type_name(parent.model_fields[guess].annotation) if guess else "one of " + ", ".join(valid)
+        what = "unknown section" if len(clean) == 0 else "unknown key"
+        return Problem(key, what, guess, expected)
+    parent, field, clean = _resolve(loc)
+    key = dotted(clean)
+    expected = type_name(field.annotation) if field is not None else None
+    if kind == "missing":
+        return Problem(key, "missing required " + ("section" if len(clean) == 1 else "key"), None, expected)
+    if kind == "union_tag_invalid":
+        tags = list(_variants(field.annotation)) if field is not None else []
+        tag = error.get("ctx", {}).get("tag", value)
+        return Problem(key + ".type", f"unknown type {tag!r}", closest(tag, tags),
+                       " | ".join(repr(t) for t in tags))
+    if kind == "literal_error":
+        options = [o.strip(" '") for o in error.get("ctx", {}).get("expected", "").replace(" or ", ",").split(",")]
+        return Problem(key, f"unknown value {value!r}", closest(value, [o for o in options if o]),
+                       error.get("ctx", {}).get("expected"))
+    if kind.endswith("_type") or kind == "union_tag_not_found":
+        return Problem(key, f"wrong type: got {type(value).__name__} {value!r}", None, expected)
+    if kind == "value_error":
+        return Problem(key, error["msg"].removeprefix("Value error, "), None, None)
+    return Problem(key, f"{error['msg'][0].lower()}{error['msg'][1:]}, got {value!r}", None, expected)
+
+
+@lru_cache(maxsize=1)
+def _plant_adapter() -> TypeAdapter:
+    return TypeAdapter(Plant)
+
+
+def validate_plant(data: dict, loc: tuple = ("plant",)) -> tuple[TfPlant | ZpkPlant | SsPlant | None, list[Problem]]:
+    """Validate a plant table found at ``loc`` (e.g. nested in an element): the model, or every problem."""
+    try:
+        return _plant_adapter().validate_python(data), []
+    except ValidationError as err:
+        problems = []
+        for e in err.errors():
+            problem = _problem({**e, "loc": ("plant",) + tuple(e["loc"])})
+            problems.append(Problem(dotted(loc) + problem.key[len("plant"):], problem.message,
+                                    problem.suggestion, problem.expected))
+        return None, problems
+
+
+def validate_scene(data: dict) -> tuple[SceneFile | None, list[Problem]]:
+    """Validate the parsed TOML of a scene: the model, or every problem found."""
+    try:
+        return SceneFile.model_validate(data), []
+    except ValidationError as err:
+        return None, [_problem(e) for e in err.errors()]
