@@ -126,3 +126,14 @@ def integer_at_least(name: str, value, minimum: int) -> int:
     if x != int(x) or x < minimum:
         raise DfloopError(f"{name} must be an integer >= {minimum}, got {value!r}")
     return int(x)
+
+
+def window(name: str, value) -> tuple[float, float]:
+    """A window (lo, hi) of positive finite floats with lo < hi (frequencies in rad/s, amplitudes)."""
+    try:
+        lo, hi = (float(x) for x in value)
+    except (TypeError, ValueError):
+        raise DfloopError(f"{name} window must be a pair (lo, hi); got {value!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
+        raise DfloopError(f"{name} window must satisfy 0 < lo < hi, both finite; got ({lo}, {hi})")
+    return lo, hi

@@ -1,0 +1,150 @@
+"""Batches of independent loop studies on any ``concurrent.futures.Executor`` (threads, processes, Dask).
+
+A batch is a list of work items run by one picklable function. Items are grouped in chunks (one task per
+chunk, so a cheap item does not pay a task's overhead) and submitted to the executor; results come back in
+the order of the items, whatever order the chunks finish in. ``executor=None`` runs everything in this
+process, in the same order and with the same code, so a serial run and a parallel run give identical numbers.
+
+Any object with ``submit(fn, *args) -> concurrent.futures.Future`` works: a
+:class:`~concurrent.futures.ProcessPoolExecutor`, a :class:`~concurrent.futures.ThreadPoolExecutor`, or a Dask
+cluster's executor (``distributed.Client(...).get_executor()``), so the same code runs on a laptop or a
+cluster. Process-based executors pickle the function and the items: plants, elements and module-level
+functions pickle; lambdas need an executor that uses cloudpickle (Dask does).
+"""
+from __future__ import annotations
+
+import concurrent.futures as cf
+import math
+from functools import partial
+from typing import Any, Callable, Iterable, Sequence
+
+from . import _checks
+from .progress import progress_bar
+from .solve import LimitCycles, predict_limit_cycles
+
+__all__ = ["predict_many", "run_batch"]
+
+_CHUNKS_PER_BATCH = 64  # default chunk size: about this many tasks per batch
+
+
+def _run_chunk(fn: Callable, start: int, chunk: Sequence, label: str = "batch") -> list:
+    """``[fn(x) for x in chunk]``; a failure names the item's index in the whole batch."""
+    out = []
+    for i, item in enumerate(chunk):
+        try:
+            out.append(fn(item))
+        except ValueError as exc:
+            raise ValueError(f"{label}, item {start + i}: {exc}") from exc
+        except Exception as exc:  # noqa: BLE001 - re-raised with the index; the type is named in the text
+            raise RuntimeError(f"{label}, item {start + i}: {type(exc).__name__}: {exc}") from exc
+    return out
+
+
+def _chunk_size(chunksize, n: int) -> int:
+    if chunksize is None:
+        return max(1, math.ceil(n / _CHUNKS_PER_BATCH))
+    return _checks.integer_at_least("chunksize", chunksize, 1)
+
+
+def run_batch(fn: Callable[[Any], Any], items: Iterable, *, executor: cf.Executor | None = None,
+              chunksize: int | None = None, progress: bool | None = None, label: str = "batch",
+              timeout: float | None = None) -> list:
+    """``[fn(item) for item in items]``, in chunks on ``executor`` (or in this process), in item order.
+
+    Parameters
+    ----------
+    fn : callable
+        Applied to each item; must be picklable for a process-based executor (a module-level function
+        or a :func:`functools.partial` of one).
+    items : iterable
+        The work items.
+    executor : concurrent.futures.Executor, optional
+        Anything with ``submit``; e.g. ``distributed.Client(...).get_executor()``. None: run here, serially.
+    chunksize : int, optional
+        Items per task (default: the batch in about 64 tasks). Ignored without an executor.
+    progress : bool or None
+        Progress bar (see :func:`dfloop.progress.progress_bar`): None shows it only for long batches.
+    label : str
+        Name of the work in the progress bar.
+    timeout : float, optional
+        Seconds to wait for the whole batch on the executor; exceeding it raises ``TimeoutError``
+        (pass a larger ``timeout`` or None to wait indefinitely).
+
+    Returns
+    -------
+    list
+        ``fn(item)`` for each item, in the order of ``items``.
+    """
+    items = list(items)
+    n = len(items)
+    if timeout is not None and not (isinstance(timeout, (int, float)) and not isinstance(timeout, bool)
+                                    and timeout > 0):
+        raise ValueError(f"timeout must be a positive number of seconds or None; got {timeout!r}")
+    if executor is not None and not callable(getattr(executor, "submit", None)):
+        raise ValueError(f"executor must be a concurrent.futures.Executor (with submit); got "
+                         f"{type(executor).__name__}")
+    with progress_bar(label, n, enabled=progress) as bar:
+        if executor is None:
+            out = []
+            for i, item in enumerate(items):
+                out.extend(_run_chunk(fn, i, [item], label))
+                bar.update(1)
+            return out
+        c = _chunk_size(chunksize, n)
+        starts = range(0, n, c)
+        futures = {executor.submit(_run_chunk, fn, s, items[s:s + c], label): s for s in starts}
+        results: dict[int, list] = {}
+        try:
+            for fut in cf.as_completed(futures, timeout=timeout):
+                s = futures[fut]
+                results[s] = fut.result()
+                bar.update(len(results[s]))
+        except cf.TimeoutError:
+            for fut in futures:
+                fut.cancel()
+            raise TimeoutError(f"{label}: {n - sum(map(len, results.values()))} of {n} items unfinished after "
+                               f"timeout={timeout} s; pass a larger timeout (or None to wait)") from None
+        except BaseException:  # a failed item (or an interrupt): drop the chunks not started yet
+            for fut in futures:
+                fut.cancel()
+            raise
+        return [r for s in starts for r in results[s]]
+
+
+def _predict_pair(loop, options: dict) -> LimitCycles:
+    G, N = loop
+    return predict_limit_cycles(G, N, **options)
+
+
+def predict_many(loops: Iterable, *, executor: cf.Executor | None = None, chunksize: int | None = None,
+                 progress: bool | None = None, timeout: float | None = None, **options) -> list[LimitCycles]:
+    """:func:`~dfloop.predict_limit_cycles` for many loops (Monte Carlo over plant uncertainty, design grids).
+
+    Parameters
+    ----------
+    loops : iterable of (G, N)
+        Plant and element of each loop, as for :func:`~dfloop.predict_limit_cycles`.
+    executor : concurrent.futures.Executor, optional
+        Where to run: a process or thread pool, or a Dask cluster's ``client.get_executor()``. None runs
+        in this process. The results are identical either way (same code, same inputs).
+    chunksize : int, optional
+        Loops per task (default: the batch in about 64 tasks).
+    progress : bool or None
+        Progress bar; None shows it only when the batch takes more than a second.
+    timeout : float, optional
+        Seconds to wait for the whole batch on the executor (None: no limit).
+    **options
+        Passed to :func:`~dfloop.predict_limit_cycles` for every loop (``omega``, ``amplitude``, ``grid``,
+        ``tol``, ...).
+
+    Returns
+    -------
+    list of LimitCycles
+        One result per loop, in the order of ``loops``. A loop that fails raises, naming its index.
+    """
+    loops = list(loops)
+    for i, loop in enumerate(loops):
+        if not (isinstance(loop, (tuple, list)) and len(loop) == 2):
+            raise ValueError(f"loops[{i}] must be a pair (G, N); got {type(loop).__name__}")
+    return run_batch(partial(_predict_pair, options=options), loops, executor=executor, chunksize=chunksize,
+                     progress=progress, label="predict_many", timeout=timeout)
