@@ -22,7 +22,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 import dfloop as df
-from dfloop.sweep import sweep
+from dfloop.continuation import sweep
 
 G0 = ct.tf([1], [1, 3, 2, 0])
 BL = df.Backlash(0.2)

@@ -37,8 +37,10 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     "dfloop.impact.loop": ("simulate_impact_loop", "impact_loop_orbit", "ImpactLoopOrbit"),
     "dfloop.exact": ("ExactCycle", "exact_cycle"),
     "dfloop.confidence": ("Confidence", "cycle_confidence"),
+    "dfloop.continuation": ("sweep", "SweepResult", "Branch", "SweepEvent"),
+    "dfloop.batch": ("predict_many", "run_batch"),
 }
-_SUBMODULES = ("describing", "impact", "solve", "verify", "plot", "harmonics", "progress", "scene", "cli", "cache_admin", "errors", "exact", "confidence", "hybrid")
+_SUBMODULES = ("describing", "impact", "solve", "verify", "plot", "harmonics", "progress", "scene", "cli", "cache_admin", "errors", "exact", "confidence", "hybrid", "batch")
 
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
 __all__ = [*_WHERE, "__version__"]

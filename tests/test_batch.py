@@ -8,7 +8,7 @@ import pytest
 
 import dfloop
 from dfloop.batch import predict_many, run_batch
-from dfloop.sweep import sweep
+from dfloop.continuation import sweep
 
 G0 = ct.tf([1], [1, 3, 2, 0])
 

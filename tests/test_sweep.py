@@ -1,4 +1,5 @@
-"""Parameter sweeps (dfloop.sweep): branches, folds and window edges against closed forms and independent
+"""Parameter sweeps (dfloop.sweep, module dfloop.continuation): branches, folds and window edges against closed
+forms and independent
 root finding."""
 import csv
 import math
@@ -11,7 +12,7 @@ from hypothesis import strategies as st
 from scipy.optimize import brentq
 
 import dfloop
-from dfloop.sweep import sweep
+from dfloop.continuation import sweep
 
 G0 = ct.tf([1], [1, 3, 2, 0])  # 1/(s (s+1)(s+2)): phase crossover sqrt(2) rad/s, |G0| = 1/6 there
 W_PC, G_PC = math.sqrt(2.0), 1.0 / 6.0
@@ -303,13 +304,10 @@ def test_no_cycle_below_the_fold_gives_an_empty_result(tmp_path):
     assert (tmp_path / "empty.csv").read_text().count("\n") == 1  # the header only
 
 
-def test_the_module_is_callable_as_the_function():
-    # dfloop.sweep names both the submodule and the exported function; either one sweeps
-    import dfloop.sweep as module
+def test_dfloop_sweep_is_the_continuation_function():
+    import dfloop
 
-    r1 = module(relay_loop, [1.2 * K_STAR, 1.5 * K_STAR], progress=False)
-    r2 = sweep(relay_loop, [1.2 * K_STAR, 1.5 * K_STAR], progress=False)
-    assert [b.amplitude.tolist() for b in r1.branches] == [b.amplitude.tolist() for b in r2.branches]
+    assert dfloop.sweep is sweep
 
 
 @settings(max_examples=6, deadline=None, derandomize=True)

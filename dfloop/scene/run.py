@@ -58,10 +58,11 @@ def comparison_table(cycles: Any) -> list[str]:
 
 
 def run_sweep(scene: Scene) -> Any:
-    """The scene's ``[sweep]``: every cycle followed over the swept values (:func:`dfloop.sweep.sweep`)."""
-    from dfloop.sweep import sweep
+    """The scene's ``[sweep]``: every cycle followed over the swept values (:func:`dfloop.sweep`)."""
+    from dfloop.continuation import sweep
 
-    return sweep(scene.loop_at, scene.sweep_values, omega=scene.omega, amplitude=scene.amplitude, executor=None)
+    return sweep(scene.loop_at, scene.sweep_values, omega=scene.omega, amplitude=scene.amplitude, executor=None,
+                 parameter=scene.sweep.parameter)
 
 
 @dataclass

@@ -22,8 +22,6 @@ from __future__ import annotations
 
 import csv
 import math
-import sys
-import types
 import warnings
 from dataclasses import dataclass, field
 from functools import partial
@@ -848,14 +846,3 @@ def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=No
                        omega_window=w_win, parameter=parameter, unit=unit,
                        amplitude_name=getattr(N0, "input_name", "A"), amplitude_unit=getattr(N0, "input_unit", ""),
                        notes=notes)
-
-
-class _CallableModule(types.ModuleType):
-    """``dfloop.sweep`` is both this module and the function :func:`sweep` exported under the same name:
-    importing the submodule rebinds the package attribute to the module, so the module calls the function."""
-
-    def __call__(self, *args, **kwargs) -> SweepResult:
-        return sweep(*args, **kwargs)
-
-
-sys.modules[__name__].__class__ = _CallableModule
