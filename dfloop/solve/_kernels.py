@@ -17,8 +17,10 @@ _TWO_PI = 2.0 * np.pi
 
 
 def _wrap(d: np.ndarray) -> np.ndarray:
-    """One wrap of phase differences d into [-pi, pi] (d in (-3 pi, 3 pi)); pi and -pi stay as they are."""
-    return np.where(d > np.pi, d - _TWO_PI, np.where(d < -np.pi, d + _TWO_PI, d))
+    """One wrap, in place, of phase differences d into [-pi, pi] (d in (-3 pi, 3 pi)); +-pi stay as they are."""
+    np.subtract(d, _TWO_PI, out=d, where=d > np.pi)
+    np.add(d, _TWO_PI, out=d, where=d < -np.pi)
+    return d
 
 
 def _indices(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -27,18 +29,12 @@ def _indices(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return i.astype(np.int64), j.astype(np.int64)
 
 
-def _neighbourhood(x: np.ndarray, fill, reduce) -> np.ndarray:
-    """``reduce`` over the 8 neighbours of each entry of 2-D x (outside the array counts as ``fill``)."""
-    na, nv = x.shape
-    pad = np.pad(x, 1, constant_values=fill)
-    out = None
-    for di in range(3):
-        for dj in range(3):
-            if di == 1 and dj == 1:
-                continue
-            s = pad[di:di + na, dj:dj + nv]
-            out = s.copy() if out is None else reduce(out, s, out=out)
-    return out
+def _m(P: np.ndarray) -> np.ndarray:
+    """Relative residual |1 + P|^2 / (1 + |P|^2) of loop products P (0 only at roots; NaN where P is not finite)."""
+    pr, pi = P.real, P.imag
+    q = pr * pr + pi * pi
+    with np.errstate(invalid="ignore", over="ignore"):
+        return (q + 2.0 * pr + 1.0) / (1.0 + q)
 
 
 def edge_steps(theta: np.ndarray, R: np.ndarray, split: float):
@@ -57,7 +53,7 @@ def edge_steps(theta: np.ndarray, R: np.ndarray, split: float):
     """
     ph_a = _wrap(theta[1:, :] - theta[:-1, :])
     ph_v = _wrap(theta[:, 1:] - theta[:, :-1])
-    zero = (theta == 0.0) & (R.real == 0.0) & (R.imag == 0.0)
+    zero = (R == 0.0) & (theta == 0.0)  # arg(-0 - 0j) = -pi: such a node is not treated as a zero
     ba_i, ba_j = _indices((np.abs(ph_a) > split) | zero[:-1, :] | zero[1:, :])
     bv_i, bv_j = _indices((np.abs(ph_v) > split) | zero[:, :-1] | zero[:, 1:])
     return ph_a, ph_v, ba_i, ba_j, bv_i, bv_j
@@ -70,8 +66,11 @@ def nonzero_windings(ph_a: np.ndarray, ph_v: np.ndarray):
     is the sum of the steps around it over 2 pi, rounded to the nearest integer (half to even). Returns
     int64 arrays (i, j, winding) in row-major order.
     """
-    turn = ph_a[:, :-1] + ph_v[1:, :] - ph_a[:, 1:] - ph_v[:-1, :]
-    w = np.rint(turn / _TWO_PI)
+    w = ph_a[:, :-1] + ph_v[1:, :]
+    w -= ph_a[:, 1:]
+    w -= ph_v[:-1, :]
+    w /= _TWO_PI
+    np.rint(w, out=w)
     ci, cj = _indices(w != 0)
     return ci, cj, w[ci, cj].astype(np.int64)
 
@@ -85,10 +84,27 @@ def candidate_cells(ln_n: np.ndarray, eps_a: np.ndarray, ln_g: np.ndarray, eps_v
     eps_a[i] + eps_v[j]. Returns int64 index arrays (i, j), sorted by i then j.
     """
     na, nv = ln_n.size - 1, ln_g.size - 1
-    re = ln_n.real[:na, None] + ln_g.real[None, :nv]
-    e = eps_a[:na, None] + eps_v[None, :nv]
-    im = _wrap(ln_n.imag[:na, None] + ln_g.imag[None, :nv] - np.pi)  # args in (-pi, pi]: one wrap suffices
-    return _indices(~(np.abs(re) > e) & (re * re + im * im <= e * e))
+    if na < 1 or nv < 1:
+        return np.empty(0, np.int64), np.empty(0, np.int64)
+    rn, rg = ln_n.real[:na], ln_g.real[:nv]
+    # a kept cell has |rn_i + rg_j| <= eps_a[i] + eps_v[j] <= reach_i: pair each i only with the j whose rg_j is
+    # within reach of -rn_i (sorted search, widened well beyond rounding; non-finite bounds: every j)
+    reach = eps_a[:na] + np.max(eps_v[:nv])
+    with np.errstate(invalid="ignore"):
+        slack = 1e-9 * (np.abs(rn) + reach)
+        lo, hi = -rn - reach - slack, -rn + reach + slack
+    lo[np.isnan(lo)], hi[np.isnan(hi)] = -np.inf, np.inf
+    order = np.argsort(rg, kind="stable")
+    start = np.searchsorted(rg[order], lo, "left")
+    count = np.maximum(np.searchsorted(rg[order], hi, "right") - start, 0)
+    i = np.repeat(np.arange(na, dtype=np.int64), count)
+    j = order[np.repeat(start - np.cumsum(count) + count, count) + np.arange(i.size)]
+    # the test on those pairs, as a loop over all cells evaluates it
+    re = rn[i] + rg[j]
+    e = eps_a[i] + eps_v[j]
+    im = _wrap(ln_n.imag[i] + ln_g.imag[j] - np.pi)  # args in (-pi, pi]: one wrap suffices
+    keep = np.sort((i * nv + j)[~(np.abs(re) > e) & (re * re + im * im <= e * e)])
+    return keep // nv, keep % nv
 
 
 def tangent_seeds(P: np.ndarray, ci: np.ndarray, cj: np.ndarray, threshold: float, allowed: np.ndarray):
@@ -99,11 +115,6 @@ def tangent_seeds(P: np.ndarray, ci: np.ndarray, cj: np.ndarray, threshold: floa
     Returns int64 index arrays (i, j) of the seeds in row-major order and m at them.
     """
     na, nv = P.shape
-    near_allowed = allowed | _neighbourhood(allowed, False, np.logical_or)
-    pr, pi = P.real, P.imag
-    q = pr * pr + pi * pi
-    with np.errstate(invalid="ignore", over="ignore"):
-        m = np.where(near_allowed, (q + 2.0 * pr + 1.0) / (1.0 + q), np.inf)  # inf: never read as a minimum
     explained = np.zeros((na, nv), dtype=bool)
     for di in range(-1, 3):  # the 4 x 4 nodes from one before a cell's corners to one after
         ii = ci + di
@@ -111,6 +122,14 @@ def tangent_seeds(P: np.ndarray, ci: np.ndarray, cj: np.ndarray, threshold: floa
             jj = cj + dj
             ok = (ii >= 0) & (ii < na) & (jj >= 0) & (jj < nv)
             explained[ii[ok], jj[ok]] = True
-    lower = _neighbourhood(m, np.inf, np.fmin)  # fmin: a NaN neighbour is never lower, as in a < test
-    si, sj = _indices(~(m >= threshold) & ~explained & allowed & ~(lower < m))
-    return si, sj, m[si, sj]
+    m = np.pad(_m(P), 1, constant_values=np.inf)  # a border of inf: never lower than a node
+    si, sj = _indices(allowed & ~explained & ~(m[1:-1, 1:-1] >= threshold))
+    k = (si + 1) * (nv + 2) + sj + 1  # flat index into the padded m
+    m = m.ravel()
+    x = m[k]
+    is_min = np.ones(si.size, dtype=bool)
+    for di in (-1, 0, 1):  # a local minimum: no neighbour lower (a NaN neighbour is never lower)
+        for dj in (-1, 0, 1):
+            if di or dj:
+                is_min &= ~(m[k + di * (nv + 2) + dj] < x)
+    return si[is_min], sj[is_min], x[is_min]
