@@ -122,14 +122,16 @@ def tangent_seeds(P: np.ndarray, ci: np.ndarray, cj: np.ndarray, threshold: floa
             jj = cj + dj
             ok = (ii >= 0) & (ii < na) & (jj >= 0) & (jj < nv)
             explained[ii[ok], jj[ok]] = True
-    m = np.pad(_m(P), 1, constant_values=np.inf)  # a border of inf: never lower than a node
-    si, sj = _indices(allowed & ~explained & ~(m[1:-1, 1:-1] >= threshold))
-    k = (si + 1) * (nv + 2) + sj + 1  # flat index into the padded m
-    m = m.ravel()
-    x = m[k]
+    si, sj = _indices(allowed & ~explained)
+    x = _m(P[si, sj])  # m only where it is read (allowed nodes and, below, their neighbours), as in a loop
+    low = ~(x >= threshold)
+    si, sj, x = si[low], sj[low], x[low]
     is_min = np.ones(si.size, dtype=bool)
     for di in (-1, 0, 1):  # a local minimum: no neighbour lower (a NaN neighbour is never lower)
+        ii = si + di
         for dj in (-1, 0, 1):
             if di or dj:
-                is_min &= ~(m[k + di * (nv + 2) + dj] < x)
+                jj = sj + dj
+                ok = np.flatnonzero((ii >= 0) & (ii < na) & (jj >= 0) & (jj < nv))
+                is_min[ok[_m(P[ii[ok], jj[ok]]) < x[ok]]] = False
     return si[is_min], sj[is_min], x[is_min]
