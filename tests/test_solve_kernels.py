@@ -90,9 +90,10 @@ def same_floats(a, b):
 
 
 def random_R(rng, na, nv):
-    """Random residual with exact zeros and phases at exactly pi, -pi and 0 (arg of -1 - 0j is -pi)."""
+    """Random residual with exact (signed) zeros and phases at exactly pi, -pi and 0 (arg of -1 - 0j is -pi)."""
     R = rng.normal(size=(na, nv)) + 1j * rng.normal(size=(na, nv))
-    special = np.array([0.0, -1.0 + 0.0j, complex(-1.0, -0.0), 2.0, complex(0.0, -0.0), 1j, -1j])
+    special = np.array([0.0, -1.0 + 0.0j, complex(-1.0, -0.0), 2.0, complex(0.0, -0.0), complex(-0.0, -0.0),
+                        complex(-0.0, 0.0), 1j, -1j])  # arg(-0 - 0j) = -pi, arg(-0 + 0j) = pi: signed zeros
     pick = rng.random((na, nv)) < 0.3
     R[pick] = rng.choice(special, size=int(pick.sum()))
     return R
@@ -138,6 +139,10 @@ def test_candidate_cells_equal_loops(seed):
     ln_n.real[rng.random(na) < 0.2] = 0.0
     eps_a, eps_v = rng.uniform(0, 1.5, size=na - 1), rng.uniform(0, 1.5, size=nv - 1)
     eps_a[rng.random(na - 1) < 0.2] = 0.0
+    if seed % 2:  # N = 0 at a node (ln = -inf): its interval's bound is inf; an unbounded frequency interval
+        dead = np.flatnonzero(rng.random(na - 1) < 0.15)
+        ln_n.real[dead], eps_a[dead] = -np.inf, np.inf
+        eps_v[rng.random(nv - 1) < 0.05] = np.inf
     i, j = candidate_cells(ln_n, eps_a, ln_g, eps_v)
     assert list(zip(i.tolist(), j.tolist())) == ref_candidates(ln_n, eps_a, ln_g, eps_v)
     assert i.dtype == j.dtype == np.int64
