@@ -4,7 +4,7 @@ Every grid axis is refined until the complex logarithm of the factor it carries 
 amplitude-only N along ln A) changes by at most ``STEP`` within each interval. Each interval then carries
 a bound ``eps`` on |ln f(x) - ln f(x_left)| for all x in it, and a grid cell (i, j) can hold a root of
 1 + G N only if ln(N_i G_j) lies within eps_a[i] + eps_v[j] of j pi (mod 2 pi j): every other cell is
-excluded by that certificate, so its winding number is exactly 0 (see ``roots.candidate_cells``).
+excluded by that certificate, so its winding number is exactly 0 (see ``_kernels.candidate_cells``).
 
 - Rational G (tf, ss): the bound is exact, from the poles and zeros (:meth:`Plant.log_variation`).
 - Callable or frd G, and N along A: sampled. Each interval is checked at its midpoint and at its golden
