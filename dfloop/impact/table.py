@@ -530,10 +530,12 @@ class Table2D:
         self.yerr = np.empty(0)          # relative error estimate of the y-interpolation per y-interval
         self.ychecked = np.empty(0, dtype=bool)
         self.windows = np.empty((0, 5))  # every window asked for: (x_lo, x_hi, shear, y_lo, y_hi)
+        self._n_checked = 0              # samples spent on checks in y (not stored)
 
     @property
     def n_sampled(self) -> int:
-        return sum(line.n_sampled for line in self.lines)
+        """Sampler evaluations made by this object: its lines' and its checks in y."""
+        return sum(line.n_sampled for line in self.lines) + self._n_checked
 
     @classmethod
     def build(cls, sampler: Callable[[np.ndarray, float], Samples], x_window, y_window,
@@ -619,7 +621,25 @@ class Table2D:
         self._cover(sampler, progress)
         self._refine(sampler, progress)
 
+    def _check_points(self, k: int, ym: float) -> np.ndarray:
+        """x at which the y-interpolant of interval k is checked at ym: a grid of spacing
+        min(probe_dx, base_dx / 2) over the x range the windows ask for inside the interval, where every
+        line of the interval's stencil holds its block."""
+        st = self.settings
+        lo, hi = self._required(self.y[k:k + 2], self.windows)[0]
+        if np.isnan(lo):
+            return np.empty(0)
+        n = int(math.ceil((hi - lo) / min(st.probe_dx, 0.5 * st.base_dx))) + 1
+        x = np.linspace(lo, hi, max(n, 2))
+        first, w = self._stencil_first(np.array([k]), self.y.size)
+        for j in range(int(first[0]), int(first[0]) + w):
+            x = x[self.lines[j].contains(x)]
+        return x
+
     def _refine(self, sampler, progress) -> None:
+        """Check every unchecked y-interval at its midpoint on a grid of x (:meth:`_check_points`); an
+        interval that fails gets a full line there (both halves to be checked), one that passes keeps its
+        measured discrepancy as its error estimate and costs no line."""
         st = self.y_settings
         max_gen = int(math.ceil(math.log2(max(self.y[-1] - self.y[0], st.min_dx) / st.min_dx))) + 4
         for _ in range(max_gen):
@@ -632,34 +652,31 @@ class Table2D:
                     self.ychecked[k] = True
                     continue
                 ym = 0.5 * (self.y[k] + self.y[k + 1])
-                # the midpoint line covers what it will need once inserted; compared where the current
-                # stencil of interval k covers it
+                xs = self._check_points(k, ym)
+                disc = 0.0
+                if xs.size:
+                    sm = Table1D(self.settings)._sample(lambda x, ym=ym: sampler(x, ym), xs, progress,
+                                                        "check in y")
+                    pred = self.evaluate(xs, np.full(xs.size, ym))
+                    use = sm.regular & pred.valid & (pred.regime == _regime_key(sm.regime, sm.regular))
+                    scale = np.maximum(np.abs(sm.value), self.settings.abs_floor)
+                    disc = float((np.abs(pred.value - sm.value)[use] / scale[use]).max(initial=0.0))
+                    self._n_checked += xs.size
+                self.yerr[k] = disc
+                if disc <= st.tol:
+                    self.ychecked[k] = True
+                    continue
+                # the midpoint line covers what it will need once inserted
                 y_new = np.insert(self.y, k + 1, ym)
                 lo, hi = self._required(y_new, self.windows)[k + 1]
                 line_m = Table1D(self.settings)
                 if not np.isnan(lo):
                     line_m.extend(lambda x, ym=ym: sampler(x, ym), lo, max(hi, lo + self.settings.base_dx),
                                   progress)
-                first, w = self._stencil_first(np.array([k]), self.y.size)
-                inside = np.ones(line_m.x.size, dtype=bool)
-                for j in range(int(first[0]), int(first[0]) + w):
-                    inside &= self.lines[j].contains(line_m.x)
-                disc = 0.0
-                if np.any(inside):
-                    xs = line_m.x[inside]
-                    key = _regime_key(line_m.regime, line_m.regular)[inside]
-                    pred = self.evaluate(xs, np.full(xs.size, ym))
-                    use = line_m.regular[inside] & pred.valid & (pred.regime == key)
-                    scale = np.maximum(np.abs(line_m.value[inside]), self.settings.abs_floor)
-                    rel = np.abs(pred.value - line_m.value[inside])[use] / scale[use]
-                    disc = float(rel.max(initial=0.0))
-                ok = disc <= st.tol
                 self.y = y_new
                 self.lines.insert(k + 1, line_m)
                 self.yerr = np.insert(self.yerr, k + 1, disc)
-                self.yerr[k] = disc
-                self.ychecked = np.insert(self.ychecked, k + 1, ok)
-                self.ychecked[k] = ok
+                self.ychecked = np.insert(self.ychecked, k + 1, False)
             self._cover(sampler, progress)
         raise RuntimeError(f"2-D table refinement bound of {max_gen} generations in y reached")
 
