@@ -618,7 +618,13 @@ class Table2D:
             keep = np.diff(pos) == 1
             self.yerr[pos[:-1][keep]] = old_err[keep]
             self.ychecked[pos[:-1][keep]] = old_checked[keep]
+        blocks = np.array([np.unique(line.block).size for line in self.lines])
         self._cover(sampler, progress)
+        # a y-interval whose stencil lines grew in x was checked on less than it now serves: check it again
+        grown = np.array([np.unique(line.block).size for line in self.lines]) > blocks
+        first, w = self._stencil_first(np.arange(self.y.size - 1), self.y.size)
+        for k in np.flatnonzero([np.any(grown[f:f + w]) for f in first]):
+            self.ychecked[k] = False
         self._refine(sampler, progress)
 
     def _check_points(self, k: int, ym: float) -> np.ndarray:
