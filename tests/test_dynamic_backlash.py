@@ -268,3 +268,24 @@ def test_eps_is_an_alias_of_restitution_and_the_label_uses_restitution(monkeypat
     monkeypatch.setattr(mod, "progress_bar", spy)
     DynamicBacklash(M1, M2, H, eps=0.5, cache=False, starts=0, base_dx=0.025)(50.0, 40.0)
     assert labels == ["DynamicBacklash(restitution=0.5) table"]
+
+
+def test_damped_two_dimensional_table_matches_direct_simulation_within_its_error_estimate():
+    # the effects engine end to end (issue 9): ViscousDamping breaks the similarity law, the table is 2-D and
+    # each line spans only the ln beta range of its own frequencies; valid values within their estimate
+    from dfloop.impact.effects import ViscousDamping
+
+    damping = (ViscousDamping(5.0),)
+    db = DynamicBacklash(M1, M2, H, EPS, effects=damping, **KW)
+    db.prepare([30.0, 40.0], [28.0, 32.0])
+    assert type(db.table).__name__ == "Table2D"
+    rng = np.random.default_rng(11)
+    F, w = rng.uniform(30.0, 40.0, 5), rng.uniform(28.0, 32.0, 5)
+    n, valid, err = db(F, w), db.validity(F, w), db.error_estimate(F, w)
+    assert np.count_nonzero(valid) >= 3
+    assert np.all(np.isfinite(err))
+    for Fi, wi, ni, ei in zip(F[valid], w[valid], n[valid], err[valid]):
+        ref = direct(Fi, wi, effects=damping, **REF)
+        assert ref.period >= 1
+        assert abs(ni - ref.N) <= max(ei, 1e-12 * abs(ref.N))
+        assert abs(1 / ni - 1 / ref.N) <= 1e-4 * abs(1 / ref.N)

@@ -348,17 +348,22 @@ class DynamicBacklash(DescribingFunction):
             self._build(lambda progress, checkpoint: self._table.extend(self._sampler_1d, _U_START, u_hi, progress,
                                                                          checkpoint), int(missing.size))
 
-    def _ensure_2d(self, u_lo, u_hi, v_lo, v_hi) -> None:
+    def _ensure_2d(self, u_hi: float, s_lo: float, s_hi: float, v_lo: float, v_hi: float) -> None:
+        """Cover ln F - ln(M2 h) = u + 2 v in [s_lo, s_hi] for v = ln w in [v_lo, v_hi] (u = ln beta <= u_hi).
+
+        The window is a rectangle in (ln F, ln w), sheared in (ln beta, ln w): every line of the 2-D table
+        spans only the ln beta range its own frequencies need.
+        """
         self._check_beta(math.exp(u_hi))
         self._load_cached()
         pad = 1e-12
-        xw = (u_lo - pad, max(u_hi, u_lo + self._settings.base_dx) + pad)
+        sw = (s_lo - pad, max(s_hi, s_lo + self._settings.base_dx) + pad)
         yw = (v_lo - pad, max(v_hi, v_lo + self._y_settings.base_dx) + pad)
-        if self._table is not None and self._table.covers(xw, yw):
+        if self._table is not None and self._table.covers(sw, yw, shear=2.0):
             return
         if self._table is None:
             self._table = Table2D(self._settings, self._y_settings)
-        self._build(lambda progress, checkpoint: self._table.extend(self._sampler_2d, xw, yw, progress), 1)
+        self._build(lambda progress, checkpoint: self._table.extend(self._sampler_2d, sw, yw, progress, shear=2.0), 1)
 
     def prepare(self, F, omega) -> "DynamicBacklash":
         """Build (or load) the table over the window spanned by force amplitudes F and frequencies omega."""
@@ -402,7 +407,8 @@ class DynamicBacklash(DescribingFunction):
             need = ~nan & (beta > 0)
             if np.any(need):
                 u, v = np.log(beta[need]), np.log(w[need])
-                self._ensure_2d(float(u.min()), float(u.max()), float(v.min()), float(v.max()))
+                s_ = u + 2.0 * v
+                self._ensure_2d(float(u.max()), float(s_.min()), float(s_.max()), float(v.min()), float(v.max()))
                 tv = self._table.evaluate(u, v)
         if np.any(need):
             n[need] = tv.value / scale[need]

@@ -187,6 +187,13 @@ class Table1D:
     def covers(self, lo: float, hi: float) -> bool:
         return bool(self.x.size) and self.missing_blocks(lo, hi).size == 0
 
+    def contains(self, x) -> np.ndarray:
+        """Boolean per x: True where x lies in a block this table holds (there :meth:`evaluate` answers)."""
+        st = self.settings
+        kf = (np.asarray(x, dtype=float) - st.origin) / st.block_dx
+        right, left = np.floor(kf + 1e-12).astype(np.int64), np.ceil(kf - 1e-12).astype(np.int64) - 1
+        return np.isin(right, self.block) | np.isin(left, self.block)
+
     def extend(self, sampler: Callable[[np.ndarray], Samples], lo: float, hi: float,
                progress: Callable[[int, str], None] | None = None,
                checkpoint: Callable[[], None] | None = None) -> None:
@@ -508,6 +515,11 @@ class Table2D:
     the edges or with ``settings.method == 'linear'``); a y-interval is refined until the midpoint line
     agrees with that interpolant to ``settings.tol`` at its regular samples. Where the lines used
     disagree on the regime at x, the nearer line's value is returned, flagged invalid.
+
+    Windows may be sheared: ``extend(..., shear=s)`` covers {(x, y): lo <= x + s y <= hi, y in y_window}
+    (e.g. x = ln beta = ln F - ln(M2 h) - 2 ln w with y = ln w is a rectangle in (ln F, ln w) for s = 2).
+    Every line covers only the x range its own y-intervals need (the union of the windows asked for, over
+    the y-intervals whose interpolation stencil uses the line), not the union over all y.
     """
 
     def __init__(self, settings: TableSettings | None = None, y_settings: TableSettings | None = None):
@@ -517,33 +529,70 @@ class Table2D:
         self.lines: list[Table1D] = []
         self.yerr = np.empty(0)          # relative error estimate of the y-interpolation per y-interval
         self.ychecked = np.empty(0, dtype=bool)
+        self.windows = np.empty((0, 5))  # every window asked for: (x_lo, x_hi, shear, y_lo, y_hi)
+        self._n_checked = 0              # samples spent on checks in y (not stored)
 
     @property
     def n_sampled(self) -> int:
-        return sum(line.n_sampled for line in self.lines)
+        """Sampler evaluations made by this object: its lines' and its checks in y."""
+        return sum(line.n_sampled for line in self.lines) + self._n_checked
 
     @classmethod
     def build(cls, sampler: Callable[[np.ndarray, float], Samples], x_window, y_window,
-              settings=None, y_settings=None, progress=None) -> "Table2D":
-        """Tabulate ``sampler(x_array, y)`` over x_window x y_window."""
+              settings=None, y_settings=None, progress=None, shear: float = 0.0) -> "Table2D":
+        """Tabulate ``sampler(x_array, y)`` over {lo <= x + shear y <= hi} x y_window."""
         table = cls(settings, y_settings)
-        table.extend(sampler, x_window, y_window, progress)
+        table.extend(sampler, x_window, y_window, progress, shear)
         return table
 
-    def covers(self, x_window, y_window) -> bool:
-        return (bool(self.lines) and self.lines[0].covers(*x_window)
-                and self.y[0] <= y_window[0] and y_window[1] <= self.y[-1])
+    def _stencil_first(self, k: np.ndarray, ny: int) -> tuple[np.ndarray, int]:
+        """First line and width of the y-interpolation stencil of y-intervals k."""
+        if self.settings.method != "linear" and ny >= 4:
+            return np.clip(k - 1, 0, ny - 4), 4
+        return k, 2
 
-    def extend(self, sampler, x_window, y_window, progress=None) -> None:
-        """Grow to cover x_window x y_window: extend existing lines in x, add lines in y, refine in y."""
+    def _required(self, y: np.ndarray, windows: np.ndarray) -> np.ndarray:
+        """(lo, hi) x range per line at ``y`` that the windows need (nan where none)."""
+        ny = y.size
+        need = np.full((ny, 2), np.nan)
+        if ny < 2:
+            return need
+        first, width = self._stencil_first(np.arange(ny - 1), ny)
+        for x_lo, x_hi, s, y_lo, y_hi in windows:
+            a, b = np.maximum(y[:-1], y_lo), np.minimum(y[1:], y_hi)
+            for k in np.flatnonzero(a <= b):
+                lo = min(x_lo - s * a[k], x_lo - s * b[k])
+                hi = max(x_hi - s * a[k], x_hi - s * b[k])
+                j = slice(first[k], first[k] + width)
+                need[j, 0] = np.fmin(need[j, 0], lo)
+                need[j, 1] = np.fmax(need[j, 1], hi)
+        return need
+
+    def covers(self, x_window, y_window, shear: float = 0.0) -> bool:
+        if not self.lines or not (self.y[0] <= y_window[0] and y_window[1] <= self.y[-1]):
+            return False
+        need = self._required(self.y, np.array([[x_window[0], x_window[1], shear, y_window[0], y_window[1]]]))
+        return all(line.covers(lo, hi) for line, (lo, hi) in zip(self.lines, need) if not np.isnan(lo))
+
+    def _cover(self, sampler, progress) -> None:
+        """Extend every line over the x range its y-intervals need (no-op where already covered)."""
+        need = self._required(self.y, self.windows)
+        for yk, line, (lo, hi) in zip(self.y, self.lines, need):
+            if not np.isnan(lo):
+                line.extend(lambda x, yk=yk: sampler(x, yk), lo, max(hi, lo + self.settings.base_dx), progress)
+
+    def extend(self, sampler, x_window, y_window, progress=None, shear: float = 0.0) -> None:
+        """Grow to cover {x_window[0] <= x + shear y <= x_window[1]} x y_window: add lines in y, refine in y,
+        and extend every line over the x range it needs."""
         xlo, xhi = float(x_window[0]), float(x_window[1])
         ylo, yhi = float(y_window[0]), float(y_window[1])
         if not (ylo < yhi and math.isfinite(ylo) and math.isfinite(yhi)):
             raise ValueError(f"y window must satisfy lo < hi (finite), got ({ylo}, {yhi})")
-        if self.lines:
-            xlo, xhi = min(xlo, self.lines[0].lo), max(xhi, self.lines[0].hi)
-            for yk, line in zip(self.y, self.lines):
-                line.extend(lambda x, yk=yk: sampler(x, yk), xlo, xhi, progress)
+        if not (xlo < xhi and math.isfinite(xlo) and math.isfinite(xhi)):
+            raise ValueError(f"x window must satisfy lo < hi (finite), got ({xlo}, {xhi})")
+        if not math.isfinite(shear):
+            raise ValueError(f"shear must be finite, got {shear!r}")
+        self.windows = np.vstack([self.windows, [xlo, xhi, float(shear), ylo, yhi]])
         dy = self.y_settings.base_dx
         if not self.lines:
             new_y = np.linspace(ylo, yhi, max(2, int(math.ceil((yhi - ylo) / dy)) + 1))
@@ -558,10 +607,9 @@ class Table2D:
             new_y = np.concatenate(parts) if parts else np.empty(0)
         old_y, old_err, old_checked = self.y, self.yerr, self.ychecked
         for yk in new_y:
-            line = Table1D.build(lambda x, yk=yk: sampler(x, yk), xlo, xhi, self.settings, progress)
             k = int(np.searchsorted(self.y, yk))
             self.y = np.insert(self.y, k, yk)
-            self.lines.insert(k, line)
+            self.lines.insert(k, Table1D(self.settings))
         # y-intervals between two old adjacent lines keep their attributes; new ones are to be checked
         self.yerr = np.full(self.y.size - 1, np.inf)
         self.ychecked = np.zeros(self.y.size - 1, dtype=bool)
@@ -570,9 +618,34 @@ class Table2D:
             keep = np.diff(pos) == 1
             self.yerr[pos[:-1][keep]] = old_err[keep]
             self.ychecked[pos[:-1][keep]] = old_checked[keep]
+        blocks = np.array([np.unique(line.block).size for line in self.lines])
+        self._cover(sampler, progress)
+        # a y-interval whose stencil lines grew in x was checked on less than it now serves: check it again
+        grown = np.array([np.unique(line.block).size for line in self.lines]) > blocks
+        first, w = self._stencil_first(np.arange(self.y.size - 1), self.y.size)
+        for k in np.flatnonzero([np.any(grown[f:f + w]) for f in first]):
+            self.ychecked[k] = False
         self._refine(sampler, progress)
 
+    def _check_points(self, k: int, ym: float) -> np.ndarray:
+        """x at which the y-interpolant of interval k is checked at ym: a grid of spacing
+        min(probe_dx, base_dx / 2) over the x range the windows ask for inside the interval, where every
+        line of the interval's stencil holds its block."""
+        st = self.settings
+        lo, hi = self._required(self.y[k:k + 2], self.windows)[0]
+        if np.isnan(lo):
+            return np.empty(0)
+        n = int(math.ceil((hi - lo) / min(st.probe_dx, 0.5 * st.base_dx))) + 1
+        x = np.linspace(lo, hi, max(n, 2))
+        first, w = self._stencil_first(np.array([k]), self.y.size)
+        for j in range(int(first[0]), int(first[0]) + w):
+            x = x[self.lines[j].contains(x)]
+        return x
+
     def _refine(self, sampler, progress) -> None:
+        """Check every unchecked y-interval at its midpoint on a grid of x (:meth:`_check_points`); an
+        interval that fails gets a full line there (both halves to be checked), one that passes keeps its
+        measured discrepancy as its error estimate and costs no line."""
         st = self.y_settings
         max_gen = int(math.ceil(math.log2(max(self.y[-1] - self.y[0], st.min_dx) / st.min_dx))) + 4
         for _ in range(max_gen):
@@ -580,26 +653,37 @@ class Table2D:
             if todo.size == 0:
                 return
             width = np.diff(self.y)
-            xlo, xhi = self.lines[0].lo, self.lines[0].hi
             for k in todo[::-1]:                       # right to left keeps indices of the rest valid
                 if width[k] < 2 * st.min_dx:
                     self.ychecked[k] = True
                     continue
                 ym = 0.5 * (self.y[k] + self.y[k + 1])
-                line_m = Table1D.build(lambda x, ym=ym: sampler(x, ym), xlo, xhi, self.settings, progress)
-                key = _regime_key(line_m.regime, line_m.regular)
-                pred = self.evaluate(line_m.x, np.full(line_m.x.size, ym))
-                use = line_m.regular & pred.valid & (pred.regime == key)
-                scale = np.maximum(np.abs(line_m.value), self.settings.abs_floor)
-                rel = np.abs(pred.value - line_m.value)[use] / scale[use]
-                disc = float(rel.max(initial=0.0))
-                ok = disc <= st.tol
-                self.y = np.insert(self.y, k + 1, ym)
+                xs = self._check_points(k, ym)
+                disc = 0.0
+                if xs.size:
+                    sm = Table1D(self.settings)._sample(lambda x, ym=ym: sampler(x, ym), xs, progress,
+                                                        "check in y")
+                    pred = self.evaluate(xs, np.full(xs.size, ym))
+                    use = sm.regular & pred.valid & (pred.regime == _regime_key(sm.regime, sm.regular))
+                    scale = np.maximum(np.abs(sm.value), self.settings.abs_floor)
+                    disc = float((np.abs(pred.value - sm.value)[use] / scale[use]).max(initial=0.0))
+                    self._n_checked += xs.size
+                self.yerr[k] = disc
+                if disc <= st.tol:
+                    self.ychecked[k] = True
+                    continue
+                # the midpoint line covers what it will need once inserted
+                y_new = np.insert(self.y, k + 1, ym)
+                lo, hi = self._required(y_new, self.windows)[k + 1]
+                line_m = Table1D(self.settings)
+                if not np.isnan(lo):
+                    line_m.extend(lambda x, ym=ym: sampler(x, ym), lo, max(hi, lo + self.settings.base_dx),
+                                  progress)
+                self.y = y_new
                 self.lines.insert(k + 1, line_m)
                 self.yerr = np.insert(self.yerr, k + 1, disc)
-                self.yerr[k] = disc
-                self.ychecked = np.insert(self.ychecked, k + 1, ok)
-                self.ychecked[k] = ok
+                self.ychecked = np.insert(self.ychecked, k + 1, False)
+            self._cover(sampler, progress)
         raise RuntimeError(f"2-D table refinement bound of {max_gen} generations in y reached")
 
     def evaluate(self, xq, yq) -> TableValues:
@@ -614,12 +698,8 @@ class Table2D:
                              f"[{self.y[0]:.6g}, {self.y[-1]:.6g}]: extend the table first")
         ny = self.y.size
         k = np.clip(np.searchsorted(self.y, yq, side="right") - 1, 0, ny - 2)
-        cubic = self.settings.method != "linear" and ny >= 4
-        if cubic:
-            first = np.clip(k - 1, 0, ny - 4)
-            stencil = first[:, None] + np.arange(4)
-        else:
-            stencil = k[:, None] + np.arange(2)
+        first, width = self._stencil_first(k, ny)
+        stencil = first[:, None] + np.arange(width)
         vals = np.empty(stencil.shape, dtype=complex)
         errs = np.empty(stencil.shape)
         valid = np.ones(stencil.shape, dtype=bool)
@@ -652,7 +732,7 @@ class Table2D:
         return TableValues(value.reshape(shape), error.reshape(shape), ok.reshape(shape), regime.reshape(shape))
 
     def to_arrays(self) -> dict[str, np.ndarray]:
-        arrays = {"y": self.y, "yerr": self.yerr, "ychecked": self.ychecked}
+        arrays = {"y": self.y, "yerr": self.yerr, "ychecked": self.ychecked, "windows": self.windows}
         for j, line in enumerate(self.lines):
             arrays.update(line.to_arrays(prefix=f"line{j}."))
         return arrays
@@ -663,6 +743,7 @@ class Table2D:
         table.y = np.asarray(arrays["y"])
         table.yerr = np.asarray(arrays["yerr"])
         table.ychecked = np.asarray(arrays["ychecked"])
+        table.windows = np.asarray(arrays["windows"], dtype=float).reshape(-1, 5)
         table.lines = [Table1D.from_arrays(arrays, settings, prefix=f"line{j}.") for j in range(table.y.size)]
         return table
 
