@@ -132,8 +132,12 @@ def window(name: str, value) -> tuple[float, float]:
     """A window (lo, hi) of positive finite floats with lo < hi (frequencies in rad/s, amplitudes)."""
     try:
         lo, hi = (float(x) for x in value)
-    except (TypeError, ValueError):
-        raise DfloopError(f"{name} window must be a pair (lo, hi); got {value!r}") from None
-    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
-        raise DfloopError(f"{name} window must satisfy 0 < lo < hi, both finite; got ({lo}, {hi})")
+    except (TypeError, ValueError, OverflowError):
+        raise DfloopError(f"{name} window must be a pair (lo, hi) of real numbers; got {value!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise DfloopError(f"{name} window must be finite; got ({lo}, {hi})")
+    if lo <= 0 or hi <= 0:
+        raise DfloopError(f"{name} window must be positive; got ({lo}, {hi})")
+    if lo >= hi:
+        raise DfloopError(f"{name} window must satisfy lo < hi; got ({lo}, {hi})")
     return lo, hi

@@ -8,7 +8,7 @@ import warnings
 
 import numpy as np
 
-from .._checks import finite
+from .._checks import finite, window as checked_window
 from ..describing.interop import as_element
 from ._kernels import candidate_cells
 from .grid import FD_MIN_WIDTH, STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
@@ -25,20 +25,6 @@ _MIN_LOG_STEP = 1e-6  # grid intervals narrower than this (in ln A or ln w) are 
 _FD_ROWS = 16  # amplitudes (frequencies) at which a frequency-dependent N is resolved along w (A)
 _PHASE_STEP = np.pi / 3  # max turn of arg(G N) between neighbours (frequency-dependent N)
 _NEAR_UNIT = math.log(20.0)  # "near 1": 1/20 <= |G N| <= 20
-
-
-def _window(name: str, value) -> tuple[float, float]:
-    try:
-        lo, hi = (float(x) for x in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} window must be a pair (lo, hi); got {value!r}") from None
-    if not (math.isfinite(lo) and math.isfinite(hi)):
-        raise ValueError(f"{name} window must be finite; got ({lo}, {hi})")
-    if lo <= 0 or hi <= 0:
-        raise ValueError(f"{name} window must be positive; got ({lo}, {hi})")
-    if lo >= hi:
-        raise ValueError(f"{name} window must satisfy lo < hi; got ({lo}, {hi})")
-    return lo, hi
 
 
 def _grid_size(grid) -> tuple[int, int]:
@@ -209,7 +195,7 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
         w_lo, w_hi = plant.default_window
         w_src = "default: from the plant's poles/zeros" if plant.domain[0] == 0 else "default: the frd's grid"
     else:
-        w_lo, w_hi = _window("omega", omega)
+        w_lo, w_hi = checked_window("omega", omega)
         w_src = "given"
     if w_lo < plant.domain[0] * (1 - 1e-12) or w_hi > plant.domain[1] * (1 + 1e-12):
         raise ValueError(f"omega window ({w_lo:g}, {w_hi:g}) leaves the plant's frequency range {plant.domain}")
@@ -229,7 +215,7 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
         sub = v if not res.frequency_dependent else v[np.unique(np.linspace(0, v.size - 1, min(v.size, 400)).astype(int))]
         (A_lo, A_hi), a_src = _default_amplitude_window(res, sub, dom)
     else:
-        A_lo, A_hi = _window("amplitude", amplitude)
+        A_lo, A_hi = checked_window("amplitude", amplitude)
         a_src = "given"
         if A_lo <= dom[0]:
             A_lo, a_src = dom[0] * (1 + 1e-9), "given, clipped to N's amplitude domain"
