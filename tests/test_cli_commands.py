@@ -189,7 +189,7 @@ def test_cli_loading_gives_table_builds_a_progress_bar_unless_the_scene_sets_one
     from dfloop.scene import load_scene
 
     assert isinstance(load_scene("dynamic_backlash_pd", progress=True).element._progress, TableProgress)
-    assert load_scene("dynamic_backlash_pd").element._progress is None   # the element default: a bar for long builds
+    assert load_scene("dynamic_backlash_pd").element._progress is False  # quiet unless asked (--quiet)
     own = tmp_path / "own.toml"
     own.write_text((ROOT / "models" / "dynamic_backlash_pd.toml").read_text().replace(
         "restitution = 0.5", "restitution = 0.5\nprogress = false"))

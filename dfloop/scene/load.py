@@ -201,7 +201,8 @@ def load_scene(path: str | Path, *, progress: bool = False) -> Scene:
     if problems:
         raise SceneError(path, problems)
     name = model.scene.name or path.stem
-    extra = {"progress": TableProgress(f"{name}: {data['element']['type']} table")} if progress else None
+    # progress=False silences the element's own bar too (the CLI's --quiet, and quiet library use)
+    extra = {"progress": TableProgress(f"{name}: {data['element']['type']} table") if progress else False}
     try:
         plant, element = _loop(data, extra)
         loop_at = None
