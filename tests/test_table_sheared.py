@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from dfloop.impact.table import Samples, Table2D, TableSettings
+from dfloop.impact.table import Samples, TableSettings
+from dfloop.impact.table2d import Table2D
 
 
 def f2(x, y):

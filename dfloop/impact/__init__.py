@@ -13,7 +13,8 @@ from .kernel import EventLimitError, ImpactParameters
 from .kernel import simulate as simulate_impacts
 from .limits import (MeasuredLimits, beta_lower_limit, beta_of, jump_frequency, lower_limit_frequency,
                      measured_limits, no_impact_frequency, omega_of, static_limit_frequency, x2_peak_excursion)
-from .table import Samples, Table1D, Table2D, TableSettings
+from .table import Samples, Table1D, TableSettings
+from .table2d import Table2D
 
 __all__ = ["simulate_impacts", "ImpactParameters", "EventLimitError", "ViscousDamping", "LoadSpring",
            "CoulombFriction", "impact_describing_function", "impact_describing_function_batch",

@@ -26,7 +26,8 @@ from . import cache as _cache
 from .extract import PERIODICITY_TOL
 from .limits import BETA_NO_IMPACT
 from ..progress import progress_bar
-from .table import Samples, Table1D, Table2D, TableSettings, TableValues, settings_dict
+from .table import Samples, Table1D, TableSettings, TableValues, settings_dict
+from .table2d import Table2D
 
 __all__ = ["DynamicBacklash", "prepare_many"]
 
