@@ -48,10 +48,13 @@ def _asin_minus(t: np.ndarray, c: np.ndarray) -> np.ndarray:
     phi(t) = 2 sum_n C(2n, n) 4^-n t^(2n+3) / (2n + 3) is summed instead (16 terms: error < 1e-19 phi).
     """
     tc = np.clip(t, 0.0, 1.0)
-    direct = np.arctan2(tc, c) - tc * c
-    t2 = tc * tc
-    series = np.polynomial.polynomial.polyval(t2, _SERIES_COEFFS) * t2 * tc
-    return np.where(np.isnan(t), np.nan, np.where(tc < 0.25, series, direct))
+    out = np.array(np.arctan2(tc, c) - tc * c, dtype=float)
+    small = tc < 0.25
+    if small.any():  # the series only where it is used
+        t2 = tc[small] * tc[small]
+        out[small] = np.polynomial.polynomial.polyval(t2, _SERIES_COEFFS) * t2 * tc[small]
+    out[np.isnan(t)] = np.nan
+    return out
 
 
 def _f(u: np.ndarray) -> np.ndarray:

@@ -9,6 +9,7 @@ import warnings
 import numpy as np
 
 from .._checks import finite, window as checked_window
+from ..describing.base import DescribingFunction
 from ..describing.interop import as_element
 from ._kernels import candidate_cells
 from .grid import FD_MIN_WIDTH, STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
@@ -318,10 +319,14 @@ def _build(res: Residual, ra, rv, bounds, marginal_tol) -> list[LimitCycle]:
         keep[marg[greedy_unique(ra[marg], rv[marg], 0.5e-4)]] = True
     ra, rv, det, cond, label = ra[keep], rv[keep], det[keep], cond[keep], label[keep]
     A, w = np.exp(ra), np.exp(rv)
-    g = res.plant(w)
-    n = res.N(A, w) if res.frequency_dependent else res.N(A)
-    valid = np.broadcast_to(res.N.validity(A, w if res.frequency_dependent else None), A.shape)
-    err = np.broadcast_to(res.N.error_estimate(A, w if res.frequency_dependent else None), A.shape)
+    g, n = res.factors(ra, rv)
+    wf = w if res.frequency_dependent else None
+    own = type(res.N)
+    # the protocol's defaults (finite means valid, closed forms are exact) need no second evaluation of N
+    valid = np.broadcast_to(np.isfinite(n) if own.validity is DescribingFunction.validity
+                            else res.N.validity(A, wf), A.shape)
+    err = np.broadcast_to(np.zeros(A.shape) if own.error_estimate is DescribingFunction.error_estimate
+                          else res.N.error_estimate(A, wf), A.shape)
     err = np.where(np.isnan(err), np.inf, err)  # an element without an estimate: unknown, not NaN
     a_lo, a_hi, v_lo, v_hi = bounds
     edge_tol = 1e-9

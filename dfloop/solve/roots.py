@@ -41,6 +41,8 @@ _JUMP_LENGTH = 1e-9  # segments shorter than this (log units, i.e. relative in A
 _JUMP_SIZE = 1e-3  # ... across which R changes by more than this times 1 + |G N| are discontinuities
 _JUMP_BOX = 1e-7  # a winding box narrower than this (log units) touching a discontinuity is a jump crossing
 _JUMP_DOMINANCE = 4.0  # a grid step of G N this many times larger than both neighbouring steps is a jump
+_MEMO_BATCH = 64  # batches of at most this many points are remembered by Residual.slopes ...
+_MEMO_SIZE = 8192  # ... up to this many points (then the memo starts again)
 
 
 def dominant_steps(P: np.ndarray) -> np.ndarray:
@@ -70,6 +72,7 @@ class Residual:
         self.N = N
         self.frequency_dependent = bool(N.frequency_dependent)
         self.n_points = 0
+        self._memo: dict[tuple[float, float], tuple] = {}  # (a, v) -> (P, dP/da, dP/dv, G, N) of small batches
 
     def _n(self, A: np.ndarray, w: np.ndarray | None) -> np.ndarray:
         n = self.N(A, w) if self.frequency_dependent else self.N(A)
@@ -101,9 +104,31 @@ class Residual:
         """P = G N and its derivatives dP/da, dP/dv at points (a, v) (1-D arrays, log coordinates).
 
         dG/dv is exact for rational G (:meth:`Plant.log_slope`), a central difference otherwise; N is
-        differentiated by central differences of step ``_FD_STEP`` (log units).
+        differentiated by central differences of step ``_FD_STEP`` (log units). Small batches (the points
+        of a refinement) are remembered, so the merge, the stability test and the result, which read the
+        same refined points again, cost no evaluation (:meth:`factors`).
         """
+        return self._point_values(a, v)[:3]
+
+    def factors(self, a, v) -> tuple[np.ndarray, np.ndarray]:
+        """G and N at points (a, v) (1-D arrays, log coordinates), remembered like :meth:`slopes`."""
+        return self._point_values(a, v)[3:]
+
+    def _point_values(self, a, v) -> tuple[np.ndarray, ...]:
         a, v = np.broadcast_arrays(np.atleast_1d(np.asarray(a, float)), np.atleast_1d(np.asarray(v, float)))
+        if a.size <= _MEMO_BATCH:
+            keys = list(zip(a.tolist(), v.tolist()))
+            hits = [self._memo.get(key) for key in keys]
+            if all(h is not None for h in hits):
+                return tuple(np.array(col) for col in zip(*hits)) if hits else (np.empty(0, complex),) * 5
+        out = self._evaluate_slopes(a, v)
+        if a.size <= _MEMO_BATCH:
+            if len(self._memo) + a.size > _MEMO_SIZE:
+                self._memo.clear()
+            self._memo.update(zip(keys, zip(*(x.tolist() for x in out))))
+        return out
+
+    def _evaluate_slopes(self, a: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, ...]:
         k, h = a.size, _FD_STEP
         A, w = np.exp(a), np.exp(v)
         up, dn = np.exp(h), np.exp(-h)
@@ -121,7 +146,7 @@ class Residual:
             n_v = 0.0
         self.n_points += nn.size
         n, n_a = nn[:k], (nn[k:2 * k] - nn[2 * k:3 * k]) / (2 * h)
-        return g * n, g * n_a, g_v * n + g * n_v
+        return g * n, g * n_a, g_v * n + g * n_v, g, n
 
     def jacobian(self, a: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """dR/da and dR/dv (complex) at points (a, v) (see :meth:`slopes`)."""
