@@ -168,3 +168,7 @@ def test_tangent_seeds_equal_loops(seed):
         ref = ref_seeds(P, ci, cj, threshold, allowed)
         assert list(zip(si.tolist(), sj.tolist())) == [(i, j) for i, j, _ in ref]
         assert same_floats(sm, [x for *_, x in ref])
+        # the same with the allowed nodes given as row-major index arrays
+        ni, nj = (x.astype(np.int64) for x in np.nonzero(allowed))
+        li, lj, lm = tangent_seeds(P, ci.astype(np.int64), cj.astype(np.int64), threshold, (ni, nj))
+        assert li.tolist() == si.tolist() and lj.tolist() == sj.tolist() and same_floats(lm, sm)

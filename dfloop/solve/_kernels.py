@@ -107,22 +107,24 @@ def candidate_cells(ln_n: np.ndarray, eps_a: np.ndarray, ln_g: np.ndarray, eps_v
     return keep // nv, keep % nv
 
 
-def tangent_seeds(P: np.ndarray, ci: np.ndarray, cj: np.ndarray, threshold: float, allowed: np.ndarray):
+def tangent_seeds(P: np.ndarray, ci: np.ndarray, cj: np.ndarray, threshold: float, allowed):
     """Grid nodes where m = |1 + P|^2 / (1 + |P|^2) (scale-free, 0 only at roots) is a local minimum
     (8 neighbours) below ``threshold``, excluding nodes within one node of a cell of non-zero winding
-    (cells ci, cj) and nodes where ``allowed`` is False.
+    (cells ci, cj) and nodes that are not ``allowed``.
 
+    ``allowed`` is a boolean (na, nv) mask, or the row-major int64 index arrays (i, j) of the allowed nodes
+    (cheaper when they are few: the work then scales with their number, not with the grid).
     Returns int64 index arrays (i, j) of the seeds in row-major order and m at them.
     """
     na, nv = P.shape
-    explained = np.zeros((na, nv), dtype=bool)
-    for di in range(-1, 3):  # the 4 x 4 nodes from one before a cell's corners to one after
-        ii = ci + di
-        for dj in range(-1, 3):
-            jj = cj + dj
-            ok = (ii >= 0) & (ii < na) & (jj >= 0) & (jj < nv)
-            explained[ii[ok], jj[ok]] = True
-    si, sj = _indices(allowed & ~explained)
+    si, sj = _indices(allowed) if isinstance(allowed, np.ndarray) else allowed
+    # drop the 4 x 4 nodes from one before a winding cell's corners to one after
+    ei = (ci[:, None] + np.repeat(np.arange(-1, 3), 4)[None, :]).ravel()
+    ej = (cj[:, None] + np.tile(np.arange(-1, 3), 4)[None, :]).ravel()
+    inside = (ei >= 0) & (ei < na) & (ej >= 0) & (ej < nv)
+    if ei.size:
+        free = ~np.isin(si * nv + sj, ei[inside] * nv + ej[inside])
+        si, sj = si[free], sj[free]
     x = _m(P[si, sj])  # m only where it is read (allowed nodes and, below, their neighbours), as in a loop
     low = ~(x >= threshold)
     si, sj, x = si[low], sj[low], x[low]
