@@ -116,6 +116,19 @@ class LinearThenStatic(DescribingFunction):
         return f"LinearThenStatic({self.linear!r}, {self.static!r})"
 
 
+class _RigidMass:
+    """G_m(s) = 1 / (m s^2): force (N) to position (m) of a free mass m (kg); a class, so elements pickle."""
+
+    def __init__(self, mass: float):
+        self.mass = mass
+
+    def __call__(self, s):
+        return 1.0 / (self.mass * s * s)
+
+    def __repr__(self) -> str:
+        return f"1/({self.mass:g} s^2)"
+
+
 class MassBacklash(LinearThenStatic):
     """The paper's classical backlash model (Fig. 2): force on a mass m1 + m2, then geometric backlash.
 
@@ -138,8 +151,7 @@ class MassBacklash(LinearThenStatic):
     def __init__(self, m1: float, m2: float, h: float, k: float = 1.0):
         self.m1 = positive("m1", m1)
         self.m2 = positive("m2", m2)
-        mass = self.m1 + self.m2
-        super().__init__(lambda s: 1.0 / (mass * s * s), Backlash(h, k), input_name="F", input_unit="N")
+        super().__init__(_RigidMass(self.m1 + self.m2), Backlash(h, k), input_name="F", input_unit="N")
 
     @property
     def h(self) -> float:
