@@ -200,13 +200,14 @@ def test_beta_overflow_is_a_clear_error():
 @pytest.mark.parametrize("w", [35.9, 36.1, 36.3])
 def test_adaptive_transient_follows_slow_convergence(w):
     """eps = 0.5 at 35.9-36.4 rad/s converges over ~1000 periods: a fixed 100-period transient calls it
-    irregular; the adaptive one finds period 1 and the DF of a 2500-period run."""
+    irregular; the adaptive one finds period 1 and the DF of a 2500-period run (within its own uncertainty
+    and 1e-6), in far fewer periods (restarts from the extrapolated fixed point of the stroboscopic map)."""
     assert not impact_describing_function(M1, M2, H, 0.5, F, w, transient_periods=100, periods=20).regular
     r = impact_describing_function(M1, M2, H, 0.5, F, w, transient_periods=None, periods=20)
     ref = impact_describing_function(M1, M2, H, 0.5, F, w, transient_periods=2500, periods=20)
     assert r.period == ref.period == 1
-    assert abs(r.N - ref.N) <= 1e-6 * abs(ref.N)
-    assert 100 < r.transient_periods <= 4000
+    assert abs(r.N - ref.N) <= min(1e-6, r.periodicity + 1e-6) * abs(ref.N)
+    assert r.transient_periods + r.periods_used < 400
 
 
 def test_adaptive_transient_stops_early_on_irregular_motion():

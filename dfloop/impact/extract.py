@@ -16,14 +16,15 @@ from __future__ import annotations
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .. import _checks
+from . import _core
 from ._core import IMPACT_A, IMPACT_B
 from .kernel import (DEFAULT_CHATTER_TOL, EventLimitError, ImpactParameters, KernelRun, Trajectory,
-                     default_max_events, simulate)
+                     _event_limit_message, default_max_events, simulate)
 from .limits import beta_lower_limit
 
 __all__ = ["ImpactDF", "ImpactDFBatch", "describing_function_from_trajectory", "impact_describing_function",
@@ -78,6 +79,15 @@ class ImpactDF:
         kernel (with sticking) often finds periodic chatter-and-stick motion there: ``regular`` says which.
     transient_periods : int
         Forcing periods discarded before the window (chosen adaptively when the caller asked for it).
+    orbit : numpy.ndarray
+        Adaptive runs of the paper's model: the stroboscopic states (gap / h, u / v_scale, mode, with
+        v_scale = max(h w, F / (M2 w))) of the detected periodic orbit, one row per forcing period of its
+        cycle, followed by those of its mirror image (the motion half a period later reflected, x -> -x,
+        gap -> h - gap: a motion too, with the same DF); empty when irregular or with effects. Pass it as
+        ``attractor`` to recognise the same motion.
+    settled : bool
+        True when the run stopped because it settled on the ``attractor`` it was given (the same motion:
+        N and the other fields are then NaN / 0 and the attractor's apply).
 
     A window without impacts or sticking is free flight: x1 is exactly linear, N = 0 exactly, and the
     motion is labelled period 1 with ``n_impacts`` = 0 (no-impact motion), whatever the gap does.
@@ -98,6 +108,8 @@ class ImpactDF:
     beta: float
     below_wc: bool
     transient_periods: int = 0
+    orbit: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    settled: bool = False
 
     @property
     def regular(self) -> bool:
@@ -105,6 +117,8 @@ class ImpactDF:
         return self.period > 0
 
     def __repr__(self) -> str:
+        if self.settled:
+            return f"ImpactDF(settled on the given attractor (period {self.period}), beta={self.beta:.4g})"
         note = "" if self.regular else ", irregular: N is an average over the window"
         note += ", no impacts in the window" if self.n_impacts == 0 and self.stuck_fraction == 0 else ""
         note += ", below w_c of eq. (10)" if self.below_wc else ""
@@ -270,7 +284,7 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
                                periods: int = DEFAULT_PERIODS, max_events: int | None = None,
                                chatter_tol: float = DEFAULT_CHATTER_TOL,
                                max_transient_periods: int = DEFAULT_MAX_TRANSIENT_PERIODS,
-                               initial=None) -> ImpactDF:
+                               initial=None, attractor=None) -> ImpactDF:
     """N(F, w) = X1 / F (m/N) of the two-mass impact system driven by F cos(w t) on M2, output x1.
 
     Parameters
@@ -286,11 +300,15 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
     effects : sequence, optional
         Optional effects (:mod:`dfloop.impact.effects`); they break the similarity law.
     transient_periods : int or None
-        Forcing periods discarded before the window. None: adaptive, from ``MIN_TRANSIENT_PERIODS`` on,
-        lengthened until the period detection has converged (see :func:`_assess_period`: a motion that
-        contracts towards a periodic orbit is followed for as long as the extrapolated contraction says, up
-        to ``max_transient_periods``; one that does not contract after ``CHAOS_TRANSIENT_PERIODS`` is
-        irregular). The length used is returned as ``transient_periods`` of the result.
+        Forcing periods discarded before the window. None: adaptive. Paper's model: the run goes on period
+        by period and stops as soon as the period detection has converged (:func:`dfloop.impact._core.
+        assess_period` after every period: the stroboscopic state returns to itself after p periods, to
+        1e-6 together with the distance to the orbit that its contraction implies, over a window of whole
+        cycles of at least ``periods`` periods); the DF is integrated over that window. A motion without a
+        clearly contracting candidate after ``CHAOS_TRANSIENT_PERIODS`` + ``periods`` periods is irregular;
+        one still contracting is followed up to ``max_transient_periods`` + ``periods``. With effects: from
+        ``MIN_TRANSIENT_PERIODS`` on, lengthened until the detection over the window of ``periods`` periods
+        has converged (:func:`_assess_period`). The length discarded is returned as ``transient_periods``.
     periods : int
         Forcing periods integrated (a period-p motion uses a multiple of p).
     max_events : int, optional
@@ -303,6 +321,10 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
     initial : (x1, v1, gap, u), optional
         Start state (m, m/s) instead of rest with a centred gap (paper's model only); used to look for
         coexisting periodic motions.
+    attractor : numpy.ndarray, optional
+        ``orbit`` of an earlier adaptive result at the same (F, w) (paper's model, adaptive transient only).
+        When the motion comes within 1e-5 of one of its stroboscopic states at two consecutive period
+        boundaries it has settled on that motion: the run stops there and returns ``settled`` True.
 
     Returns
     -------
@@ -327,25 +349,19 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
         raise ValueError(f"max_events must be >= 1, got {max_events}")
     max_events = int(max_events)
     if effects:
-        if initial is not None:
-            raise ValueError("initial: a start other than rest is supported by the paper's model only "
-                             "(no effects)")
+        if initial is not None or attractor is not None:
+            raise ValueError("initial, attractor: supported by the paper's model only (no effects)")
 
         def window(t_a: float, t_b: float) -> Trajectory:
             return simulate(p.m1, p.m2, p.h, p.restitution, p.force, p.omega, t_b, effects=effects,
                             max_events=max_events, chatter_tol=chatter_tol)
 
         return _describe(p, window, transient, periods, max_transient)
-    log_beta = math.log(p.force) - math.log(p.m2) - math.log(p.h) - 2.0 * math.log(p.omega)
-    if log_beta > math.log(1e300):
-        raise ValueError(f"force: beta = F/(M2 h w^2) = exp({log_beta:.6g}) overflows (F = {p.force!r} N, "
-                         f"h = {p.h!r} m, omega = {p.omega!r} rad/s); the masses then move as one body, "
-                         f"N = -1/((M1 + M2) w^2)")
-    beta = math.exp(log_beta) if log_beta > -690.0 else 1e-300
-    scaled = ImpactParameters(p.m1 / p.m2, 1.0, 1.0, p.restitution, beta, 1.0)
-    if initial is not None:
-        x1, v1, gap, u = initial
-        initial = (x1 / p.h, v1 / (p.h * p.omega), gap / p.h, u / (p.h * p.omega))
+    if transient is None:
+        return _adaptive_point(p, chatter_tol, initial, periods, max_transient, max_events, attractor, True)
+    if attractor is not None:
+        raise ValueError("attractor: supported with the adaptive transient only (transient_periods=None)")
+    scaled, initial = _similarity(p, initial)
     run = KernelRun(scaled, chatter_tol, initial)
 
     def window(t_a: float, t_b: float) -> Trajectory:
@@ -356,6 +372,96 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
 
     r = _describe(scaled, window, transient, periods, max_transient)
     return replace(r, N=p.h * r.X1 / p.force, X1=p.h * r.X1)
+
+
+def _similarity(p: ImpactParameters, initial):
+    """The same motion in similarity units (h = M2 = w = 1, force beta) and its scaled start state."""
+    log_beta = math.log(p.force) - math.log(p.m2) - math.log(p.h) - 2.0 * math.log(p.omega)
+    if log_beta > math.log(1e300):
+        raise ValueError(f"force: beta = F/(M2 h w^2) = exp({log_beta:.6g}) overflows (F = {p.force!r} N, "
+                         f"h = {p.h!r} m, omega = {p.omega!r} rad/s); the masses then move as one body, "
+                         f"N = -1/((M1 + M2) w^2)")
+    beta = math.exp(log_beta) if log_beta > -690.0 else 1e-300
+    scaled = ImpactParameters.trusted(p.m1 / p.m2, 1.0, 1.0, p.restitution, beta, 1.0)
+    if initial is not None:
+        x1, v1, gap, u = initial
+        initial = (x1 / p.h, v1 / (p.h * p.omega), gap / p.h, u / (p.h * p.omega))
+    return scaled, initial
+
+
+_SETTLE_TOL = 1e-5            # an attractor is reached when the stroboscopic state is this close to it
+
+
+def _adaptive_point(dim: ImpactParameters, chatter_tol: float, initial, periods: int, max_transient: int,
+                    max_events: int, attractor, runs: bool) -> ImpactDF:
+    """Adaptive DF of the paper's model at validated parameters ``dim`` (SI), simulated in similarity units.
+
+    The compiled driver (:func:`dfloop.impact._core.run_periods`) stops as soon as the period detection has
+    converged, the motion is irregular, or it has settled on ``attractor``; the DF and the diagnostics come
+    from the Fourier integrals and impact records it accumulated per period (no trajectory is stored).
+    ``runs=False`` leaves ``runs_A`` / ``runs_B`` empty (their maxima are still computed).
+    """
+    p, initial = _similarity(dim, initial)
+    run = KernelRun(p, chatter_tol, initial)
+    k_max = max_transient + periods
+    v_scale = max(p.h * p.omega, p.force / (p.m2 * p.omega))
+    ctl = np.zeros(_core.N_CONTROL)
+    ctl[_core.C_TOL], ctl[_core.C_FLOOR], ctl[_core.C_VSCALE] = PERIODICITY_TOL, _rounding_floor(p.beta), v_scale
+    ctl[_core.C_WINDOW], ctl[_core.C_KMAX] = periods, k_max
+    ctl[_core.C_CHAOS], ctl[_core.C_MAXEV] = CHAOS_TRANSIENT_PERIODS + periods, max_events
+    ctl[_core.C_MATCH_TOL] = _SETTLE_TOL
+    orbit = np.zeros((0, 3)) if attractor is None else np.ascontiguousarray(attractor, dtype=float)
+    if orbit.ndim != 2 or orbit.shape[1] != 3:
+        raise ValueError(f"attractor must be the (2 p, 3) orbit of an adaptive ImpactDF, got shape {orbit.shape}")
+    strobe = np.empty((k_max + 1, 4))
+    half = np.empty((k_max, 3))
+    st = run._state
+    strobe[0] = (st[2], st[4] / p.h, st[5] / v_scale, _core.FREE)
+    four = np.empty(k_max, dtype=complex)
+    stuck = np.empty(k_max)
+    side_off = np.zeros(k_max + 1, dtype=np.int64)
+    sides = np.empty(64 * periods, dtype=np.int8)
+    k, events = 0, 0
+    while True:
+        status, k, period, events = _core.run_periods(run._kernel_params, st, run._seg, run._mode, run._cause,
+                                                      ctl, k, strobe, half, four, stuck, side_off, sides, events,
+                                                      orbit)
+        if status != _core.SIDES_FULL:
+            break
+        grown = np.empty(4 * sides.size, dtype=np.int8)
+        grown[:sides.size] = sides
+        sides = grown
+    tp = p.period
+    if status == _core.EVENT_LIMIT:
+        raise EventLimitError(_event_limit_message(max_events, k * tp, k_max * tp, tp))
+    below_wc = bool(p.beta > beta_lower_limit(p.restitution))
+    if status == _core.SETTLED:
+        return ImpactDF(N=complex(np.nan, np.nan), X1=complex(np.nan, np.nan), periodicity=np.nan,
+                        period=orbit.shape[0] // 2,
+                        impacts_per_period=np.nan, max_run_A=0, max_run_B=0, runs_A=np.zeros(0, np.int64),
+                        runs_B=np.zeros(0, np.int64), stuck_fraction=np.nan, periods_used=0, n_impacts=0,
+                        beta=p.beta, below_wc=below_wc, transient_periods=k, settled=True)
+    n = _core._window_of(period, periods) if status == _core.CONVERGED else periods
+    X1, spread, n_imp, run_a, run_b, stuck_time = _core.window_summary(strobe, four, stuck, sides, side_off, k,
+                                                                       n, period, p.omega)
+    used = n if period == 0 else period * (n // period)
+    empty = np.zeros(0, np.int64)
+    runs_a, runs_b = _run_lengths(sides[side_off[k - used]:side_off[k]].astype(np.int64)) if runs else (empty, empty)
+    if n_imp == 0 and stuck_time == 0.0:
+        # free flight throughout the window: x1 is exactly linear, its fundamental exactly 0
+        X1, spread, period = 0j, 0.0, 1
+    orbit = np.zeros((0, 3))
+    if period > 0:
+        # the orbit at the period boundaries, and its mirror image: the motion half a period later reflected
+        # (x -> -x, gap -> h - gap, sides A <-> B) is a motion too, with the same DF
+        mirror = half[k - period:k].copy()
+        mirror[:, 0], mirror[:, 1] = 1.0 - mirror[:, 0], -mirror[:, 1]
+        mirror[:, 2] = np.where(mirror[:, 2] == _core.FREE, _core.FREE, _core.STUCK_A + _core.STUCK_B - mirror[:, 2])
+        orbit = np.vstack([strobe[k - period + 1:k + 1, 1:], mirror])
+    X1 = X1 * dim.h          # similarity units back to metres
+    return ImpactDF(N=X1 / dim.force, X1=X1, periodicity=spread, period=period, impacts_per_period=n_imp / used,
+                    max_run_A=int(run_a), max_run_B=int(run_b), runs_A=runs_a, runs_B=runs_b, stuck_fraction=stuck_time / (used * tp), periods_used=used, n_impacts=int(n_imp),
+                    beta=p.beta, below_wc=below_wc, transient_periods=k - used, orbit=orbit)
 
 
 def _describe(p: ImpactParameters, window, transient: int | None, periods: int, max_transient: int) -> ImpactDF:
@@ -386,7 +492,9 @@ class ImpactDFBatch:
     """Arrays of :class:`ImpactDF` fields over a broadcast grid of (force, omega).
 
     ``failure`` is "" where the run finished and the reason where it did not (with
-    ``on_event_limit='record'``: the event bound was reached); there N is NaN and period 0.
+    ``on_event_limit='record'``: the event bound was reached); there N is NaN and period 0. ``settled`` is
+    True where the run stopped on the ``attractor`` it was given (N NaN there: the attractor's applies);
+    ``orbit`` holds each point's :attr:`ImpactDF.orbit` (an object array).
     """
 
     N: np.ndarray
@@ -402,6 +510,8 @@ class ImpactDFBatch:
     below_wc: np.ndarray
     transient_periods: np.ndarray
     failure: np.ndarray
+    settled: np.ndarray
+    orbit: np.ndarray
 
     @property
     def regular(self) -> np.ndarray:
@@ -417,10 +527,11 @@ class ImpactDFBatch:
 
 _BATCH_FIELDS = {"N": complex, "periodicity": float, "period": np.int64, "impacts_per_period": float,
                  "max_run_A": np.int64, "max_run_B": np.int64, "stuck_fraction": float, "periods_used": np.int64,
-                 "n_impacts": np.int64, "beta": float, "below_wc": bool, "transient_periods": np.int64}
+                 "n_impacts": np.int64, "beta": float, "below_wc": bool, "transient_periods": np.int64,
+                 "settled": bool}
 _FAILED = {"N": complex(np.nan, np.nan), "periodicity": np.nan, "period": 0, "impacts_per_period": np.nan,
            "max_run_A": 0, "max_run_B": 0, "stuck_fraction": np.nan, "periods_used": 0, "n_impacts": 0,
-           "beta": np.nan, "below_wc": False, "transient_periods": 0}
+           "beta": np.nan, "below_wc": False, "transient_periods": 0, "settled": False}
 
 
 def impact_describing_function_batch(m1: float, m2: float, h: float, restitution: float, force, omega, *,
@@ -428,7 +539,7 @@ def impact_describing_function_batch(m1: float, m2: float, h: float, restitution
                                      periods: int = DEFAULT_PERIODS, max_events: int | None = None,
                                      chatter_tol: float = DEFAULT_CHATTER_TOL,
                                      max_transient_periods: int = DEFAULT_MAX_TRANSIENT_PERIODS,
-                                     initial=None, on_event_limit: str = "raise",
+                                     initial=None, attractor=None, on_event_limit: str = "raise",
                                      workers: int | None = None, callback=None) -> ImpactDFBatch:
     """:func:`impact_describing_function` over broadcast arrays ``force`` and ``omega`` (N, rad/s).
 
@@ -436,7 +547,9 @@ def impact_describing_function_batch(m1: float, m2: float, h: float, restitution
     ``on_event_limit``: 'raise' (default) lets an :class:`~dfloop.impact.kernel.EventLimitError` through;
     'record' marks that point failed (``failure`` holds the reason) and goes on. ``callback()``, if given,
     is called once per finished point (from the worker threads). ``initial`` is one start state for all
-    points or a callable ``initial(force, omega)`` returning the start state of each point.
+    points or a callable ``initial(force, omega)`` returning the start state of each point. ``attractor``
+    (adaptive transient, paper's model) is None or an object array of the grid's shape holding, per point,
+    a known orbit (:attr:`ImpactDF.orbit`) or None (see :func:`impact_describing_function`).
     """
     if on_event_limit not in ("raise", "record"):
         raise ValueError(f"on_event_limit must be 'raise' or 'record', got {on_event_limit!r}")
@@ -445,23 +558,50 @@ def impact_describing_function_batch(m1: float, m2: float, h: float, restitution
         raise ValueError("force, omega: empty grid")
     workers = (os.cpu_count() or 1) if workers is None else _checks.integer_at_least("workers", workers, 1)
 
-    def one(fw):
+    if attractor is not None:
+        attractor = np.asarray(attractor, dtype=object)
+        if attractor.shape != f.shape:
+            raise ValueError(f"attractor must have the grid's shape {f.shape}, got {attractor.shape}")
+        attractor = attractor.ravel()
+    no_orbit = np.zeros((0, 3))
+    lean = not effects and transient_periods is None
+    if lean:
+        # the adaptive kernel path, validated once for the whole grid
+        base = ImpactParameters(m1, m2, h, restitution, 1.0, 1.0)
+        for name, a in (("force", f), ("omega", w)):
+            if not np.all(np.isfinite(a) & (a > 0)):
+                bad = a[~(np.isfinite(a) & (a > 0))].ravel()[0]
+                raise ValueError(f"{name} must be finite and > 0, got {bad!r}")
+        periods = int(_checks.positive("periods", periods))
+        max_transient = int(_checks.positive("max_transient_periods", max_transient_periods))
+        chatter_tol = _checks.positive("chatter_tol", chatter_tol)
+        events = default_max_events(base.restitution, chatter_tol, max_transient + periods) \
+            if max_events is None else int(_checks.integer_at_least("max_events", max_events, 1))
+
+    def one(i_fw):
+        i, fw = i_fw
         try:
-            r = impact_describing_function(m1, m2, h, restitution, fw[0], fw[1], effects=effects,
-                                           transient_periods=transient_periods, periods=periods,
-                                           max_events=max_events, chatter_tol=chatter_tol,
-                                           max_transient_periods=max_transient_periods,
-                                           initial=initial(*fw) if callable(initial) else initial)
-            out = ({k: getattr(r, k) for k in _BATCH_FIELDS}, "")
+            start = initial(*fw) if callable(initial) else initial
+            known = None if attractor is None else attractor[i]
+            if lean:
+                p = ImpactParameters.trusted(base.m1, base.m2, base.h, base.restitution, fw[0], fw[1])
+                r = _adaptive_point(p, chatter_tol, start, periods, max_transient, events, known, False)
+            else:
+                r = impact_describing_function(m1, m2, h, restitution, fw[0], fw[1], effects=effects,
+                                               transient_periods=transient_periods, periods=periods,
+                                               max_events=max_events, chatter_tol=chatter_tol,
+                                               max_transient_periods=max_transient_periods, initial=start,
+                                               attractor=known)
+            out = ({k: getattr(r, k) for k in _BATCH_FIELDS}, "", r.orbit)
         except EventLimitError as exc:
             if on_event_limit == "raise":
                 raise
-            out = (_FAILED, f"event limit: {exc}")
+            out = (_FAILED, f"event limit: {exc}", no_orbit)
         if callback is not None:
             callback()
         return out
 
-    pairs = list(zip(f.ravel().tolist(), w.ravel().tolist()))
+    pairs = list(enumerate(zip(f.ravel().tolist(), w.ravel().tolist())))
     if workers == 1 or len(pairs) == 1:
         results = [one(fw) for fw in pairs]
     else:
@@ -469,4 +609,6 @@ def impact_describing_function_batch(m1: float, m2: float, h: float, restitution
             results = list(pool.map(one, pairs))
     arrays = {k: np.array([r[0][k] for r in results], dtype=t).reshape(f.shape) for k, t in _BATCH_FIELDS.items()}
     failure = np.array([r[1] for r in results], dtype=str).reshape(f.shape)
-    return ImpactDFBatch(**arrays, failure=failure)
+    orbit = np.empty(len(results), dtype=object)
+    orbit[:] = [r[2] for r in results]
+    return ImpactDFBatch(**arrays, failure=failure, orbit=orbit.reshape(f.shape))

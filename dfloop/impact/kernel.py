@@ -85,6 +85,16 @@ class ImpactParameters:
         object.__setattr__(self, "restitution", _checks.in_closed_interval("restitution",
                                                                            self.restitution, 0.0, 1.0))
 
+    @classmethod
+    def trusted(cls, m1: float, m2: float, h: float, restitution: float, force: float,
+                omega: float) -> "ImpactParameters":
+        """Parameters derived from already validated ones (hot paths): no checks."""
+        self = object.__new__(cls)
+        for name, v in zip(("m1", "m2", "h", "restitution", "force", "omega"),
+                           (m1, m2, h, restitution, force, omega)):
+            object.__setattr__(self, name, float(v))
+        return self
+
     @property
     def beta(self) -> float:
         """Similarity parameter F / (M2 h w^2) (dimensionless)."""
