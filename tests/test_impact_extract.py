@@ -217,10 +217,10 @@ def test_adaptive_transient_stops_early_on_irregular_motion():
 
 def test_batch_records_event_limit_failures_and_goes_on():
     w = np.array([40.0, 5.0])            # period-1 motion; chattering low-frequency motion
-    kw = dict(transient_periods=None, periods=20, max_events=300)
+    kw = dict(transient_periods=None, periods=20, max_events=100)
     with pytest.raises(Exception, match="max_events"):
         impact_describing_function_batch(M1, M2, H, 0.5, F, w, **kw)
     b = impact_describing_function_batch(M1, M2, H, 0.5, F, w, on_event_limit="record", **kw)
-    assert b.failure[0] == "" and "max_events = 300" in b.failure[1]
+    assert b.failure[0] == "" and "max_events = 100" in b.failure[1]
     assert b.regular[0] and not b.regular[1] and np.isnan(b.N[1])
     assert b.N[0] == impact_describing_function(M1, M2, H, 0.5, F, 40.0, **kw).N

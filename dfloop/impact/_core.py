@@ -234,8 +234,9 @@ SX1, SGAP, SU, SMODE = range(4)
 # control vector of run_periods (floats)
 C_TOL, C_FLOOR, C_VSCALE, C_WINDOW, C_KMAX, C_CHAOS, C_MAXEV, C_MATCH_TOL = range(8)
 # ... and its in/out part, kept between calls: first boundary usable by the detection, restarts, matches
-C_KFIRST, C_RESTARTS, C_MATCHES = range(8, 11)
-N_CONTROL = 11
+C_KFIRST, C_RESTARTS, C_MATCHES, C_FAILS = range(8, 12)
+C_CHECKED = 12               # out: the periods over which a converged period was verified
+N_CONTROL = 13
 MAX_PERIOD = 12               # longest period looked for (forcing periods)
 _SETTLE_CHECKS = 2            # consecutive boundaries within tolerance of a known orbit
 _MAX_CONTRACTION = 0.9995     # clear contraction: slope of log mismatch below log of this per period
@@ -294,38 +295,57 @@ def _window_of(period, window):
 
 
 @njit(cache=True, nogil=True)
-def assess_period(strobe, k, k_first, tol, floor, window):
-    """(period, best) at boundary k: the smallest converged period (0 if none) and the candidate whose recent
-    mismatch is smallest (for the contraction test).
+def _max_mismatch(strobe, lo, hi, p):
+    """Largest mismatch |S_j - S_{j-p}| over boundaries lo <= j < hi."""
+    out = 0.0
+    for j in range(lo, hi):
+        out = max(out, _mismatch(strobe, j, j - p))
+    return out
 
-    For a candidate p, the mismatches m_j = |S_j - S_{j-p}| over the last W(p) boundaries (``_window_of``;
-    boundaries from ``k_first`` on)
-    must all be below ``tol`` and the distance to the periodic orbit they imply too: with the contraction
-    rate r per period fitted from the maxima a, b of the two halves, that distance is about b r / (1 - r)
-    (a slowly converging motion has a small mismatch per period but is still far from its orbit).
-    Mismatches at rounding level (b below ``floor``, a below ``tol``) are accepted as they are.
+
+@njit(cache=True, nogil=True)
+def assess_period(strobe, k, k_first, tol, floor, window):
+    """(period, periods checked, best) at boundary k: the smallest converged period (0 if none), the window of
+    whole cycles over which it was verified, and the candidate whose recent mismatch is smallest (for the
+    contraction test). Only boundaries from ``k_first`` on are used.
+
+    A candidate p is converged when either
+
+    - the mismatches m_j = |S_j - S_{j-p}| are at rounding level (below ``floor``) over the last
+      ``_exact_window(p)`` boundaries (at least 3 checks and two cycles): the motion repeats exactly; or
+    - over the last W(p) boundaries (``_window_of``: whole cycles, at least ``window`` periods) they are all
+      below ``tol`` and so is the distance to the periodic orbit they imply: with the contraction rate r per
+      period fitted from the maxima a, b of the two halves, that distance is about b r / (1 - r) (a slowly
+      converging motion has a small mismatch per period but is still far from its orbit).
     """
     best, best_b = 0, math.inf
     for p in range(1, MAX_PERIOD + 1):
+        ne = _exact_window(p)
+        if k - ne - p < k_first:
+            break
+        if _mismatch(strobe, k, k - p) >= _EXTRAPOLATE_BELOW:
+            continue            # far from periodic with this p: neither converged nor a candidate
+        if _max_mismatch(strobe, k - ne + 1, k + 1, p) <= floor:
+            return p, ne, p
         n = _window_of(p, window)
         if k - n - p < k_first:
-            break
+            continue
         half = n // 2
-        a = 0.0
-        b = 0.0
-        for j in range(k - n + 1, k - half + 1):
-            a = max(a, _mismatch(strobe, j, j - p))
-        for j in range(k - half + 1, k + 1):
-            b = max(b, _mismatch(strobe, j, j - p))
-        if b <= floor and a <= tol:
-            return p, p
+        a = _max_mismatch(strobe, k - n + 1, k - half + 1, p)
+        b = _max_mismatch(strobe, k - half + 1, k + 1, p)
         if max(a, b) < tol and 0.0 < b < a:
             rate = (b / a) ** (1.0 / half)
             if b * rate / (1.0 - rate) < tol:
-                return p, p
+                return p, n, p
         if b < best_b:
             best, best_b = p, b
-    return 0, best
+    return 0, 0, best
+
+
+@njit(cache=True, nogil=True)
+def _exact_window(period):
+    """Periods checked for a motion that repeats at rounding level: two cycles, at least three periods."""
+    return period * ((max(3, 2 * period) + period - 1) // period)
 
 
 @njit(cache=True, nogil=True)
@@ -333,11 +353,14 @@ def contracting(strobe, k, k_first, p, window):
     """Contraction rate per period of candidate p if its mismatch contracts clearly over its last W(p)
     boundaries (a least-squares line through log m_j with slope below log 0.9995 per period, residuals
     below 0.5, m_k < 1e-2); 1.0 if it does not; -1.0 if there are not enough boundaries since k_first."""
-    if p <= 0:
-        return -1.0
+    if p <= 0:     # no candidate near periodic: not contracting, once there are boundaries enough to say so
+        return -1.0 if k - _window_of(1, window) - 1 < k_first else 1.0
     n = _window_of(p, window)
     if k - n - p < k_first:
         return -1.0
+    if _mismatch(strobe, k, k - p) >= _EXTRAPOLATE_BELOW:
+        return 1.0
+    ys = np.empty(n)
     sj = 0.0
     sy = 0.0
     sjj = 0.0
@@ -347,6 +370,7 @@ def contracting(strobe, k, k_first, p, window):
         if m <= 0.0:
             return 1.0
         y = math.log(m)
+        ys[i] = y
         sj += i
         sy += y
         sjj += i * i
@@ -355,10 +379,8 @@ def contracting(strobe, k, k_first, p, window):
     icept = (sy - slope * sj) / n
     res = 0.0
     for i in range(n):
-        y = math.log(_mismatch(strobe, k - n + 1 + i, k - n + 1 + i - p))
-        res += (y - slope * i - icept) ** 2
-    last = _mismatch(strobe, k, k - p)
-    if slope < math.log(_MAX_CONTRACTION) and math.sqrt(res / n) <= 0.5 and last < _EXTRAPOLATE_BELOW:
+        res += (ys[i] - slope * i - icept) ** 2
+    if slope < math.log(_MAX_CONTRACTION) and math.sqrt(res / n) <= 0.5:
         return math.exp(slope)
     return 1.0
 
@@ -457,6 +479,7 @@ def run_periods(params, state, seg, seg_mode, seg_cause, ctl, k0, strobe, half, 
     cap = seg.shape[0]
     n_sides_cap = sides.shape[0]
     k_first, restarts, matches = int(ctl[C_KFIRST]), int(ctl[C_RESTARTS]), int(ctl[C_MATCHES])
+    fails = int(ctl[C_FAILS])     # consecutive chaos checkpoints without a clear contraction
     m1, m2 = params[0], params[1]
     for k in range(k0, k_max):
         snap[:] = state
@@ -503,7 +526,7 @@ def run_periods(params, state, seg, seg_mode, seg_cause, ctl, k0, strobe, half, 
                 return EVENT_LIMIT, k, 0, n_events
         if overflow:
             state[:] = snap
-            ctl[C_KFIRST], ctl[C_RESTARTS], ctl[C_MATCHES] = k_first, restarts, matches
+            ctl[C_KFIRST], ctl[C_RESTARTS], ctl[C_MATCHES], ctl[C_FAILS] = k_first, restarts, matches, fails
             return SIDES_FULL, k, 0, events0
         if not mid:
             half[k, 0], half[k, 1] = _relative_state(c_g, c_u, c_phi, c_mode, B, w, tm - c_t0)
@@ -530,12 +553,17 @@ def run_periods(params, state, seg, seg_mode, seg_cause, ctl, k0, strobe, half, 
             matches = matches + 1 if _settled(strobe, kb, orbit, match_tol) else 0
             if matches >= _SETTLE_CHECKS:
                 return SETTLED, kb, 0, n_events
-        period, best = assess_period(strobe, kb, k_first, tol, floor, window)
+        period, checked, best = assess_period(strobe, kb, k_first, tol, floor, window)
         if period > 0:
+            ctl[C_CHECKED] = checked
             return CONVERGED, kb, period, n_events
         rate = contracting(strobe, kb, k_first, best, window)
-        if kb >= chaos and rate == 1.0:
-            return IRREGULAR, kb, 0, n_events
+        if kb >= chaos and (kb - chaos) % window == 0:
+            # checkpoints every window from the chaos time on: irregular after two in a row without a clear
+            # contraction towards any period (one can fall on a glitch of a slowly converging motion)
+            fails = fails + 1 if rate == 1.0 else 0
+            if fails >= 2:
+                return IRREGULAR, kb, 0, n_events
         if _SLOW < rate < 1.0 and restarts < _MAX_RESTARTS:
             # slow but clear contraction: restart from the extrapolated fixed point; the period detection
             # then checks the motion from there (boundaries before the restart are not used again)
@@ -554,6 +582,7 @@ def run_periods(params, state, seg, seg_mode, seg_cause, ctl, k0, strobe, half, 
                 k_first = kb
                 restarts += 1
                 matches = 0
+    ctl[C_KFIRST], ctl[C_RESTARTS], ctl[C_MATCHES], ctl[C_FAILS] = k_first, restarts, matches, fails
     return NOT_CONVERGED, k_max, 0, n_events
 
 
@@ -603,3 +632,103 @@ def window_summary(strobe, four, stuck, sides, side_off, k, n, period, w):
     for j in range(ka, k):
         st += stuck[j]
     return X1, spread, side_off[k] - side_off[ka], run_a, run_b, st
+
+
+@njit(cache=True, nogil=True)
+def _grow_rows(a, n):
+    out = np.empty((n,) + a.shape[1:], dtype=a.dtype)
+    out[:a.shape[0]] = a
+    return out
+
+
+@njit(cache=True, nogil=True)
+def adaptive_run(kparams, state, ctl, orbit, k_max, capacity):
+    """:func:`run_periods` from t = 0 to the end (records grown as needed, ``capacity`` periods at first),
+    then the DF over the window that was verified (:func:`window_summary`).
+
+    ``state`` is the kernel state at t = 0 (free flight). Returns (status, boundary k reached, period,
+    periods in the window, X1, spread, impacts, longest runs on A and B, stuck time, orbit, sides, side_off):
+    ``orbit`` holds the converged orbit's stroboscopic rows (gap / h, u / v_scale, mode) followed by those
+    of its mirror image (the motion half a period later reflected: x -> -x, gap -> h - gap, sides A <-> B,
+    which is a motion too, with the same DF); ``sides[side_off[j]:side_off[j + 1]]`` are the sides of the
+    impacts of period j.
+    """
+    h, vscale = kparams[2], ctl[C_VSCALE]
+    window = int(ctl[C_WINDOW])
+    seg = np.empty((256, N_FLOAT_COLUMNS))
+    seg_mode = np.empty(256, np.int8)
+    seg_cause = np.empty(256, np.int8)
+    cap = min(k_max, capacity)
+    strobe = np.empty((cap + 1, 4))
+    half = np.empty((cap, 3))
+    four = np.empty(cap, dtype=np.complex128)
+    stuck = np.empty(cap)
+    side_off = np.zeros(cap + 1, dtype=np.int64)
+    sides = np.empty(64 * window, dtype=np.int8)
+    strobe[0, SX1], strobe[0, SGAP], strobe[0, SU], strobe[0, SMODE] = state[2], state[4] / h, state[5] / vscale, FREE
+    k = 0
+    events = 0
+    while True:
+        ctl[C_KMAX] = cap
+        status, k, period, events = run_periods(kparams, state, seg, seg_mode, seg_cause, ctl, k, strobe, half,
+                                                four, stuck, side_off, sides, events, orbit)
+        if status == SIDES_FULL:
+            sides = _grow_rows(sides, 4 * sides.shape[0])
+        elif status == NOT_CONVERGED and cap < k_max:
+            cap = min(4 * cap, k_max)
+            strobe = _grow_rows(strobe, cap + 1)
+            side_off = _grow_rows(side_off, cap + 1)
+            half = _grow_rows(half, cap)
+            four = _grow_rows(four, cap)
+            stuck = _grow_rows(stuck, cap)
+        else:
+            break
+    out_orbit = np.zeros((0, 3))
+    if status == EVENT_LIMIT or status == SETTLED:
+        return status, k, period, 0, 0j, 0.0, 0, 0, 0, 0.0, out_orbit, sides, side_off
+    n = int(ctl[C_CHECKED]) if status == CONVERGED else window
+    X1, spread, n_imp, run_a, run_b, st = window_summary(strobe, four, stuck, sides, side_off, k, n, period,
+                                                         kparams[4])
+    used = n if period == 0 else period * (n // period)
+    if n_imp == 0 and st == 0.0:
+        # free flight throughout the window: x1 is exactly linear, its fundamental exactly 0
+        X1, spread, period = 0j, 0.0, 1
+    if period > 0:
+        out_orbit = np.empty((2 * period, 3))
+        for i in range(period):
+            j = k - period + 1 + i
+            out_orbit[i, 0], out_orbit[i, 1], out_orbit[i, 2] = strobe[j, SGAP], strobe[j, SU], strobe[j, SMODE]
+            m = half[k - period + i, 2]
+            out_orbit[period + i, 0] = 1.0 - half[k - period + i, 0]
+            out_orbit[period + i, 1] = -half[k - period + i, 1]
+            out_orbit[period + i, 2] = m if m == FREE else STUCK_A + STUCK_B - m
+    return status, k, period, used, X1, spread, n_imp, run_a, run_b, st, out_orbit, sides, side_off
+
+
+# columns of the per-point float results of adaptive_batch
+R_X1_RE, R_X1_IM, R_SPREAD, R_STUCK = range(4)
+# columns of the per-point integer results
+R_STATUS, R_K, R_PERIOD, R_USED, R_IMPACTS, R_RUN_A, R_RUN_B, R_ORBIT = range(8)
+
+
+@njit(cache=True, nogil=True)
+def adaptive_batch(kparams, states, ctls, orbits, orbit_rows, k_max, capacity):
+    """:func:`adaptive_run` for every row of ``kparams`` / ``states`` / ``ctls`` (one point each), in turn.
+
+    ``orbits[i, :orbit_rows[i]]`` is the known attractor of point i (none when 0 rows). Returns float results
+    (n, 4): X1 real and imaginary, spread, stuck time; integer results (n, 8): status, boundary reached,
+    period, periods used, impacts, longest runs on A and B, orbit rows; and the orbits (n, 4 MAX_PERIOD, 3).
+    """
+    n = kparams.shape[0]
+    fres = np.zeros((n, 4))
+    ires = np.zeros((n, 8), dtype=np.int64)
+    out_orbits = np.zeros((n, 2 * MAX_PERIOD, 3))
+    for i in range(n):
+        status, k, period, used, X1, spread, n_imp, run_a, run_b, st, orbit, _, _ = adaptive_run(
+            kparams[i], states[i], ctls[i], orbits[i, :orbit_rows[i]], k_max, capacity)
+        fres[i, R_X1_RE], fres[i, R_X1_IM], fres[i, R_SPREAD], fres[i, R_STUCK] = X1.real, X1.imag, spread, st
+        ires[i, R_STATUS], ires[i, R_K], ires[i, R_PERIOD], ires[i, R_USED] = status, k, period, used
+        ires[i, R_IMPACTS], ires[i, R_RUN_A], ires[i, R_RUN_B] = n_imp, run_a, run_b
+        ires[i, R_ORBIT] = orbit.shape[0]
+        out_orbits[i, :orbit.shape[0]] = orbit
+    return fres, ires, out_orbits

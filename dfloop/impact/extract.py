@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
@@ -24,7 +25,7 @@ from .. import _checks
 from . import _core
 from ._core import IMPACT_A, IMPACT_B
 from .kernel import (DEFAULT_CHATTER_TOL, EventLimitError, ImpactParameters, KernelRun, Trajectory,
-                     _event_limit_message, default_max_events, simulate)
+                     _event_limit_message, default_max_events, kernel_arrays, simulate)
 from .limits import beta_lower_limit
 
 __all__ = ["ImpactDF", "ImpactDFBatch", "describing_function_from_trajectory", "impact_describing_function",
@@ -32,7 +33,7 @@ __all__ = ["ImpactDF", "ImpactDFBatch", "describing_function_from_trajectory", "
 
 DEFAULT_TRANSIENT_PERIODS = 200
 DEFAULT_PERIODS = 40
-MAX_DETECTED_PERIOD = 12
+MAX_DETECTED_PERIOD = _core.MAX_PERIOD   # longest period looked for (forcing periods)
 PERIODICITY_TOL = 1e-6  # relative mismatch of the stroboscopic state that still counts as periodic
 _ROUNDING_MISMATCH = 1e-11   # stroboscopic mismatch at rounding level (x max(1, beta)): periodic whatever its trend
 _MAX_CONTRACTION = 0.9995    # a candidate contracting slower than this per period is not extrapolated
@@ -358,7 +359,7 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
 
         return _describe(p, window, transient, periods, max_transient)
     if transient is None:
-        return _adaptive_point(p, chatter_tol, initial, periods, max_transient, max_events, attractor, True)
+        return _adaptive_point(p, chatter_tol, initial, periods, max_transient, max_events, attractor)
     if attractor is not None:
         raise ValueError("attractor: supported with the adaptive transient only (transient_periods=None)")
     scaled, initial = _similarity(p, initial)
@@ -390,78 +391,59 @@ def _similarity(p: ImpactParameters, initial):
 
 
 _SETTLE_TOL = 1e-5            # an attractor is reached when the stroboscopic state is this close to it
+_FIRST_CAPACITY = 128         # periods recorded before the first growth of the per-period records
+_NO_ORBIT = np.zeros((0, 3))
+_NO_RUNS = np.zeros(0, np.int64)
+
+
+def _adaptive_inputs(dim: ImpactParameters, chatter_tol: float, initial, periods: int, max_events: int):
+    """(similarity parameters, kernel params, kernel state, control vector) of one adaptive run."""
+    p, initial = _similarity(dim, initial)
+    kparams, state = kernel_arrays(p, chatter_tol, initial)
+    ctl = np.zeros(_core.N_CONTROL)
+    ctl[_core.C_TOL], ctl[_core.C_FLOOR] = PERIODICITY_TOL, _rounding_floor(p.beta)
+    ctl[_core.C_VSCALE] = max(p.h * p.omega, p.force / (p.m2 * p.omega))
+    ctl[_core.C_WINDOW] = periods
+    ctl[_core.C_CHAOS], ctl[_core.C_MAXEV] = CHAOS_TRANSIENT_PERIODS + periods, max_events
+    ctl[_core.C_MATCH_TOL] = _SETTLE_TOL
+    return p, kparams, state, ctl
+
+
+def _attractor_array(attractor) -> np.ndarray:
+    orbit = _NO_ORBIT if attractor is None else np.ascontiguousarray(attractor, dtype=float)
+    if orbit.ndim != 2 or orbit.shape[1] != 3 or orbit.shape[0] % 2 or orbit.shape[0] > 2 * _core.MAX_PERIOD:
+        raise ValueError(f"attractor must be the (2 p, 3) orbit of an adaptive ImpactDF, got shape {orbit.shape}")
+    return orbit
 
 
 def _adaptive_point(dim: ImpactParameters, chatter_tol: float, initial, periods: int, max_transient: int,
-                    max_events: int, attractor, runs: bool) -> ImpactDF:
+                    max_events: int, attractor) -> ImpactDF:
     """Adaptive DF of the paper's model at validated parameters ``dim`` (SI), simulated in similarity units.
 
     The compiled driver (:func:`dfloop.impact._core.run_periods`) stops as soon as the period detection has
     converged, the motion is irregular, or it has settled on ``attractor``; the DF and the diagnostics come
     from the Fourier integrals and impact records it accumulated per period (no trajectory is stored).
-    ``runs=False`` leaves ``runs_A`` / ``runs_B`` empty (their maxima are still computed).
     """
-    p, initial = _similarity(dim, initial)
-    run = KernelRun(p, chatter_tol, initial)
+    p, kparams, state, ctl = _adaptive_inputs(dim, chatter_tol, initial, periods, max_events)
+    orbit = _attractor_array(attractor)
     k_max = max_transient + periods
-    v_scale = max(p.h * p.omega, p.force / (p.m2 * p.omega))
-    ctl = np.zeros(_core.N_CONTROL)
-    ctl[_core.C_TOL], ctl[_core.C_FLOOR], ctl[_core.C_VSCALE] = PERIODICITY_TOL, _rounding_floor(p.beta), v_scale
-    ctl[_core.C_WINDOW], ctl[_core.C_KMAX] = periods, k_max
-    ctl[_core.C_CHAOS], ctl[_core.C_MAXEV] = CHAOS_TRANSIENT_PERIODS + periods, max_events
-    ctl[_core.C_MATCH_TOL] = _SETTLE_TOL
-    orbit = np.zeros((0, 3)) if attractor is None else np.ascontiguousarray(attractor, dtype=float)
-    if orbit.ndim != 2 or orbit.shape[1] != 3:
-        raise ValueError(f"attractor must be the (2 p, 3) orbit of an adaptive ImpactDF, got shape {orbit.shape}")
-    strobe = np.empty((k_max + 1, 4))
-    half = np.empty((k_max, 3))
-    st = run._state
-    strobe[0] = (st[2], st[4] / p.h, st[5] / v_scale, _core.FREE)
-    four = np.empty(k_max, dtype=complex)
-    stuck = np.empty(k_max)
-    side_off = np.zeros(k_max + 1, dtype=np.int64)
-    sides = np.empty(64 * periods, dtype=np.int8)
-    k, events = 0, 0
-    while True:
-        status, k, period, events = _core.run_periods(run._kernel_params, st, run._seg, run._mode, run._cause,
-                                                      ctl, k, strobe, half, four, stuck, side_off, sides, events,
-                                                      orbit)
-        if status != _core.SIDES_FULL:
-            break
-        grown = np.empty(4 * sides.size, dtype=np.int8)
-        grown[:sides.size] = sides
-        sides = grown
+    status, k, period, used, X1, spread, n_imp, run_a, run_b, stuck_time, orbit, sides, side_off = \
+        _core.adaptive_run(kparams, state, ctl, orbit, k_max, _FIRST_CAPACITY)
     tp = p.period
     if status == _core.EVENT_LIMIT:
         raise EventLimitError(_event_limit_message(max_events, k * tp, k_max * tp, tp))
     below_wc = bool(p.beta > beta_lower_limit(p.restitution))
     if status == _core.SETTLED:
         return ImpactDF(N=complex(np.nan, np.nan), X1=complex(np.nan, np.nan), periodicity=np.nan,
-                        period=orbit.shape[0] // 2,
-                        impacts_per_period=np.nan, max_run_A=0, max_run_B=0, runs_A=np.zeros(0, np.int64),
-                        runs_B=np.zeros(0, np.int64), stuck_fraction=np.nan, periods_used=0, n_impacts=0,
+                        period=len(attractor) // 2, impacts_per_period=np.nan, max_run_A=0, max_run_B=0,
+                        runs_A=_NO_RUNS, runs_B=_NO_RUNS, stuck_fraction=np.nan, periods_used=0, n_impacts=0,
                         beta=p.beta, below_wc=below_wc, transient_periods=k, settled=True)
-    n = _core._window_of(period, periods) if status == _core.CONVERGED else periods
-    X1, spread, n_imp, run_a, run_b, stuck_time = _core.window_summary(strobe, four, stuck, sides, side_off, k,
-                                                                       n, period, p.omega)
-    used = n if period == 0 else period * (n // period)
-    empty = np.zeros(0, np.int64)
-    runs_a, runs_b = _run_lengths(sides[side_off[k - used]:side_off[k]].astype(np.int64)) if runs else (empty, empty)
-    if n_imp == 0 and stuck_time == 0.0:
-        # free flight throughout the window: x1 is exactly linear, its fundamental exactly 0
-        X1, spread, period = 0j, 0.0, 1
-    orbit = np.zeros((0, 3))
-    if period > 0:
-        # the orbit at the period boundaries, and its mirror image: the motion half a period later reflected
-        # (x -> -x, gap -> h - gap, sides A <-> B) is a motion too, with the same DF
-        mirror = half[k - period:k].copy()
-        mirror[:, 0], mirror[:, 1] = 1.0 - mirror[:, 0], -mirror[:, 1]
-        mirror[:, 2] = np.where(mirror[:, 2] == _core.FREE, _core.FREE, _core.STUCK_A + _core.STUCK_B - mirror[:, 2])
-        orbit = np.vstack([strobe[k - period + 1:k + 1, 1:], mirror])
+    runs_a, runs_b = _run_lengths(sides[side_off[k - used]:side_off[k]].astype(np.int64))
     X1 = X1 * dim.h          # similarity units back to metres
     return ImpactDF(N=X1 / dim.force, X1=X1, periodicity=spread, period=period, impacts_per_period=n_imp / used,
-                    max_run_A=int(run_a), max_run_B=int(run_b), runs_A=runs_a, runs_B=runs_b, stuck_fraction=stuck_time / (used * tp), periods_used=used, n_impacts=int(n_imp),
-                    beta=p.beta, below_wc=below_wc, transient_periods=k - used, orbit=orbit)
+                    max_run_A=int(run_a), max_run_B=int(run_b), runs_A=runs_a, runs_B=runs_b,
+                    stuck_fraction=stuck_time / (used * tp), periods_used=used, n_impacts=int(n_imp), beta=p.beta,
+                    below_wc=below_wc, transient_periods=k - used, orbit=orbit)
 
 
 def _describe(p: ImpactParameters, window, transient: int | None, periods: int, max_transient: int) -> ImpactDF:
@@ -564,34 +546,20 @@ def impact_describing_function_batch(m1: float, m2: float, h: float, restitution
             raise ValueError(f"attractor must have the grid's shape {f.shape}, got {attractor.shape}")
         attractor = attractor.ravel()
     no_orbit = np.zeros((0, 3))
-    lean = not effects and transient_periods is None
-    if lean:
-        # the adaptive kernel path, validated once for the whole grid
-        base = ImpactParameters(m1, m2, h, restitution, 1.0, 1.0)
-        for name, a in (("force", f), ("omega", w)):
-            if not np.all(np.isfinite(a) & (a > 0)):
-                bad = a[~(np.isfinite(a) & (a > 0))].ravel()[0]
-                raise ValueError(f"{name} must be finite and > 0, got {bad!r}")
-        periods = int(_checks.positive("periods", periods))
-        max_transient = int(_checks.positive("max_transient_periods", max_transient_periods))
-        chatter_tol = _checks.positive("chatter_tol", chatter_tol)
-        events = default_max_events(base.restitution, chatter_tol, max_transient + periods) \
-            if max_events is None else int(_checks.integer_at_least("max_events", max_events, 1))
+    if not effects and transient_periods is None:
+        return _adaptive_batch(ImpactParameters(m1, m2, h, restitution, 1.0, 1.0), f, w, chatter_tol, initial,
+                               attractor, periods, max_transient_periods, max_events, on_event_limit, workers,
+                               callback)
 
     def one(i_fw):
         i, fw = i_fw
         try:
-            start = initial(*fw) if callable(initial) else initial
-            known = None if attractor is None else attractor[i]
-            if lean:
-                p = ImpactParameters.trusted(base.m1, base.m2, base.h, base.restitution, fw[0], fw[1])
-                r = _adaptive_point(p, chatter_tol, start, periods, max_transient, events, known, False)
-            else:
-                r = impact_describing_function(m1, m2, h, restitution, fw[0], fw[1], effects=effects,
-                                               transient_periods=transient_periods, periods=periods,
-                                               max_events=max_events, chatter_tol=chatter_tol,
-                                               max_transient_periods=max_transient_periods, initial=start,
-                                               attractor=known)
+            r = impact_describing_function(m1, m2, h, restitution, fw[0], fw[1], effects=effects,
+                                           transient_periods=transient_periods, periods=periods,
+                                           max_events=max_events, chatter_tol=chatter_tol,
+                                           max_transient_periods=max_transient_periods,
+                                           initial=initial(*fw) if callable(initial) else initial,
+                                           attractor=None if attractor is None else attractor[i])
             out = ({k: getattr(r, k) for k in _BATCH_FIELDS}, "", r.orbit)
         except EventLimitError as exc:
             if on_event_limit == "raise":
@@ -612,3 +580,89 @@ def impact_describing_function_batch(m1: float, m2: float, h: float, restitution
     orbit = np.empty(len(results), dtype=object)
     orbit[:] = [r[2] for r in results]
     return ImpactDFBatch(**arrays, failure=failure, orbit=orbit.reshape(f.shape))
+
+
+_POOLS: dict[int, ThreadPoolExecutor] = {}
+_POOLS_LOCK = threading.Lock()
+
+
+def _pool(workers: int) -> ThreadPoolExecutor:
+    """A persistent pool of ``workers`` threads for the compiled batches (threads are not started per call)."""
+    with _POOLS_LOCK:
+        if workers not in _POOLS:
+            _POOLS[workers] = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="dfloop-impact")
+        return _POOLS[workers]
+
+
+def _adaptive_batch(base: ImpactParameters, f: np.ndarray, w: np.ndarray, chatter_tol, initial, attractor,
+                    periods, max_transient_periods, max_events, on_event_limit: str, workers: int,
+                    callback) -> ImpactDFBatch:
+    """The adaptive DF of the paper's model over a grid: validated once, every point in compiled code
+    (:func:`dfloop.impact._core.adaptive_batch`), the points dealt out to ``workers`` threads."""
+    for name, a in (("force", f), ("omega", w)):
+        ok = np.isfinite(a) & (a > 0)
+        if not np.all(ok):
+            raise ValueError(f"{name} must be finite and > 0, got {a[~ok].ravel()[0]!r}")
+    periods = int(_checks.positive("periods", periods))
+    max_transient = int(_checks.positive("max_transient_periods", max_transient_periods))
+    chatter_tol = _checks.positive("chatter_tol", chatter_tol)
+    max_events = (default_max_events(base.restitution, chatter_tol, max_transient + periods) if max_events is None
+                  else int(_checks.integer_at_least("max_events", max_events, 1)))
+    fs, ws = f.ravel().tolist(), w.ravel().tolist()
+    n = len(fs)
+    kparams, states, ctls = np.empty((n, 7)), np.empty((n, 8)), np.empty((n, _core.N_CONTROL))
+    orbits = np.zeros((n, 2 * _core.MAX_PERIOD, 3))
+    orbit_rows = np.zeros(n, dtype=np.int64)
+    scaled = []
+    for i, (fi, wi) in enumerate(zip(fs, ws)):
+        dim = ImpactParameters.trusted(base.m1, base.m2, base.h, base.restitution, fi, wi)
+        p, kparams[i], states[i], ctls[i] = _adaptive_inputs(dim, chatter_tol, initial(fi, wi) if callable(initial)
+                                                             else initial, periods, max_events)
+        scaled.append(p)
+        if attractor is not None and attractor[i] is not None:
+            a = _attractor_array(attractor[i])
+            orbits[i, :a.shape[0]], orbit_rows[i] = a, a.shape[0]
+    k_max = max_transient + periods
+
+    def run(idx):
+        out = _core.adaptive_batch(kparams[idx], states[idx], ctls[idx], orbits[idx], orbit_rows[idx], k_max,
+                                   _FIRST_CAPACITY)
+        if callback is not None:
+            for _ in range(idx.size):
+                callback()
+        return idx, out
+
+    parts = [np.arange(j, n, workers) for j in range(min(workers, n))]
+    fres, ires, out_orbits = np.empty((n, 4)), np.empty((n, 8), dtype=np.int64), np.empty((n, 2 * _core.MAX_PERIOD, 3))
+    for idx, (fr, ir, orb) in (map(run, parts) if len(parts) == 1 else _pool(workers).map(run, parts)):
+        fres[idx], ires[idx], out_orbits[idx] = fr, ir, orb
+    status = ires[:, _core.R_STATUS]
+    failed = status == _core.EVENT_LIMIT
+    failure = np.full(n, "", dtype=object)
+    for i in np.flatnonzero(failed):
+        tp = scaled[i].period
+        msg = _event_limit_message(max_events, ires[i, _core.R_K] * tp, k_max * tp, tp)
+        if on_event_limit == "raise":
+            raise EventLimitError(msg)
+        failure[i] = f"event limit: {msg}"
+    settled = status == _core.SETTLED
+    bad = failed | settled
+    used = np.maximum(ires[:, _core.R_USED], 1)
+    beta = np.array([p.force for p in scaled])
+    X1 = (fres[:, _core.R_X1_RE] + 1j * fres[:, _core.R_X1_IM]) * base.h
+    period = np.where(settled, orbit_rows // 2, np.where(failed, 0, ires[:, _core.R_PERIOD]))
+    arrays = {"N": np.where(bad, complex(np.nan, np.nan), X1 / f.ravel()),
+              "periodicity": np.where(bad, np.nan, fres[:, _core.R_SPREAD]), "period": period,
+              "impacts_per_period": np.where(bad, np.nan, ires[:, _core.R_IMPACTS] / used),
+              "max_run_A": np.where(bad, 0, ires[:, _core.R_RUN_A]), "max_run_B": np.where(bad, 0, ires[:, _core.R_RUN_B]),
+              "stuck_fraction": np.where(bad, np.nan, fres[:, _core.R_STUCK] / (used * 2.0 * math.pi)),
+              "periods_used": np.where(bad, 0, ires[:, _core.R_USED]), "n_impacts": np.where(bad, 0, ires[:, _core.R_IMPACTS]),
+              "beta": np.where(failed, np.nan, beta), "below_wc": ~failed & (beta > beta_lower_limit(base.restitution)),
+              "transient_periods": np.where(bad, np.where(settled, ires[:, _core.R_K], 0),
+                                            ires[:, _core.R_K] - ires[:, _core.R_USED]),
+              "settled": settled}
+    orbit = np.empty(n, dtype=object)
+    orbit[:] = [out_orbits[i, :ires[i, _core.R_ORBIT]].copy() for i in range(n)]
+    shape = f.shape
+    return ImpactDFBatch(**{k: np.asarray(v, dtype=_BATCH_FIELDS[k]).reshape(shape) for k, v in arrays.items()},
+                         failure=failure.astype(str).reshape(shape), orbit=orbit.reshape(shape))

@@ -318,10 +318,8 @@ class KernelRun:
     def __init__(self, params: ImpactParameters, chatter_tol: float = DEFAULT_CHATTER_TOL, initial=None,
                  capacity: int = 256):
         p = self.params = params
-        x1, v1, gap, u = (0.0, 0.0, 0.5 * p.h, 0.0) if initial is None else _initial_state(initial, p.h)
-        v_stick = chatter_tol * max(p.h * p.omega, p.force / (p.m2 * p.omega))
-        self._kernel_params = np.array([p.m1, p.m2, p.h, p.force, p.omega, p.restitution, v_stick])
-        self._state = np.array([0.0, 0.0, x1, v1, gap, u, float(FREE), -1.0])
+        self._kernel_params, self._state = kernel_arrays(p, chatter_tol, initial)
+        x1, v1, gap, u = self._state[2:6]
         self._seg, self._mode, self._cause = _core.empty_buffers(max(int(capacity), 2))
         self._seg[0] = [0.0, 0.0, x1, v1, gap, u, v1, u, v1, u]
         self._mode[0] = FREE
@@ -377,6 +375,15 @@ class KernelRun:
                           u=seg[:, U].copy(), v1_pre=seg[:, V1_PRE].copy(), u_pre=seg[:, U_PRE].copy(),
                           v1_post=seg[:, V1_POST].copy(), u_post=seg[:, U_POST].copy(),
                           mode=self._mode[:n].astype(np.int64), cause=self._cause[:n].astype(np.int64))
+
+
+def kernel_arrays(p: ImpactParameters, chatter_tol: float = DEFAULT_CHATTER_TOL, initial=None):
+    """(params, state) arrays of :func:`dfloop.impact._core.run_kernel` for a free-flight start at t = 0
+    (``initial`` (x1, v1, gap, u) in m, m/s; default rest with a centred gap)."""
+    x1, v1, gap, u = (0.0, 0.0, 0.5 * p.h, 0.0) if initial is None else _initial_state(initial, p.h)
+    v_stick = chatter_tol * max(p.h * p.omega, p.force / (p.m2 * p.omega))
+    return (np.array([p.m1, p.m2, p.h, p.force, p.omega, p.restitution, v_stick]),
+            np.array([0.0, 0.0, x1, v1, gap, u, float(FREE), -1.0]))
 
 
 def _initial_state(initial, h: float) -> tuple[float, float, float, float]:
