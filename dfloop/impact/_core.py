@@ -236,9 +236,10 @@ C_TOL, C_FLOOR, C_VSCALE, C_WINDOW, C_KMAX, C_CHAOS, C_MAXEV, C_MATCH_TOL = rang
 # ... and its in/out part, kept between calls: first boundary usable by the detection, restarts, matches
 C_KFIRST, C_RESTARTS, C_MATCHES, C_FAILS = range(8, 12)
 C_CHECKED = 12               # out: the periods over which a converged period was verified
-N_CONTROL = 13
+C_DIST = 13                  # in/out: distance to the known attractor when the current run of matches began
+N_CONTROL = 14
 MAX_PERIOD = 12               # longest period looked for (forcing periods)
-_SETTLE_CHECKS = 2            # consecutive boundaries within tolerance of a known orbit
+_SETTLE_CHECKS = 3            # consecutive boundaries within tolerance of a known orbit (the last closer)
 _MAX_CONTRACTION = 0.9995     # clear contraction: slope of log mismatch below log of this per period
 _EXTRAPOLATE_BELOW = 1e-2     # ... with the mismatch already below this
 _MAX_JUMP = 1e-2              # largest extrapolation step (normalised state) the driver takes
@@ -435,14 +436,14 @@ def extrapolate(strobe, k, p):
 
 
 @njit(cache=True, nogil=True)
-def _settled(strobe, k, orbit, match_tol):
-    """Whether boundary k lies within match_tol of one of the known orbit's points (rows gap / h,
-    u / v_scale, mode)."""
+def _orbit_distance(strobe, k, orbit):
+    """Max-norm distance of boundary k to the nearest of the known orbit's points (rows gap / h,
+    u / v_scale, mode; another mode counts as far)."""
+    d = math.inf
     for i in range(orbit.shape[0]):
-        if strobe[k, SMODE] == orbit[i, 2] and abs(strobe[k, SGAP] - orbit[i, 0]) <= match_tol \
-                and abs(strobe[k, SU] - orbit[i, 1]) <= match_tol:
-            return True
-    return False
+        if strobe[k, SMODE] == orbit[i, 2]:
+            d = min(d, max(abs(strobe[k, SGAP] - orbit[i, 0]), abs(strobe[k, SU] - orbit[i, 1])))
+    return d
 
 
 @njit(cache=True, nogil=True)
@@ -550,9 +551,17 @@ def run_periods(params, state, seg, seg_mode, seg_cause, ctl, k0, strobe, half, 
         side_off[k + 1] = ns
         kb = k + 1
         if orbit.shape[0] > 0:
-            matches = matches + 1 if _settled(strobe, kb, orbit, match_tol) else 0
-            if matches >= _SETTLE_CHECKS:
-                return SETTLED, kb, 0, n_events
+            # settled on the known attractor: within match_tol of it at consecutive checks, and closer at the
+            # last than at the first (or at rounding level)
+            d = _orbit_distance(strobe, kb, orbit)
+            if d > match_tol:
+                matches = 0
+            else:
+                if matches == 0:
+                    ctl[C_DIST] = d
+                matches += 1
+                if matches >= _SETTLE_CHECKS and (d < ctl[C_DIST] or d <= floor):
+                    return SETTLED, kb, 0, n_events
         period, checked, best = assess_period(strobe, kb, k_first, tol, floor, window)
         if period > 0:
             ctl[C_CHECKED] = checked

@@ -324,8 +324,9 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
         coexisting periodic motions.
     attractor : numpy.ndarray, optional
         ``orbit`` of an earlier adaptive result at the same (F, w) (paper's model, adaptive transient only).
-        When the motion comes within 1e-5 of one of its stroboscopic states at two consecutive period
-        boundaries it has settled on that motion: the run stops there and returns ``settled`` True.
+        When the motion comes within 1e-3 (normalised state) of its stroboscopic states, and closer, at
+        three consecutive period boundaries it has settled on that motion: the run stops there and returns
+        ``settled`` True.
 
     Returns
     -------
@@ -390,7 +391,8 @@ def _similarity(p: ImpactParameters, initial):
     return scaled, initial
 
 
-_SETTLE_TOL = 1e-5            # an attractor is reached when the stroboscopic state is this close to it
+_SETTLE_TOL = 1e-3            # an attractor is reached when the stroboscopic state is this close to it (and
+                              # closer at each of _core._SETTLE_CHECKS consecutive period boundaries)
 _FIRST_CAPACITY = 128         # periods recorded before the first growth of the per-period records
 _NO_ORBIT = np.zeros((0, 3))
 _NO_RUNS = np.zeros(0, np.int64)
@@ -405,7 +407,7 @@ def _adaptive_inputs(dim: ImpactParameters, chatter_tol: float, initial, periods
     ctl[_core.C_VSCALE] = max(p.h * p.omega, p.force / (p.m2 * p.omega))
     ctl[_core.C_WINDOW] = periods
     ctl[_core.C_CHAOS], ctl[_core.C_MAXEV] = CHAOS_TRANSIENT_PERIODS + periods, max_events
-    ctl[_core.C_MATCH_TOL] = _SETTLE_TOL
+    ctl[_core.C_MATCH_TOL], ctl[_core.C_DIST] = _SETTLE_TOL, math.inf
     return p, kparams, state, ctl
 
 
