@@ -250,15 +250,17 @@ _SLOW = 0.5                   # contraction per period slower than this is worth
 @njit(cache=True, nogil=True)
 def fourier_piece(p0, p1, q, phi0, w, sa, sb):
     """Integral over local time s in [sa, sb] of (p0 + p1 s + q cos(phi0 + w s)) e^{-j(phi0 + w s)}."""
-    def antiderivative(s):  # without the common factor e^{-j phi0}
-        e = cmath.exp(-1j * w * s)
-        a0 = (1.0 - e) / (1j * w)
-        a1 = 1j * s * e / w - (1.0 - e) / (w * w)
+    ea = cmath.exp(-1j * w * sa) if sa != 0.0 else 1.0 + 0j
+    eb = cmath.exp(-1j * w * sb)
+    # antiderivatives (without the common factor e^{-j phi0}) of e^{-j w s} and s e^{-j w s}
+    a0 = (ea - eb) / (1j * w)
+    a1 = 1j * (sb * eb - sa * ea) / w - (ea - eb) / (w * w)
+    total = p0 * a0 + p1 * a1
+    if q != 0.0:
         # cos(phi0 + w s) e^{-j w s} = (e^{j phi0} + e^{-j phi0} e^{-2j w s}) / 2
-        ac = cmath.exp(1j * phi0) * 0.5 * s + cmath.exp(-1j * phi0) * (1.0 - e * e) / (4j * w)
-        return p0 * a0 + p1 * a1 + q * ac
-
-    return cmath.exp(-1j * phi0) * (antiderivative(sb) - antiderivative(sa))
+        e0 = cmath.exp(1j * phi0)
+        total += q * (e0 * 0.5 * (sb - sa) + (ea * ea - eb * eb) / (4j * w * e0))
+    return cmath.exp(-1j * phi0) * total
 
 
 @njit(cache=True, nogil=True)
@@ -499,6 +501,7 @@ def run_periods(params, state, seg, seg_mode, seg_cause, ctl, k0, strobe, half, 
         while True:
             room = min(cap, max_events - n_events)
             if room <= 0:
+                ctl[C_KFIRST], ctl[C_RESTARTS], ctl[C_MATCHES], ctl[C_FAILS] = k_first, restarts, matches, fails
                 return EVENT_LIMIT, k, 0, n_events
             n, status = run_kernel(params, state, tb, seg[:room], seg_mode[:room], seg_cause[:room], 0)
             n_events += n
@@ -524,6 +527,7 @@ def run_periods(params, state, seg, seg_mode, seg_cause, ctl, k0, strobe, half, 
             if status == DONE:
                 break
             if n >= room and room < cap:
+                ctl[C_KFIRST], ctl[C_RESTARTS], ctl[C_MATCHES], ctl[C_FAILS] = k_first, restarts, matches, fails
                 return EVENT_LIMIT, k, 0, n_events
         if overflow:
             state[:] = snap
@@ -561,10 +565,12 @@ def run_periods(params, state, seg, seg_mode, seg_cause, ctl, k0, strobe, half, 
                     ctl[C_DIST] = d
                 matches += 1
                 if matches >= _SETTLE_CHECKS and (d < ctl[C_DIST] or d <= floor):
+                    ctl[C_KFIRST], ctl[C_RESTARTS], ctl[C_MATCHES], ctl[C_FAILS] = k_first, restarts, matches, fails
                     return SETTLED, kb, 0, n_events
         period, checked, best = assess_period(strobe, kb, k_first, tol, floor, window)
         if period > 0:
             ctl[C_CHECKED] = checked
+            ctl[C_KFIRST], ctl[C_RESTARTS], ctl[C_MATCHES], ctl[C_FAILS] = k_first, restarts, matches, fails
             return CONVERGED, kb, period, n_events
         rate = contracting(strobe, kb, k_first, best, window)
         if kb >= chaos and (kb - chaos) % window == 0:
@@ -572,6 +578,7 @@ def run_periods(params, state, seg, seg_mode, seg_cause, ctl, k0, strobe, half, 
             # contraction towards any period (one can fall on a glitch of a slowly converging motion)
             fails = fails + 1 if rate == 1.0 else 0
             if fails >= 2:
+                ctl[C_KFIRST], ctl[C_RESTARTS], ctl[C_MATCHES], ctl[C_FAILS] = k_first, restarts, matches, fails
                 return IRREGULAR, kb, 0, n_events
         if _SLOW < rate < 1.0 and restarts < _MAX_RESTARTS:
             # slow but clear contraction: restart from the extrapolated fixed point; the period detection

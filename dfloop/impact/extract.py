@@ -89,6 +89,9 @@ class ImpactDF:
     settled : bool
         True when the run stopped because it settled on the ``attractor`` it was given (the same motion:
         N and the other fields are then NaN / 0 and the attractor's apply).
+    restarts : int
+        Adaptive runs of the paper's model: times the slowly contracting transient was cut short by restarting
+        from the extrapolated fixed point of the stroboscopic map (the window is simulated from there).
 
     A window without impacts or sticking is free flight: x1 is exactly linear, N = 0 exactly, and the
     motion is labelled period 1 with ``n_impacts`` = 0 (no-impact motion), whatever the gap does.
@@ -111,6 +114,7 @@ class ImpactDF:
     transient_periods: int = 0
     orbit: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     settled: bool = False
+    restarts: int = 0
 
     @property
     def regular(self) -> bool:
@@ -445,7 +449,8 @@ def _adaptive_point(dim: ImpactParameters, chatter_tol: float, initial, periods:
     return ImpactDF(N=X1 / dim.force, X1=X1, periodicity=spread, period=period, impacts_per_period=n_imp / used,
                     max_run_A=int(run_a), max_run_B=int(run_b), runs_A=runs_a, runs_B=runs_b,
                     stuck_fraction=stuck_time / (used * tp), periods_used=used, n_impacts=int(n_imp), beta=p.beta,
-                    below_wc=below_wc, transient_periods=k - used, orbit=orbit)
+                    below_wc=below_wc, transient_periods=k - used, orbit=orbit,
+                    restarts=int(ctl[_core.C_RESTARTS]))
 
 
 def _describe(p: ImpactParameters, window, transient: int | None, periods: int, max_transient: int) -> ImpactDF:
