@@ -40,7 +40,7 @@ _MAX_CONTRACTION = 0.9995    # a candidate contracting slower than this per peri
 _EXTRAPOLATE_BELOW = 1e-2    # ... nor one whose mismatch is still this large
 _GROWTH = 4                  # adaptive transient: at most x4 per step, each step needing new evidence
 MIN_TRANSIENT_PERIODS = 25   # first transient of the adaptive extraction
-CHAOS_TRANSIENT_PERIODS = 100  # adaptive: a motion not contracting towards any period by then is irregular
+CHAOS_TRANSIENT_PERIODS = 160  # adaptive: a motion not contracting towards any period by then is irregular
 DEFAULT_MAX_TRANSIENT_PERIODS = 4000
 
 
@@ -656,9 +656,11 @@ def _adaptive_batch(base: ImpactParameters, f: np.ndarray, w: np.ndarray, chatte
     bad = failed | settled
     used = np.maximum(ires[:, _core.R_USED], 1)
     beta = np.array([p.force for p in scaled])
-    X1 = (fres[:, _core.R_X1_RE] + 1j * fres[:, _core.R_X1_IM]) * base.h
+    # N = h X1 / F part by part, as the single-point call rounds it
+    N = np.empty(n, dtype=complex)
+    N.real, N.imag = fres[:, _core.R_X1_RE] * base.h / f.ravel(), fres[:, _core.R_X1_IM] * base.h / f.ravel()
     period = np.where(settled, orbit_rows // 2, np.where(failed, 0, ires[:, _core.R_PERIOD]))
-    arrays = {"N": np.where(bad, complex(np.nan, np.nan), X1 / f.ravel()),
+    arrays = {"N": np.where(bad, complex(np.nan, np.nan), N),
               "periodicity": np.where(bad, np.nan, fres[:, _core.R_SPREAD]), "period": period,
               "impacts_per_period": np.where(bad, np.nan, ires[:, _core.R_IMPACTS] / used),
               "max_run_A": np.where(bad, 0, ires[:, _core.R_RUN_A]), "max_run_B": np.where(bad, 0, ires[:, _core.R_RUN_B]),
