@@ -132,7 +132,8 @@ def main(argv: list[str]) -> None:
                 ("linear, tol 1e-5", dict(method="linear")),
                 ("probe_dx 10 (no regime probes)", dict(probe_dx=10.0)),
                 ("starts 0 (no coexistence search)", dict(starts=0)),
-                ("fixed transient 100", dict(transient_periods=100))]
+                ("fixed transient 100", dict(transient_periods=100)),
+                ("detection window 10 periods (periods=10)", dict(periods=10))]
     for label, kw in settings:
         args = dict(base, **kw)
         rows.append(measure(f"1-D {label}", lambda: DynamicBacklash(M1, M2, H, EPS, **args), F, w, ref,
