@@ -214,26 +214,13 @@ class Trajectory(ImpactEvents):
         q = np.where(stuck, -Bc, 0.0)
         p0 = self.x1[k] - q * np.cos(phi0)
         p1 = self.v1[k] + q * w * np.sin(phi0)
-        return _fourier_integrals(p0, p1, q, phi0, w, starts - self.t0[k], ends - self.t0[k])
+        return _core.fourier_pieces(p0, p1, q, phi0, w, starts - self.t0[k], ends - self.t0[k])
 
     def __repr__(self) -> str:
         p = self.params
         return (f"Trajectory(m1={p.m1:g}, m2={p.m2:g}, h={p.h:g}, eps={p.restitution:g}, F={p.force:g}, "
                 f"omega={p.omega:g}, beta={p.beta:.4g}, t_end={self.t_end:g}, segments={self.t0.size}, "
                 f"impacts={self.n_impacts}, stuck_phases={int(np.count_nonzero(self.mode != FREE))})")
-
-
-def _fourier_integrals(p0, p1, q, phi0, w, sa, sb):
-    """Integral over local time s in [sa, sb] of (p0 + p1 s + q cos(phi0 + w s)) e^{-j(phi0 + w s)}."""
-    def antiderivative(s):  # without the common factor e^{-j phi0}
-        e = np.exp(-1j * w * s)
-        a0 = (1.0 - e) / (1j * w)
-        a1 = 1j * s * e / w - (1.0 - e) / w ** 2
-        # cos(phi0 + w s) e^{-j w s} = (e^{j phi0} + e^{-j phi0} e^{-2j w s}) / 2
-        ac = np.exp(1j * phi0) * 0.5 * s + np.exp(-1j * phi0) * (1.0 - e * e) / (4j * w)
-        return p0 * a0 + p1 * a1 + q * ac
-
-    return np.exp(-1j * phi0) * (antiderivative(sb) - antiderivative(sa))
 
 
 def _sin_minus_x(th: np.ndarray) -> np.ndarray:
