@@ -203,14 +203,15 @@ class DynamicBacklash(DescribingFunction):
         return self._table
 
     # ------------------------------------------------------------------ sampling
-    def _extract(self, force: np.ndarray, omega: np.ndarray, initial=None):
+    def _extract(self, force: np.ndarray, omega: np.ndarray, initial=None, attractor=None):
         from .extract import impact_describing_function_batch
 
         return impact_describing_function_batch(self.m1, self.m2, self.h, self.restitution, force, omega,
                                                 effects=self.effects, transient_periods=self.transient_periods,
                                                 max_transient_periods=self.max_transient_periods,
                                                 periods=self.periods, max_events=self.max_events,
-                                                initial=initial, on_event_limit="record", callback=self._tick)
+                                                initial=initial, attractor=attractor, on_event_limit="record",
+                                                callback=self._tick)
 
     def _labels(self, r):
         """(value D, regime label, regular) of a batch; failed runs get label FAILED, value 0, not regular."""
@@ -235,6 +236,7 @@ class DynamicBacklash(DescribingFunction):
                  "impacts_per_period": np.asarray(r.impacts_per_period, dtype=float),
                  "stuck_fraction": np.asarray(r.stuck_fraction, dtype=float),
                  "transient_periods": np.asarray(r.transient_periods, dtype=float),
+                 "periods_used": np.asarray(r.periods_used, dtype=float),
                  "failed": failed.astype(float)}
         branches = np.ones(force.shape)
         # other starts only where rest settled on a periodic motion (elsewhere the value is invalid anyway)
@@ -244,11 +246,15 @@ class DynamicBacklash(DescribingFunction):
             alt_value = np.full(force.shape, np.nan, dtype=complex)
             alt_label = np.full(force.shape, FAILED, dtype=np.int64)
             if probe.size:
+                # a start that settles on the rest start's orbit is the same motion: stopped there
+                known = r.orbit[probe] if self.transient_periods is None else None
                 alt = self._extract(force[probe], omega[probe], lambda f, w, gap=gap, u_rel=u_rel:
-                                    (0.0, 0.0, gap * self.h, u_rel * f / (self.m2 * w)))
+                                    (0.0, 0.0, gap * self.h, u_rel * f / (self.m2 * w)), attractor=known)
                 _, lab, alt_regular, _ = self._labels(alt)
-                alt_value[probe] = np.nan_to_num(np.asarray(alt.N, dtype=complex)) * self.m2 * omega[probe] ** 2
-                alt_label[probe] = np.where(alt_regular, lab, FAILED)
+                same = np.asarray(alt.settled, dtype=bool)
+                alt_value[probe] = np.where(same, value[probe], np.nan_to_num(np.asarray(alt.N, dtype=complex))
+                                            * self.m2 * omega[probe] ** 2)
+                alt_label[probe] = np.where(same, label[probe], np.where(alt_regular, lab, FAILED))
             differ = (alt_label != FAILED) & ((alt_label != label) | (np.abs(alt_value - value)
                                                                       > _BRANCH_REL * np.abs(value)))
             branches += differ

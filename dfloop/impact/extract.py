@@ -15,15 +15,17 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .. import _checks
+from . import _core
 from ._core import IMPACT_A, IMPACT_B
 from .kernel import (DEFAULT_CHATTER_TOL, EventLimitError, ImpactParameters, KernelRun, Trajectory,
-                     default_max_events, simulate)
+                     _event_limit_message, default_max_events, kernel_arrays, simulate)
 from .limits import beta_lower_limit
 
 __all__ = ["ImpactDF", "ImpactDFBatch", "describing_function_from_trajectory", "impact_describing_function",
@@ -31,14 +33,14 @@ __all__ = ["ImpactDF", "ImpactDFBatch", "describing_function_from_trajectory", "
 
 DEFAULT_TRANSIENT_PERIODS = 200
 DEFAULT_PERIODS = 40
-MAX_DETECTED_PERIOD = 12
+MAX_DETECTED_PERIOD = _core.MAX_PERIOD   # longest period looked for (forcing periods)
 PERIODICITY_TOL = 1e-6  # relative mismatch of the stroboscopic state that still counts as periodic
 _ROUNDING_MISMATCH = 1e-11   # stroboscopic mismatch at rounding level (x max(1, beta)): periodic whatever its trend
 _MAX_CONTRACTION = 0.9995    # a candidate contracting slower than this per period is not extrapolated
 _EXTRAPOLATE_BELOW = 1e-2    # ... nor one whose mismatch is still this large
 _GROWTH = 4                  # adaptive transient: at most x4 per step, each step needing new evidence
 MIN_TRANSIENT_PERIODS = 25   # first transient of the adaptive extraction
-CHAOS_TRANSIENT_PERIODS = 100  # adaptive: a motion not contracting towards any period by then is irregular
+CHAOS_TRANSIENT_PERIODS = 160  # adaptive: a motion not contracting towards any period by then is irregular
 DEFAULT_MAX_TRANSIENT_PERIODS = 4000
 
 
@@ -78,6 +80,18 @@ class ImpactDF:
         kernel (with sticking) often finds periodic chatter-and-stick motion there: ``regular`` says which.
     transient_periods : int
         Forcing periods discarded before the window (chosen adaptively when the caller asked for it).
+    orbit : numpy.ndarray
+        Adaptive runs of the paper's model: the stroboscopic states (gap / h, u / v_scale, mode, with
+        v_scale = max(h w, F / (M2 w))) of the detected periodic orbit, one row per forcing period of its
+        cycle, followed by those of its mirror image (the motion half a period later reflected, x -> -x,
+        gap -> h - gap: a motion too, with the same DF); empty when irregular or with effects. Pass it as
+        ``attractor`` to recognise the same motion.
+    settled : bool
+        True when the run stopped because it settled on the ``attractor`` it was given (the same motion:
+        N and the other fields are then NaN / 0 and the attractor's apply).
+    restarts : int
+        Adaptive runs of the paper's model: times the slowly contracting transient was cut short by restarting
+        from the extrapolated fixed point of the stroboscopic map (the window is simulated from there).
 
     A window without impacts or sticking is free flight: x1 is exactly linear, N = 0 exactly, and the
     motion is labelled period 1 with ``n_impacts`` = 0 (no-impact motion), whatever the gap does.
@@ -98,6 +112,9 @@ class ImpactDF:
     beta: float
     below_wc: bool
     transient_periods: int = 0
+    orbit: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    settled: bool = False
+    restarts: int = 0
 
     @property
     def regular(self) -> bool:
@@ -105,6 +122,8 @@ class ImpactDF:
         return self.period > 0
 
     def __repr__(self) -> str:
+        if self.settled:
+            return f"ImpactDF(settled on the given attractor (period {self.period}), beta={self.beta:.4g})"
         note = "" if self.regular else ", irregular: N is an average over the window"
         note += ", no impacts in the window" if self.n_impacts == 0 and self.stuck_fraction == 0 else ""
         note += ", below w_c of eq. (10)" if self.below_wc else ""
@@ -270,7 +289,7 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
                                periods: int = DEFAULT_PERIODS, max_events: int | None = None,
                                chatter_tol: float = DEFAULT_CHATTER_TOL,
                                max_transient_periods: int = DEFAULT_MAX_TRANSIENT_PERIODS,
-                               initial=None) -> ImpactDF:
+                               initial=None, attractor=None) -> ImpactDF:
     """N(F, w) = X1 / F (m/N) of the two-mass impact system driven by F cos(w t) on M2, output x1.
 
     Parameters
@@ -286,11 +305,15 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
     effects : sequence, optional
         Optional effects (:mod:`dfloop.impact.effects`); they break the similarity law.
     transient_periods : int or None
-        Forcing periods discarded before the window. None: adaptive, from ``MIN_TRANSIENT_PERIODS`` on,
-        lengthened until the period detection has converged (see :func:`_assess_period`: a motion that
-        contracts towards a periodic orbit is followed for as long as the extrapolated contraction says, up
-        to ``max_transient_periods``; one that does not contract after ``CHAOS_TRANSIENT_PERIODS`` is
-        irregular). The length used is returned as ``transient_periods`` of the result.
+        Forcing periods discarded before the window. None: adaptive. Paper's model: the run goes on period
+        by period and stops as soon as the period detection has converged (:func:`dfloop.impact._core.
+        assess_period` after every period: the stroboscopic state returns to itself after p periods, to
+        1e-6 together with the distance to the orbit that its contraction implies, over a window of whole
+        cycles of at least ``periods`` periods); the DF is integrated over that window. A motion without a
+        clearly contracting candidate after ``CHAOS_TRANSIENT_PERIODS`` + ``periods`` periods is irregular;
+        one still contracting is followed up to ``max_transient_periods`` + ``periods``. With effects: from
+        ``MIN_TRANSIENT_PERIODS`` on, lengthened until the detection over the window of ``periods`` periods
+        has converged (:func:`_assess_period`). The length discarded is returned as ``transient_periods``.
     periods : int
         Forcing periods integrated (a period-p motion uses a multiple of p).
     max_events : int, optional
@@ -303,6 +326,11 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
     initial : (x1, v1, gap, u), optional
         Start state (m, m/s) instead of rest with a centred gap (paper's model only); used to look for
         coexisting periodic motions.
+    attractor : numpy.ndarray, optional
+        ``orbit`` of an earlier adaptive result at the same (F, w) (paper's model, adaptive transient only).
+        When the motion comes within 1e-3 (normalised state) of its stroboscopic states, and closer, at
+        three consecutive period boundaries it has settled on that motion: the run stops there and returns
+        ``settled`` True.
 
     Returns
     -------
@@ -327,25 +355,19 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
         raise ValueError(f"max_events must be >= 1, got {max_events}")
     max_events = int(max_events)
     if effects:
-        if initial is not None:
-            raise ValueError("initial: a start other than rest is supported by the paper's model only "
-                             "(no effects)")
+        if initial is not None or attractor is not None:
+            raise ValueError("initial, attractor: supported by the paper's model only (no effects)")
 
         def window(t_a: float, t_b: float) -> Trajectory:
             return simulate(p.m1, p.m2, p.h, p.restitution, p.force, p.omega, t_b, effects=effects,
                             max_events=max_events, chatter_tol=chatter_tol)
 
         return _describe(p, window, transient, periods, max_transient)
-    log_beta = math.log(p.force) - math.log(p.m2) - math.log(p.h) - 2.0 * math.log(p.omega)
-    if log_beta > math.log(1e300):
-        raise ValueError(f"force: beta = F/(M2 h w^2) = exp({log_beta:.6g}) overflows (F = {p.force!r} N, "
-                         f"h = {p.h!r} m, omega = {p.omega!r} rad/s); the masses then move as one body, "
-                         f"N = -1/((M1 + M2) w^2)")
-    beta = math.exp(log_beta) if log_beta > -690.0 else 1e-300
-    scaled = ImpactParameters(p.m1 / p.m2, 1.0, 1.0, p.restitution, beta, 1.0)
-    if initial is not None:
-        x1, v1, gap, u = initial
-        initial = (x1 / p.h, v1 / (p.h * p.omega), gap / p.h, u / (p.h * p.omega))
+    if transient is None:
+        return _adaptive_point(p, chatter_tol, initial, periods, max_transient, max_events, attractor)
+    if attractor is not None:
+        raise ValueError("attractor: supported with the adaptive transient only (transient_periods=None)")
+    scaled, initial = _similarity(p, initial)
     run = KernelRun(scaled, chatter_tol, initial)
 
     def window(t_a: float, t_b: float) -> Trajectory:
@@ -356,6 +378,79 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
 
     r = _describe(scaled, window, transient, periods, max_transient)
     return replace(r, N=p.h * r.X1 / p.force, X1=p.h * r.X1)
+
+
+def _similarity(p: ImpactParameters, initial):
+    """The same motion in similarity units (h = M2 = w = 1, force beta) and its scaled start state."""
+    log_beta = math.log(p.force) - math.log(p.m2) - math.log(p.h) - 2.0 * math.log(p.omega)
+    if log_beta > math.log(1e300):
+        raise ValueError(f"force: beta = F/(M2 h w^2) = exp({log_beta:.6g}) overflows (F = {p.force!r} N, "
+                         f"h = {p.h!r} m, omega = {p.omega!r} rad/s); the masses then move as one body, "
+                         f"N = -1/((M1 + M2) w^2)")
+    beta = math.exp(log_beta) if log_beta > -690.0 else 1e-300
+    scaled = ImpactParameters.trusted(p.m1 / p.m2, 1.0, 1.0, p.restitution, beta, 1.0)
+    if initial is not None:
+        x1, v1, gap, u = initial
+        initial = (x1 / p.h, v1 / (p.h * p.omega), gap / p.h, u / (p.h * p.omega))
+    return scaled, initial
+
+
+_SETTLE_TOL = 1e-3            # an attractor is reached when the stroboscopic state is this close to it (and
+                              # closer at each of _core._SETTLE_CHECKS consecutive period boundaries)
+_FIRST_CAPACITY = 128         # periods recorded before the first growth of the per-period records
+_NO_ORBIT = np.zeros((0, 3))
+_NO_RUNS = np.zeros(0, np.int64)
+
+
+def _adaptive_inputs(dim: ImpactParameters, chatter_tol: float, initial, periods: int, max_events: int):
+    """(similarity parameters, kernel params, kernel state, control vector) of one adaptive run."""
+    p, initial = _similarity(dim, initial)
+    kparams, state = kernel_arrays(p, chatter_tol, initial)
+    ctl = np.zeros(_core.N_CONTROL)
+    ctl[_core.C_TOL], ctl[_core.C_FLOOR] = PERIODICITY_TOL, _rounding_floor(p.beta)
+    ctl[_core.C_VSCALE] = max(p.h * p.omega, p.force / (p.m2 * p.omega))
+    ctl[_core.C_WINDOW] = periods
+    ctl[_core.C_CHAOS], ctl[_core.C_MAXEV] = CHAOS_TRANSIENT_PERIODS + periods, max_events
+    ctl[_core.C_MATCH_TOL], ctl[_core.C_DIST] = _SETTLE_TOL, math.inf
+    return p, kparams, state, ctl
+
+
+def _attractor_array(attractor) -> np.ndarray:
+    orbit = _NO_ORBIT if attractor is None else np.ascontiguousarray(attractor, dtype=float)
+    if orbit.ndim != 2 or orbit.shape[1] != 3 or orbit.shape[0] % 2 or orbit.shape[0] > 2 * _core.MAX_PERIOD:
+        raise ValueError(f"attractor must be the (2 p, 3) orbit of an adaptive ImpactDF, got shape {orbit.shape}")
+    return orbit
+
+
+def _adaptive_point(dim: ImpactParameters, chatter_tol: float, initial, periods: int, max_transient: int,
+                    max_events: int, attractor) -> ImpactDF:
+    """Adaptive DF of the paper's model at validated parameters ``dim`` (SI), simulated in similarity units.
+
+    The compiled driver (:func:`dfloop.impact._core.run_periods`) stops as soon as the period detection has
+    converged, the motion is irregular, or it has settled on ``attractor``; the DF and the diagnostics come
+    from the Fourier integrals and impact records it accumulated per period (no trajectory is stored).
+    """
+    p, kparams, state, ctl = _adaptive_inputs(dim, chatter_tol, initial, periods, max_events)
+    orbit = _attractor_array(attractor)
+    k_max = max_transient + periods
+    status, k, period, used, X1, spread, n_imp, run_a, run_b, stuck_time, orbit, sides, side_off = \
+        _core.adaptive_run(kparams, state, ctl, orbit, k_max, _FIRST_CAPACITY)
+    tp = p.period
+    if status == _core.EVENT_LIMIT:
+        raise EventLimitError(_event_limit_message(max_events, k * tp, k_max * tp, tp))
+    below_wc = bool(p.beta > beta_lower_limit(p.restitution))
+    if status == _core.SETTLED:
+        return ImpactDF(N=complex(np.nan, np.nan), X1=complex(np.nan, np.nan), periodicity=np.nan,
+                        period=len(attractor) // 2, impacts_per_period=np.nan, max_run_A=0, max_run_B=0,
+                        runs_A=_NO_RUNS, runs_B=_NO_RUNS, stuck_fraction=np.nan, periods_used=0, n_impacts=0,
+                        beta=p.beta, below_wc=below_wc, transient_periods=k, settled=True)
+    runs_a, runs_b = _run_lengths(sides[side_off[k - used]:side_off[k]].astype(np.int64))
+    X1 = X1 * dim.h          # similarity units back to metres
+    return ImpactDF(N=X1 / dim.force, X1=X1, periodicity=spread, period=period, impacts_per_period=n_imp / used,
+                    max_run_A=int(run_a), max_run_B=int(run_b), runs_A=runs_a, runs_B=runs_b,
+                    stuck_fraction=stuck_time / (used * tp), periods_used=used, n_impacts=int(n_imp), beta=p.beta,
+                    below_wc=below_wc, transient_periods=k - used, orbit=orbit,
+                    restarts=int(ctl[_core.C_RESTARTS]))
 
 
 def _describe(p: ImpactParameters, window, transient: int | None, periods: int, max_transient: int) -> ImpactDF:
@@ -386,7 +481,9 @@ class ImpactDFBatch:
     """Arrays of :class:`ImpactDF` fields over a broadcast grid of (force, omega).
 
     ``failure`` is "" where the run finished and the reason where it did not (with
-    ``on_event_limit='record'``: the event bound was reached); there N is NaN and period 0.
+    ``on_event_limit='record'``: the event bound was reached); there N is NaN and period 0. ``settled`` is
+    True where the run stopped on the ``attractor`` it was given (N NaN there: the attractor's applies);
+    ``orbit`` holds each point's :attr:`ImpactDF.orbit` (an object array).
     """
 
     N: np.ndarray
@@ -402,6 +499,8 @@ class ImpactDFBatch:
     below_wc: np.ndarray
     transient_periods: np.ndarray
     failure: np.ndarray
+    settled: np.ndarray
+    orbit: np.ndarray
 
     @property
     def regular(self) -> np.ndarray:
@@ -417,10 +516,11 @@ class ImpactDFBatch:
 
 _BATCH_FIELDS = {"N": complex, "periodicity": float, "period": np.int64, "impacts_per_period": float,
                  "max_run_A": np.int64, "max_run_B": np.int64, "stuck_fraction": float, "periods_used": np.int64,
-                 "n_impacts": np.int64, "beta": float, "below_wc": bool, "transient_periods": np.int64}
+                 "n_impacts": np.int64, "beta": float, "below_wc": bool, "transient_periods": np.int64,
+                 "settled": bool}
 _FAILED = {"N": complex(np.nan, np.nan), "periodicity": np.nan, "period": 0, "impacts_per_period": np.nan,
            "max_run_A": 0, "max_run_B": 0, "stuck_fraction": np.nan, "periods_used": 0, "n_impacts": 0,
-           "beta": np.nan, "below_wc": False, "transient_periods": 0}
+           "beta": np.nan, "below_wc": False, "transient_periods": 0, "settled": False}
 
 
 def impact_describing_function_batch(m1: float, m2: float, h: float, restitution: float, force, omega, *,
@@ -428,7 +528,7 @@ def impact_describing_function_batch(m1: float, m2: float, h: float, restitution
                                      periods: int = DEFAULT_PERIODS, max_events: int | None = None,
                                      chatter_tol: float = DEFAULT_CHATTER_TOL,
                                      max_transient_periods: int = DEFAULT_MAX_TRANSIENT_PERIODS,
-                                     initial=None, on_event_limit: str = "raise",
+                                     initial=None, attractor=None, on_event_limit: str = "raise",
                                      workers: int | None = None, callback=None) -> ImpactDFBatch:
     """:func:`impact_describing_function` over broadcast arrays ``force`` and ``omega`` (N, rad/s).
 
@@ -436,7 +536,9 @@ def impact_describing_function_batch(m1: float, m2: float, h: float, restitution
     ``on_event_limit``: 'raise' (default) lets an :class:`~dfloop.impact.kernel.EventLimitError` through;
     'record' marks that point failed (``failure`` holds the reason) and goes on. ``callback()``, if given,
     is called once per finished point (from the worker threads). ``initial`` is one start state for all
-    points or a callable ``initial(force, omega)`` returning the start state of each point.
+    points or a callable ``initial(force, omega)`` returning the start state of each point. ``attractor``
+    (adaptive transient, paper's model) is None or an object array of the grid's shape holding, per point,
+    a known orbit (:attr:`ImpactDF.orbit`) or None (see :func:`impact_describing_function`).
     """
     if on_event_limit not in ("raise", "record"):
         raise ValueError(f"on_event_limit must be 'raise' or 'record', got {on_event_limit!r}")
@@ -445,23 +547,36 @@ def impact_describing_function_batch(m1: float, m2: float, h: float, restitution
         raise ValueError("force, omega: empty grid")
     workers = (os.cpu_count() or 1) if workers is None else _checks.integer_at_least("workers", workers, 1)
 
-    def one(fw):
+    if attractor is not None:
+        attractor = np.asarray(attractor, dtype=object)
+        if attractor.shape != f.shape:
+            raise ValueError(f"attractor must have the grid's shape {f.shape}, got {attractor.shape}")
+        attractor = attractor.ravel()
+    no_orbit = np.zeros((0, 3))
+    if not effects and transient_periods is None:
+        return _adaptive_batch(ImpactParameters(m1, m2, h, restitution, 1.0, 1.0), f, w, chatter_tol, initial,
+                               attractor, periods, max_transient_periods, max_events, on_event_limit, workers,
+                               callback)
+
+    def one(i_fw):
+        i, fw = i_fw
         try:
             r = impact_describing_function(m1, m2, h, restitution, fw[0], fw[1], effects=effects,
                                            transient_periods=transient_periods, periods=periods,
                                            max_events=max_events, chatter_tol=chatter_tol,
                                            max_transient_periods=max_transient_periods,
-                                           initial=initial(*fw) if callable(initial) else initial)
-            out = ({k: getattr(r, k) for k in _BATCH_FIELDS}, "")
+                                           initial=initial(*fw) if callable(initial) else initial,
+                                           attractor=None if attractor is None else attractor[i])
+            out = ({k: getattr(r, k) for k in _BATCH_FIELDS}, "", r.orbit)
         except EventLimitError as exc:
             if on_event_limit == "raise":
                 raise
-            out = (_FAILED, f"event limit: {exc}")
+            out = (_FAILED, f"event limit: {exc}", no_orbit)
         if callback is not None:
             callback()
         return out
 
-    pairs = list(zip(f.ravel().tolist(), w.ravel().tolist()))
+    pairs = list(enumerate(zip(f.ravel().tolist(), w.ravel().tolist())))
     if workers == 1 or len(pairs) == 1:
         results = [one(fw) for fw in pairs]
     else:
@@ -469,4 +584,94 @@ def impact_describing_function_batch(m1: float, m2: float, h: float, restitution
             results = list(pool.map(one, pairs))
     arrays = {k: np.array([r[0][k] for r in results], dtype=t).reshape(f.shape) for k, t in _BATCH_FIELDS.items()}
     failure = np.array([r[1] for r in results], dtype=str).reshape(f.shape)
-    return ImpactDFBatch(**arrays, failure=failure)
+    orbit = np.empty(len(results), dtype=object)
+    orbit[:] = [r[2] for r in results]
+    return ImpactDFBatch(**arrays, failure=failure, orbit=orbit.reshape(f.shape))
+
+
+_POOLS: dict[int, ThreadPoolExecutor] = {}
+_POOLS_LOCK = threading.Lock()
+
+
+def _pool(workers: int) -> ThreadPoolExecutor:
+    """A persistent pool of ``workers`` threads for the compiled batches (threads are not started per call)."""
+    with _POOLS_LOCK:
+        if workers not in _POOLS:
+            _POOLS[workers] = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="dfloop-impact")
+        return _POOLS[workers]
+
+
+def _adaptive_batch(base: ImpactParameters, f: np.ndarray, w: np.ndarray, chatter_tol, initial, attractor,
+                    periods, max_transient_periods, max_events, on_event_limit: str, workers: int,
+                    callback) -> ImpactDFBatch:
+    """The adaptive DF of the paper's model over a grid: validated once, every point in compiled code
+    (:func:`dfloop.impact._core.adaptive_batch`), the points dealt out to ``workers`` threads."""
+    for name, a in (("force", f), ("omega", w)):
+        ok = np.isfinite(a) & (a > 0)
+        if not np.all(ok):
+            raise ValueError(f"{name} must be finite and > 0, got {a[~ok].ravel()[0]!r}")
+    periods = int(_checks.positive("periods", periods))
+    max_transient = int(_checks.positive("max_transient_periods", max_transient_periods))
+    chatter_tol = _checks.positive("chatter_tol", chatter_tol)
+    max_events = (default_max_events(base.restitution, chatter_tol, max_transient + periods) if max_events is None
+                  else int(_checks.integer_at_least("max_events", max_events, 1)))
+    fs, ws = f.ravel().tolist(), w.ravel().tolist()
+    n = len(fs)
+    kparams, states, ctls = np.empty((n, 7)), np.empty((n, 8)), np.empty((n, _core.N_CONTROL))
+    orbits = np.zeros((n, 2 * _core.MAX_PERIOD, 3))
+    orbit_rows = np.zeros(n, dtype=np.int64)
+    scaled = []
+    for i, (fi, wi) in enumerate(zip(fs, ws)):
+        dim = ImpactParameters.trusted(base.m1, base.m2, base.h, base.restitution, fi, wi)
+        p, kparams[i], states[i], ctls[i] = _adaptive_inputs(dim, chatter_tol, initial(fi, wi) if callable(initial)
+                                                             else initial, periods, max_events)
+        scaled.append(p)
+        if attractor is not None and attractor[i] is not None:
+            a = _attractor_array(attractor[i])
+            orbits[i, :a.shape[0]], orbit_rows[i] = a, a.shape[0]
+    k_max = max_transient + periods
+
+    def run(idx):
+        out = _core.adaptive_batch(kparams[idx], states[idx], ctls[idx], orbits[idx], orbit_rows[idx], k_max,
+                                   _FIRST_CAPACITY)
+        if callback is not None:
+            for _ in range(idx.size):
+                callback()
+        return idx, out
+
+    parts = [np.arange(j, n, workers) for j in range(min(workers, n))]
+    fres, ires, out_orbits = np.empty((n, 4)), np.empty((n, 8), dtype=np.int64), np.empty((n, 2 * _core.MAX_PERIOD, 3))
+    for idx, (fr, ir, orb) in (map(run, parts) if len(parts) == 1 else _pool(workers).map(run, parts)):
+        fres[idx], ires[idx], out_orbits[idx] = fr, ir, orb
+    status = ires[:, _core.R_STATUS]
+    failed = status == _core.EVENT_LIMIT
+    failure = np.full(n, "", dtype=object)
+    for i in np.flatnonzero(failed):
+        tp = scaled[i].period
+        msg = _event_limit_message(max_events, ires[i, _core.R_K] * tp, k_max * tp, tp)
+        if on_event_limit == "raise":
+            raise EventLimitError(msg)
+        failure[i] = f"event limit: {msg}"
+    settled = status == _core.SETTLED
+    bad = failed | settled
+    used = np.maximum(ires[:, _core.R_USED], 1)
+    beta = np.array([p.force for p in scaled])
+    # N = h X1 / F part by part, as the single-point call rounds it
+    N = np.empty(n, dtype=complex)
+    N.real, N.imag = fres[:, _core.R_X1_RE] * base.h / f.ravel(), fres[:, _core.R_X1_IM] * base.h / f.ravel()
+    period = np.where(settled, orbit_rows // 2, np.where(failed, 0, ires[:, _core.R_PERIOD]))
+    arrays = {"N": np.where(bad, complex(np.nan, np.nan), N),
+              "periodicity": np.where(bad, np.nan, fres[:, _core.R_SPREAD]), "period": period,
+              "impacts_per_period": np.where(bad, np.nan, ires[:, _core.R_IMPACTS] / used),
+              "max_run_A": np.where(bad, 0, ires[:, _core.R_RUN_A]), "max_run_B": np.where(bad, 0, ires[:, _core.R_RUN_B]),
+              "stuck_fraction": np.where(bad, np.nan, fres[:, _core.R_STUCK] / (used * 2.0 * math.pi)),
+              "periods_used": np.where(bad, 0, ires[:, _core.R_USED]), "n_impacts": np.where(bad, 0, ires[:, _core.R_IMPACTS]),
+              "beta": np.where(failed, np.nan, beta), "below_wc": ~failed & (beta > beta_lower_limit(base.restitution)),
+              "transient_periods": np.where(bad, np.where(settled, ires[:, _core.R_K], 0),
+                                            ires[:, _core.R_K] - ires[:, _core.R_USED]),
+              "settled": settled}
+    orbit = np.empty(n, dtype=object)
+    orbit[:] = [out_orbits[i, :ires[i, _core.R_ORBIT]].copy() for i in range(n)]
+    shape = f.shape
+    return ImpactDFBatch(**{k: np.asarray(v, dtype=_BATCH_FIELDS[k]).reshape(shape) for k, v in arrays.items()},
+                         failure=failure.astype(str).reshape(shape), orbit=orbit.reshape(shape))

@@ -85,6 +85,16 @@ class ImpactParameters:
         object.__setattr__(self, "restitution", _checks.in_closed_interval("restitution",
                                                                            self.restitution, 0.0, 1.0))
 
+    @classmethod
+    def trusted(cls, m1: float, m2: float, h: float, restitution: float, force: float,
+                omega: float) -> "ImpactParameters":
+        """Parameters derived from already validated ones (hot paths): no checks."""
+        self = object.__new__(cls)
+        for name, v in zip(("m1", "m2", "h", "restitution", "force", "omega"),
+                           (m1, m2, h, restitution, force, omega)):
+            object.__setattr__(self, name, float(v))
+        return self
+
     @property
     def beta(self) -> float:
         """Similarity parameter F / (M2 h w^2) (dimensionless)."""
@@ -204,26 +214,13 @@ class Trajectory(ImpactEvents):
         q = np.where(stuck, -Bc, 0.0)
         p0 = self.x1[k] - q * np.cos(phi0)
         p1 = self.v1[k] + q * w * np.sin(phi0)
-        return _fourier_integrals(p0, p1, q, phi0, w, starts - self.t0[k], ends - self.t0[k])
+        return _core.fourier_pieces(p0, p1, q, phi0, w, starts - self.t0[k], ends - self.t0[k])
 
     def __repr__(self) -> str:
         p = self.params
         return (f"Trajectory(m1={p.m1:g}, m2={p.m2:g}, h={p.h:g}, eps={p.restitution:g}, F={p.force:g}, "
                 f"omega={p.omega:g}, beta={p.beta:.4g}, t_end={self.t_end:g}, segments={self.t0.size}, "
                 f"impacts={self.n_impacts}, stuck_phases={int(np.count_nonzero(self.mode != FREE))})")
-
-
-def _fourier_integrals(p0, p1, q, phi0, w, sa, sb):
-    """Integral over local time s in [sa, sb] of (p0 + p1 s + q cos(phi0 + w s)) e^{-j(phi0 + w s)}."""
-    def antiderivative(s):  # without the common factor e^{-j phi0}
-        e = np.exp(-1j * w * s)
-        a0 = (1.0 - e) / (1j * w)
-        a1 = 1j * s * e / w - (1.0 - e) / w ** 2
-        # cos(phi0 + w s) e^{-j w s} = (e^{j phi0} + e^{-j phi0} e^{-2j w s}) / 2
-        ac = np.exp(1j * phi0) * 0.5 * s + np.exp(-1j * phi0) * (1.0 - e * e) / (4j * w)
-        return p0 * a0 + p1 * a1 + q * ac
-
-    return np.exp(-1j * phi0) * (antiderivative(sb) - antiderivative(sa))
 
 
 def _sin_minus_x(th: np.ndarray) -> np.ndarray:
@@ -308,10 +305,8 @@ class KernelRun:
     def __init__(self, params: ImpactParameters, chatter_tol: float = DEFAULT_CHATTER_TOL, initial=None,
                  capacity: int = 256):
         p = self.params = params
-        x1, v1, gap, u = (0.0, 0.0, 0.5 * p.h, 0.0) if initial is None else _initial_state(initial, p.h)
-        v_stick = chatter_tol * max(p.h * p.omega, p.force / (p.m2 * p.omega))
-        self._kernel_params = np.array([p.m1, p.m2, p.h, p.force, p.omega, p.restitution, v_stick])
-        self._state = np.array([0.0, 0.0, x1, v1, gap, u, float(FREE), -1.0])
+        self._kernel_params, self._state = kernel_arrays(p, chatter_tol, initial)
+        x1, v1, gap, u = self._state[2:6]
         self._seg, self._mode, self._cause = _core.empty_buffers(max(int(capacity), 2))
         self._seg[0] = [0.0, 0.0, x1, v1, gap, u, v1, u, v1, u]
         self._mode[0] = FREE
@@ -367,6 +362,15 @@ class KernelRun:
                           u=seg[:, U].copy(), v1_pre=seg[:, V1_PRE].copy(), u_pre=seg[:, U_PRE].copy(),
                           v1_post=seg[:, V1_POST].copy(), u_post=seg[:, U_POST].copy(),
                           mode=self._mode[:n].astype(np.int64), cause=self._cause[:n].astype(np.int64))
+
+
+def kernel_arrays(p: ImpactParameters, chatter_tol: float = DEFAULT_CHATTER_TOL, initial=None):
+    """(params, state) arrays of :func:`dfloop.impact._core.run_kernel` for a free-flight start at t = 0
+    (``initial`` (x1, v1, gap, u) in m, m/s; default rest with a centred gap)."""
+    x1, v1, gap, u = (0.0, 0.0, 0.5 * p.h, 0.0) if initial is None else _initial_state(initial, p.h)
+    v_stick = chatter_tol * max(p.h * p.omega, p.force / (p.m2 * p.omega))
+    return (np.array([p.m1, p.m2, p.h, p.force, p.omega, p.restitution, v_stick]),
+            np.array([0.0, 0.0, x1, v1, gap, u, float(FREE), -1.0]))
 
 
 def _initial_state(initial, h: float) -> tuple[float, float, float, float]:

@@ -23,7 +23,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Callable
 
 import numpy as np
-from scipy.interpolate import CubicSpline, PchipInterpolator
+from scipy.interpolate import PchipInterpolator, make_interp_spline
 
 __all__ = ["Samples", "TableSettings", "Table1D", "TableValues"]
 
@@ -420,7 +420,8 @@ class Table1D:
             elif method == "pchip":
                 cache[seg] = PchipInterpolator(x, y, extrapolate=True)
             else:
-                cache[seg] = CubicSpline(x, y, extrapolate=True)
+                # not-a-knot cubic spline (a parabola through three points), from a banded solve
+                cache[seg] = make_interp_spline(x, y, k=min(3, idx.size - 1))
         return cache[seg]
 
     def _interval_error(self) -> np.ndarray:
