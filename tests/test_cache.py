@@ -77,3 +77,28 @@ def test_cache_dir_from_environment(monkeypatch, tmp_path):
     monkeypatch.delenv("DFLOOP_CACHE_DIR")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
     assert cache.cache_dir() == tmp_path / "xdg" / "dfloop"
+
+
+def test_code_version_covers_every_module_the_tables_run():
+    """The cache key hashes the sources that decide a table's content: every module of dfloop.impact that
+    dynamic_backlash.py imports, directly or through another one, must be among them (a change there must
+    invalidate cached tables)."""
+    import ast
+    from pathlib import Path
+
+    from dfloop.impact import cache
+
+    here = Path(cache.__file__).parent
+    seen, todo = set(), ["dynamic_backlash.py"]
+    while todo:
+        name = todo.pop()
+        if name in seen or not (here / name).exists():
+            continue
+        seen.add(name)
+        for node in ast.walk(ast.parse((here / name).read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level == 1:
+                if node.module:
+                    todo.append(node.module.split(".")[0] + ".py")
+                else:
+                    todo.extend(a.name + ".py" for a in node.names)
+    assert seen <= set(cache._SOURCES), sorted(seen - set(cache._SOURCES))

@@ -35,7 +35,8 @@ __all__ = ["cache_dir", "code_version", "cache_key", "save_table", "load_table",
 
 _STALE_SECONDS = 3600.0  # temporaries older than this are left over from a killed writer
 _REPORTED: set[tuple] = set()  # write/read failures already reported (one warning per directory and kind)
-_SOURCES = ("table.py", "dynamic_backlash.py", "kernel.py", "effects.py", "extract.py", "cache.py")
+_SOURCES = ("table.py", "table2d.py", "dynamic_backlash.py", "kernel.py", "_core.py", "_flight.py", "effects.py",
+            "_effects_core.py", "_engine.py", "extract.py", "limits.py", "loop.py", "cache.py")
 
 
 def cache_dir() -> Path:
