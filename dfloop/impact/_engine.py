@@ -210,9 +210,10 @@ class EngineRun:
     def fourier_integrals(self, starts, ends, w: float, component: int) -> np.ndarray:
         """Exact integrals of z[component](t) e^{-j w t} dt over pieces [starts, ends] inside segments.
 
-        y = e^{-j w s} z obeys y' = (A - j w) y and its integral Y' = y: one block exponential per mode over the
-        step dt (Van Loan), applied step by step to every piece of that mode, then the Taylor series of the block
-        matrix over each remainder (shorter than dt), compiled (:func:`_effects_core.van_loan_pieces`).
+        y = e^{-j w s} z obeys y' = (A - j w) y and its integral Y' = y: over a whole step dt the integral is
+        e^{-j w s_i} g.z(s_i) with g a row of the Van Loan block exponential (one per mode), z stepped by the
+        real exp(A dt); over each remainder (shorter than dt) the Taylor series of its integral, compiled
+        (:func:`_effects_core.van_loan_pieces`).
         """
         starts = np.asarray(starts, dtype=float)
         ends = np.asarray(ends, dtype=float)
@@ -228,10 +229,9 @@ class EngineRun:
             big = np.zeros((2 * n, 2 * n), complex)
             big[:n, :n] = sysm.mats[slot] - 1j * w * np.eye(n)
             big[n:, :n] = np.eye(n)
-            step = core.expm_taylor(big * dt)
-            y = np.zeros((m.size, 2 * n), complex)
-            y[:, :n] = zs[m]
-            total = core.van_loan_pieces(step, big, y, ends[m] - starts[m], dt, n + component)
+            g = core.expm_taylor(big * dt)[n + component, :n].copy()
+            total = core.van_loan_pieces(sysm.exps[slot], g, sysm.mats[slot], np.ascontiguousarray(zs[m]),
+                                         ends[m] - starts[m], dt, float(w), component)
             out[m] = np.exp(-1j * w * starts[m]) * total
         return out
 

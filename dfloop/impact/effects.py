@@ -40,11 +40,14 @@ C, S = 4, 5   # forcing oscillator slots of the open-loop state
 class ViscousDamping:
     """Viscous damper of coefficient ``c`` (N s/m, >= 0; 0 is the undamped model) from M1 to ground.
 
-    Breaks the similarity law.
+    Breaks the similarity law: at fixed beta the motion depends on c / (M2 w), a power 1 of 1/w
+    (``frequency_power``).
     """
 
     c: float
     keeps_similarity = False
+    frequency_power = 1
+    acts_on = "m1"
 
     def __post_init__(self):
         object.__setattr__(self, "c", _checks.nonnegative("c", self.c))
@@ -54,11 +57,13 @@ class ViscousDamping:
 class LoadSpring:
     """Linear spring of stiffness ``k`` (N/m, >= 0; 0 is no spring) from M1 to ground, relaxed at x1 = 0.
 
-    Breaks the similarity law.
+    Breaks the similarity law: at fixed beta the motion depends on k / (M2 w^2) (``frequency_power`` 2).
     """
 
     k: float
     keeps_similarity = False
+    frequency_power = 2
+    acts_on = "m1"
 
     def __post_init__(self):
         object.__setattr__(self, "k", _checks.nonnegative("k", self.k))
@@ -68,17 +73,24 @@ class LoadSpring:
 class CoulombFriction:
     """Coulomb friction of level ``force`` (N) between ``mass`` ("m1" or "m2") and ground.
 
-    Static and kinetic levels are equal. Breaks the similarity law.
+    Static and kinetic levels are equal. Breaks the similarity law: at fixed beta the motion depends on
+    force / (M2 h w^2) (``frequency_power`` 2).
     """
 
     force: float
     mass: str = "m2"
     keeps_similarity = False
+    frequency_power = 2
 
     def __post_init__(self):
         object.__setattr__(self, "force", _checks.positive("force", self.force))
         if self.mass not in ("m1", "m2"):
             raise ValueError(f"mass must be 'm1' or 'm2', got {self.mass!r}")
+
+    @property
+    def acts_on(self) -> str:
+        """The mass the effect acts on ("m1" or "m2")."""
+        return self.mass
 
 
 
