@@ -212,7 +212,7 @@ class DynamicBacklash(DescribingFunction):
         wider than any bracket on one line)."""
         st = self._settings
         edge = max(st.edge_dx, st.probe_dx)
-        return replace(st, edge_dx=edge, jump_dx=max(st.jump_dx, edge))
+        return replace(st, edge_dx=edge, jump_dx=max(st.jump_dx, edge), min_dx=max(st.min_dx, 0.04 * edge))
 
     @property
     def _u_min(self) -> float:
