@@ -399,9 +399,9 @@ class DynamicBacklash(DescribingFunction):
             return
         if self._table is None:
             self._table = Table2D(self._line_settings, self._y_settings, self._y_rate, self._u_min)
-        # progress in lines (saved after each): the lines on the base grid in y, a prior for those the
-        # refinement in y adds (the estimate of the time left is corrected as lines finish)
-        n_lines = 2 * (int(math.ceil((yw[1] - yw[0]) / self._y_settings.base_dx)) + 1)
+        # progress in lines (saved after each): the lines on the base grid in y and a prior of twice as many
+        # added by the refinement in y (the damped scene: 6 + 11); the time left is corrected as lines finish
+        n_lines = 3 * (int(math.ceil((yw[1] - yw[0]) / self._y_settings.base_dx)) + 1)
         self._build(lambda progress, checkpoint: self._table.extend(self._sampler_2d, sw, yw, progress, shear=2.0,
                                                                     checkpoint=checkpoint), n_lines)
 

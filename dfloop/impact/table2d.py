@@ -75,10 +75,12 @@ class _Reuse:
 class Table2D:
     """Adaptive table of a complex function of (x, y): 1-D tables in x (lines) at adaptive values of y.
 
-    Between lines the value is interpolated in y at fixed x (cubic Lagrange on four lines, linear at
-    the edges or with ``settings.method == 'linear'``); a y-interval is refined until the midpoint line
-    agrees with that interpolant to ``settings.tol`` at its regular samples. Where the lines used
-    disagree on the regime at x, the nearer line's value is returned, flagged invalid.
+    Between lines the value is interpolated in y at fixed x (cubic Lagrange on four lines, linear with fewer
+    lines or with ``settings.method == 'linear'``). Each y-interval is checked at its midpoint on a grid of x:
+    it gets a new line there unless value and regime agree with the interpolant to ``y_settings.tol``
+    everywhere the table answers valid, or fail at isolated points only (a kink of the function crossing
+    the interval); the error measured at each check point is kept and added to ``error``. Where the lines
+    used disagree on the regime at x, the nearer line's value is returned, flagged invalid.
 
     ``y_rate`` r > 0 interpolates in the coordinate exp(-r y) instead of y; ``x_min`` bounds every window
     from below (the caller answers x < x_min itself, e.g. exactly).
@@ -216,8 +218,8 @@ class Table2D:
             self.ychecked[pos[:-1][keep]] = old_checked[keep]
             for i in np.flatnonzero(keep):
                 self.yprof[pos[i]] = old_prof[i]
-        if old_y.size < 4 <= self.y.size:              # the stencil grows from linear to cubic: check again
-            self.ychecked[:] = False
+        if old_y.size < 4 <= self.y.size and self.settings.method != "linear":
+            self.ychecked[:] = False                   # the stencil grows from linear to cubic: check again
         blocks = np.array([np.unique(line.block).size for line in self.lines])
         self._cover(sampler, progress, checkpoint)
         # a y-interval whose stencil lines grew in x was checked on less than it now serves: check it again
@@ -268,8 +270,9 @@ class Table2D:
 
     def _refine(self, sampler, progress, checkpoint=None) -> None:
         """Check every unchecked y-interval at its midpoint on a grid of x (:meth:`_check_points`); an
-        interval that fails gets a full line there (both halves to be checked), one that passes keeps its
-        measured discrepancy as its error estimate and costs no line."""
+        interval that fails (not at isolated points only) gets a full line there (both halves to be checked,
+        the line reusing the check's samples), one that is accepted keeps the errors measured at the check
+        points (``yprof``, the largest in ``yerr``) and costs no line."""
         st = self.y_settings
         max_gen = int(math.ceil(math.log2(max(self.y[-1] - self.y[0], st.min_dx) / st.min_dx))) + 4
         for _ in range(max_gen):
@@ -278,13 +281,11 @@ class Table2D:
                 return
             width = np.diff(self.y)
             for k in todo[::-1]:                       # right to left keeps indices of the rest valid
-                if width[k] < 2 * st.min_dx:               # too narrow to split: keeps its error
-                    self.ychecked[k] = True
-                    continue
                 ym = 0.5 * (self.y[k] + self.y[k + 1])
                 xs = self._check_points(k)
                 rel = np.zeros(xs.size)
                 fail = np.zeros(xs.size, dtype=bool)
+                n_used = 0
                 reuse = None
                 if xs.size:
                     sm = Table1D(self.settings)._sample(lambda x, ym=ym: sampler(x, ym), xs, progress,
@@ -295,12 +296,15 @@ class Table2D:
                     # where the table would answer valid: the value must match, and so must the regime
                     # (a regime window between lines of one regime is a failure too)
                     scale = np.maximum(np.abs(sm.value), self.settings.abs_floor)
-                    rel = np.where(pred.valid, np.abs(pred.value - sm.value) / scale, 0.0) * self._peak_factor(k, ym)
+                    rel = np.where(pred.valid, np.abs(pred.value - sm.value) / scale, 0.0)
+                    rel *= self._peak_factor(k, ym)
                     other = pred.valid & (pred.regime != _regime_key(sm.regime, sm.regular))
                     fail = pred.valid & ((rel > st.tol) | other)
+                    n_used = int(np.count_nonzero(pred.valid))
                 self.yerr[k] = float(rel.max(initial=0.0))
                 self.yprof[k] = (xs, rel)
-                if not np.any(fail) or _isolated(fail, int(np.count_nonzero(pred.valid)) if xs.size else 0):
+                # accepted with its measured error: passed, failed at isolated points, or too narrow to split
+                if not np.any(fail) or _isolated(fail, n_used) or width[k] < 2 * st.min_dx:
                     self.ychecked[k] = True
                     continue
                 # the midpoint line covers what it will need once inserted
@@ -318,6 +322,8 @@ class Table2D:
                 self.yerr = np.insert(self.yerr, k + 1, np.inf)
                 self.ychecked = np.insert(self.ychecked, k + 1, False)
                 self.yprof.insert(k + 1, _NO_PROFILE)
+                if self.y.size == 4 and self.settings.method != "linear":
+                    self.ychecked[:] = False           # the stencil grows from linear to cubic: check again
                 if checkpoint is not None:
                     checkpoint()
             self._cover(sampler, progress, checkpoint)
@@ -382,8 +388,9 @@ class Table2D:
         return TableValues(value.reshape(shape), error.reshape(shape), ok.reshape(shape), regime.reshape(shape))
 
     def to_arrays(self) -> dict[str, np.ndarray]:
-        arrays = {"y": self.y, "y_rate": np.array(self.y_rate), "x_min": np.array(self.x_min), "yerr": self.yerr, "ychecked": self.ychecked,
-                  "windows": self.windows, "yprof.n": np.array([p[0].size for p in self.yprof], dtype=np.int64),
+        arrays = {"y": self.y, "y_rate": np.array(self.y_rate), "x_min": np.array(self.x_min), "yerr": self.yerr,
+                  "ychecked": self.ychecked, "windows": self.windows,
+                  "yprof.n": np.array([p[0].size for p in self.yprof], dtype=np.int64),
                   "yprof.x": np.concatenate([p[0] for p in self.yprof] + [np.empty(0)]),
                   "yprof.rel": np.concatenate([p[1] for p in self.yprof] + [np.empty(0)])}
         for j, line in enumerate(self.lines):
