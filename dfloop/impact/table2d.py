@@ -4,7 +4,10 @@ See :mod:`dfloop.impact.table` for the 1-D tables, their blocks, jumps and error
 """
 from __future__ import annotations
 
+import copy
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from typing import Callable
 
 import numpy as np
@@ -21,6 +24,18 @@ def _take(s: Samples, idx: np.ndarray) -> Samples:
     unc = np.zeros(n) if s.uncertainty is None else np.asarray(s.uncertainty, dtype=float)
     return Samples(np.asarray(s.value)[idx], np.asarray(s.regime)[idx], np.asarray(s.regular)[idx],
                    {k: np.asarray(v)[idx] for k, v in s.extra.items()}, spread[idx], unc[idx])
+
+
+def _workers(n_tasks: int) -> int:
+    return max(1, min(n_tasks, os.cpu_count() or 1))
+
+
+def _map(fn, items: list) -> list:
+    """[fn(item) for item in items], run concurrently in threads (the simulations release the GIL)."""
+    if _workers(len(items)) == 1:
+        return [fn(item) for item in items]
+    with ThreadPoolExecutor(_workers(len(items))) as pool:
+        return list(pool.map(fn, items))
 
 
 _NO_PROFILE = (np.empty(0), np.empty(0))
@@ -164,11 +179,26 @@ class Table2D:
         return all(line.covers(lo, hi) for line, (lo, hi) in zip(self.lines, need) if not np.isnan(lo))
 
     def _cover(self, sampler, progress, checkpoint) -> None:
-        """Extend every line over the x range its y-intervals need (no-op where already covered)."""
+        """Extend every line over the x range its y-intervals need (no-op where already covered).
+
+        Lines are extended concurrently, each on a copy that replaces the line once finished (so a
+        checkpoint never sees a line half-built); a line's content depends on its own y and blocks only.
+        """
         need = self._required(self.y, self.windows)
-        for yk, line, (lo, hi) in zip(self.y, self.lines, need):
-            if not np.isnan(lo) and not line.covers(lo, max(hi, lo + self.settings.base_dx)):
-                line.extend(lambda x, yk=yk: sampler(x, yk), lo, max(hi, lo + self.settings.base_dx), progress)
+        span = [(lo, max(hi, lo + self.settings.base_dx)) for lo, hi in need]
+        todo = [j for j, (lo, hi) in enumerate(span) if not np.isnan(lo) and not self.lines[j].covers(lo, hi)]
+
+        def grow(j):
+            line = copy.deepcopy(self.lines[j])
+            line.extend(lambda x, yk=self.y[j]: sampler(x, yk), *span[j], progress)
+            return line
+
+        if not todo:
+            return
+        with ThreadPoolExecutor(_workers(len(todo))) as pool:
+            futures = {pool.submit(grow, j): j for j in todo}
+            for done in as_completed(futures):
+                self.lines[futures[done]] = done.result()
                 if checkpoint is not None:
                     checkpoint()
 
@@ -268,11 +298,32 @@ class Table2D:
         poly = np.abs(np.prod(t[:, None] - nodes[None, :], axis=1))
         return float(max(1.0, poly[:-1].max() / poly[-1]))
 
+    def _check(self, k: int, sampler, progress):
+        """Check y-interval k at its midpoint (reads the table only): check points, relative error there,
+        failed points, points where the table answers valid, and the samples for a line built there."""
+        st = self.y_settings
+        ym = 0.5 * (self.y[k] + self.y[k + 1])
+        xs = self._check_points(k)
+        if xs.size == 0:
+            return xs, np.zeros(0), np.zeros(0, dtype=bool), 0, None
+        sm = Table1D(self.settings)._sample(lambda x: sampler(x, ym), xs, progress, "check in y")
+        pred = self.evaluate(xs, np.full(xs.size, ym))
+        # where the table would answer valid: the value must match, and so must the regime (a regime window
+        # between lines of one regime is a failure too)
+        scale = np.maximum(np.abs(sm.value), self.settings.abs_floor)
+        rel = np.where(pred.valid, np.abs(pred.value - sm.value) / scale, 0.0) * self._peak_factor(k, ym)
+        other = pred.valid & (pred.regime != _regime_key(sm.regime, sm.regular))
+        fail = pred.valid & ((rel > st.tol) | other)
+        return xs, rel, fail, int(np.count_nonzero(pred.valid)), _Reuse(lambda x: sampler(x, ym), xs, sm)
+
     def _refine(self, sampler, progress, checkpoint=None) -> None:
         """Check every unchecked y-interval at its midpoint on a grid of x (:meth:`_check_points`); an
         interval that fails (not at isolated points only) gets a full line there (both halves to be checked,
         the line reusing the check's samples), one that is accepted keeps the errors measured at the check
-        points (``yprof``, the largest in ``yerr``) and costs no line."""
+        points (``yprof``, the largest in ``yerr``) and costs no line.
+
+        One generation at a time: its checks run concurrently on the table as it was, then its new lines
+        are built concurrently and inserted (the result does not depend on the threads' timing)."""
         st = self.y_settings
         max_gen = int(math.ceil(math.log2(max(self.y[-1] - self.y[0], st.min_dx) / st.min_dx))) + 4
         for _ in range(max_gen):
@@ -280,43 +331,32 @@ class Table2D:
             if todo.size == 0:
                 return
             width = np.diff(self.y)
-            for k in todo[::-1]:                       # right to left keeps indices of the rest valid
-                ym = 0.5 * (self.y[k] + self.y[k + 1])
-                xs = self._check_points(k)
-                rel = np.zeros(xs.size)
-                fail = np.zeros(xs.size, dtype=bool)
-                n_used = 0
-                reuse = None
-                if xs.size:
-                    sm = Table1D(self.settings)._sample(lambda x, ym=ym: sampler(x, ym), xs, progress,
-                                                        "check in y")
-                    self._n_checked += xs.size
-                    reuse = _Reuse(lambda x, ym=ym: sampler(x, ym), xs, sm)
-                    pred = self.evaluate(xs, np.full(xs.size, ym))
-                    # where the table would answer valid: the value must match, and so must the regime
-                    # (a regime window between lines of one regime is a failure too)
-                    scale = np.maximum(np.abs(sm.value), self.settings.abs_floor)
-                    rel = np.where(pred.valid, np.abs(pred.value - sm.value) / scale, 0.0)
-                    rel *= self._peak_factor(k, ym)
-                    other = pred.valid & (pred.regime != _regime_key(sm.regime, sm.regular))
-                    fail = pred.valid & ((rel > st.tol) | other)
-                    n_used = int(np.count_nonzero(pred.valid))
+            split = []
+            for k, (xs, rel, fail, n_used, reuse) in zip(todo, _map(lambda k: self._check(k, sampler, progress),
+                                                                     list(todo))):
+                self._n_checked += xs.size
                 self.yerr[k] = float(rel.max(initial=0.0))
                 self.yprof[k] = (xs, rel)
                 # accepted with its measured error: passed, failed at isolated points, or too narrow to split
                 if not np.any(fail) or _isolated(fail, n_used) or width[k] < 2 * st.min_dx:
                     self.ychecked[k] = True
-                    continue
-                # the midpoint line covers what it will need once inserted
-                y_new = np.insert(self.y, k + 1, ym)
-                lo, hi = self._required(y_new, self.windows)[k + 1]
-                line_m = Table1D(self.settings)
+                else:
+                    split.append((k, reuse))
+
+            def build(item):
+                k, reuse = item                    # the midpoint line covers what it needs once inserted
+                ym = 0.5 * (self.y[k] + self.y[k + 1])
+                lo, hi = self._required(np.insert(self.y, k + 1, ym), self.windows)[k + 1]
+                line = Table1D(self.settings)
                 if not np.isnan(lo):
-                    line_m.extend(reuse or (lambda x, ym=ym: sampler(x, ym)), lo,
-                                  max(hi, lo + self.settings.base_dx), progress)
-                    self._n_reused += 0 if reuse is None else reuse.reused
-                self.y = y_new
-                self.lines.insert(k + 1, line_m)
+                    line.extend(reuse or (lambda x: sampler(x, ym)), lo, max(hi, lo + self.settings.base_dx),
+                                progress)
+                return ym, line
+
+            for (k, reuse), (ym, line) in reversed(list(zip(split, _map(build, split)))):   # right to left
+                self._n_reused += 0 if reuse is None else reuse.reused
+                self.y = np.insert(self.y, k + 1, ym)
+                self.lines.insert(k + 1, line)
                 self.yerr[k] = np.inf
                 self.yprof[k] = _NO_PROFILE
                 self.yerr = np.insert(self.yerr, k + 1, np.inf)
