@@ -180,10 +180,20 @@ class LinearModeSystem:
 class EngineRun:
     """Recorded segments of one run: segment k starts at ``t0[k]`` in state ``z0[k]`` and mode ``slot[k]``."""
 
-    def __init__(self, system, t_end, t0, z0, slot, ref, cause, vel, n_events, diverged=False):
+    def __init__(self, system, t_end, t0, z0, slot, ref, cause, vel, n_events, diverged=False, z_end=None,
+                 ref_end=0):
         self.system, self.t_end, self.diverged = system, t_end, diverged
         self.t0, self.z0, self.slot, self.ref, self.cause, self.vel = t0, z0, slot, ref, cause, vel
         self.n_events = n_events
+        self.z_end, self.ref_end = z_end, ref_end    # state at t_end (d relative to wall ref_end): continue here
+
+    def then(self, later: "EngineRun") -> "EngineRun":
+        """This run followed by ``later``, a run continued from this one's end (one record list)."""
+        cat = [np.concatenate([a, b]) for a, b in zip((self.t0, self.z0, self.slot, self.ref, self.cause, self.vel),
+                                                      (later.t0, later.z0, later.slot, later.ref, later.cause,
+                                                       later.vel))]
+        return EngineRun(self.system, later.t_end, *cat, self.n_events + later.n_events, later.diverged,
+                         later.z_end, later.ref_end)
 
     @property
     def contact(self) -> np.ndarray:
@@ -281,7 +291,7 @@ def run(system: LinearModeSystem, z: np.ndarray, t_end: float, v_stick: float, m
         bufs, capacity = new, new_capacity
     n = int(ist[4])
     t0, z0, sl, rf, cause, vel = (b[:n].copy() for b in bufs)
-    return EngineRun(system, t_end, t0, z0, sl, rf, cause, vel, int(ist[2]), diverged)
+    return EngineRun(system, t_end, t0, z0, sl, rf, cause, vel, int(ist[2]), diverged, z, int(ist[1]))
 
 
 def _buffers(capacity, n):
