@@ -162,7 +162,7 @@ class DynamicBacklash(DescribingFunction):
                                        edge_dx=_checks.positive("edge_dx", edge_dx),
                                        probe_dx=_checks.positive("probe_dx", probe_dx),
                                        block_dx=_BLOCK_BASE_INTERVALS * base_dx, origin=_U_START)
-        self._y_settings = TableSettings(tol=tol, method=method, base_dx=0.5, min_dx=max(min_dx, 1e-3))
+        self._y_settings = TableSettings(tol=tol, method=method, base_dx=1.0, min_dx=max(min_dx, 1e-3))
         self._use_cache = bool(cache)
         self._progress = progress
         self._tick = None
