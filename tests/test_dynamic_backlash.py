@@ -323,14 +323,14 @@ def test_interrupted_two_dimensional_build_resumes_from_the_lines_saved(monkeypa
                                                         periods=self.periods)
 
     monkeypatch.setattr(DynamicBacklash, "_extract", paper_physics)
-    F, w = np.array([38.0, 46.0, 42.0]), np.array([33.0, 39.0, 36.0])
+    F, w = np.array([38.0, 46.0, 42.0]), np.array([12.0, 45.0, 36.0])     # three lines, two at a time
     full = DynamicBacklash(M1, M2, H, EPS, effects=(_Marker(),), cache=False, **KW)
     n_full, err_full = full(F, w), full.error_estimate(F, w)
     calls = {"n": 0}
 
     def flaky(self, force, omega, initial=None):
         calls["n"] += 1
-        if calls["n"] > 23:          # after the first lines were saved (19-22 calls), before the end (29)
+        if calls["n"] > 44:          # after the first line was saved (35-37 calls), before the next (51-54)
             raise KeyboardInterrupt
         return paper_physics(self, force, omega, initial)
 

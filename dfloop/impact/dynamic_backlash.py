@@ -37,6 +37,7 @@ _OMEGA_REF = 1.0                               # frequency of the similarity-tab
 _REGIME_BASE = 1000                            # label = (period * BASE + impacts per cycle) * BASE + sticking
 FAILED = -2                                    # regime label of a sample whose simulation failed
 _BRANCH_REL = 1e-4                             # relative difference of D that makes another start a new branch
+_MIN_Y_WINDOW = 0.25                           # 2-D tables: narrowest ln w range built (two lines at least)
 _BLOCK_BASE_INTERVALS = 8                      # a canonical block holds 8 base intervals
 _PRIOR_SIMULATIONS_PER_BLOCK = 60              # progress estimate (per start) before the first block is done
 # alternative starts probed for coexisting motions, in similarity units (h = 1, w = 1, force beta):
@@ -394,7 +395,7 @@ class DynamicBacklash(DescribingFunction):
         self._load_cached()
         pad = 1e-12
         sw = (s_lo - pad, max(s_hi, s_lo + self._settings.base_dx) + pad)
-        yw = (v_lo - pad, max(v_hi, v_lo + self._y_settings.base_dx) + pad)
+        yw = (v_lo - pad, max(v_hi, v_lo + _MIN_Y_WINDOW) + pad)
         if self._table is not None and self._table.covers(sw, yw, shear=2.0):
             return
         if self._table is None:
