@@ -289,3 +289,57 @@ def test_damped_two_dimensional_table_matches_direct_simulation_within_its_error
         assert ref.period >= 1
         assert abs(ni - ref.N) <= max(ei, 1e-12 * abs(ref.N))
         assert abs(1 / ni - 1 / ref.N) <= 1e-4 * abs(1 / ref.N)
+
+
+def test_damped_table_across_kinks_and_refinement_in_w_valid_values_within_their_estimate():
+    # w 6.5-9 rad/s, F 7-12 N: bifurcations of the period-1 motion (kinks of N at one regime label) cross
+    # the lines; checks in w accept them as isolated failures, with the error measured there: every valid
+    # value is within its error_estimate of a 600-period direct simulation (random sample)
+    from dfloop.impact.effects import ViscousDamping
+
+    damping = (ViscousDamping(5.0),)
+    db = DynamicBacklash(M1, M2, H, EPS, effects=damping, **KW)
+    rng = np.random.default_rng(4)
+    F, w = rng.uniform(7.0, 12.0, 12), rng.uniform(6.5, 9.0, 12)
+    n, valid, err = db(F, w), db.validity(F, w), db.error_estimate(F, w)
+    tol = db.table.y_settings.tol
+    assert any(np.any(rel > tol) for _, rel in db.table.yprof)     # the case is exercised
+    assert np.count_nonzero(valid) >= 4
+    for Fi, wi, ni, ei in zip(F[valid], w[valid], n[valid], err[valid]):
+        ref = direct(Fi, wi, effects=damping, **REF)
+        assert ref.period >= 1
+        assert abs(ni - ref.N) <= ei
+
+
+def test_interrupted_two_dimensional_build_resumes_from_the_lines_saved(monkeypatch):
+    # the 2-D path (paper physics routed through it, fast) is saved after every line: an interrupted build
+    # leaves a cache file, and the next build samples only what is missing and gives the same N within its
+    # error estimate
+    from dfloop.impact import extract
+
+    def paper_physics(self, force, omega, initial=None):
+        return extract.impact_describing_function_batch(self.m1, self.m2, self.h, self.restitution, force, omega,
+                                                        transient_periods=self.transient_periods,
+                                                        periods=self.periods)
+
+    monkeypatch.setattr(DynamicBacklash, "_extract", paper_physics)
+    F, w = np.array([38.0, 46.0, 42.0]), np.array([12.0, 45.0, 36.0])     # three lines, two at a time
+    full = DynamicBacklash(M1, M2, H, EPS, effects=(_Marker(),), cache=False, **KW)
+    n_full, err_full = full(F, w), full.error_estimate(F, w)
+    calls = {"n": 0}
+
+    def flaky(self, force, omega, initial=None):
+        calls["n"] += 1
+        if calls["n"] > 44:          # after the first line was saved (35-37 calls), before the next (51-54)
+            raise KeyboardInterrupt
+        return paper_physics(self, force, omega, initial)
+
+    monkeypatch.setattr(DynamicBacklash, "_extract", flaky)
+    with pytest.raises(KeyboardInterrupt):
+        DynamicBacklash(M1, M2, H, EPS, effects=(_Marker(),), **KW)(F, w)
+    monkeypatch.setattr(DynamicBacklash, "_extract", paper_physics)
+    resumed = DynamicBacklash(M1, M2, H, EPS, effects=(_Marker(),), **KW)
+    assert resumed.cache_path.exists()
+    n = resumed(F, w)
+    assert 0 < resumed.n_simulations < full.n_simulations
+    assert np.all(np.abs(n - n_full) <= err_full + resumed.error_estimate(F, w))

@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp, trapezoid
 
-from dfloop.impact.effects import GROUND_EVENT, CoulombFriction, LoadSpring, ViscousDamping, simulate_with_effects
+from dfloop.impact.effects import (GROUND_EVENT, CoulombFriction, EffectsRun, LoadSpring, ViscousDamping,
+                                   simulate_with_effects)
 from dfloop.impact.extract import describing_function_from_trajectory
-from dfloop.impact.kernel import ImpactParameters, simulate
+from dfloop.impact.kernel import EventLimitError, ImpactParameters, simulate
 from dfloop.impact.reference import simulate_solve_ivp
 
 M1, M2, H, F = 1.0, 1.0, 0.1, 50.0
@@ -309,7 +310,6 @@ def test_zero_damping_and_zero_spring_are_the_paper_model():
 
 
 def test_event_limit_error_says_how_to_raise_it():
-    from dfloop.impact.kernel import EventLimitError
     with pytest.raises(EventLimitError, match="larger max_events"):
         simulate(M1, M2, H, 0.5, F, 10.0, 2.0, effects=(ViscousDamping(1.0),), max_events=10)
 
@@ -327,3 +327,26 @@ def test_friction_stop_at_a_wall_with_elastic_impacts_settles_without_penetratio
     t = np.minimum((tr.t0[:, None] + (ends - tr.t0)[:, None] * np.linspace(0, 1, 9)).ravel(), tr.t_end)
     g = tr.evaluate(t)["gap"]
     assert g.min() >= -1e-12 and g.max() <= 1 + 1e-12
+
+
+@pytest.mark.parametrize("effects,w", [((ViscousDamping(5.0),), 12.0), ((CoulombFriction(5.0, "m2"),), 10.0)])
+def test_continued_run_is_the_single_run(effects, w):
+    # advance / forget / advance as an adaptive transient uses it: the same motion as one run from rest
+    p = ImpactParameters(M1, M2, H, 0.5, F, w)
+    tp = 2 * math.pi / w
+    one = simulate_with_effects(p, 45 * tp, effects, 10 ** 6, 1e-9, record_from=25 * tp)
+    run = EffectsRun(p, effects, 1e-9)
+    run.advance(10 * tp, 10 ** 6, keep=False)
+    run.advance(25 * tp, 10 ** 6, keep=False)
+    run.forget()
+    run.advance(35 * tp, 10 ** 6)
+    run.advance(45 * tp, 10 ** 6)                     # two stored pieces joined
+    cont = run.trajectory()
+    assert run.n_events == one.n_events
+    a = describing_function_from_trajectory(one, 25, 20)
+    b = describing_function_from_trajectory(cont, 25, 20)
+    assert a.n_impacts == b.n_impacts and abs(a.N - b.N) <= 1e-9 * abs(a.N)
+    t = np.linspace(25 * tp, 45 * tp, 301)
+    np.testing.assert_allclose(cont.evaluate(t)["x1"], one.evaluate(t)["x1"], rtol=0, atol=1e-12)
+    with pytest.raises(EventLimitError):
+        EffectsRun(p, effects, 1e-9).advance(45 * tp, 10)

@@ -568,7 +568,7 @@ def run_engine(mats, exps, rows, rows_a, rows_aa, kinds, nrows, valid, fpar, ipa
     return status
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def expm_taylor(M):
     """exp(M) by scaling and squaring of an 18-term Taylor series (||M/2^s||_1 <= 1/4: truncation < 1e-25).
 
@@ -601,7 +601,7 @@ def expm_taylor(M):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _matmul(P, Q):
     """P Q with explicit loops."""
     out = np.zeros_like(P)
@@ -614,37 +614,47 @@ def _matmul(P, Q):
     return out
 
 
-@njit(cache=True)
-def van_loan_pieces(step, big, y0, lengths, dt, component):
-    """Component ``component`` of exp(big L) y0 for every piece (rows of y0, lengths L), complex.
+@njit(cache=True, nogil=True)
+def van_loan_pieces(exp_step, g, A, z0, lengths, dt, w, component):
+    """Integral over [0, L] of component ``component`` of e^{-j w s} exp(A s) z0, per piece (rows of z0, L).
 
-    ``step`` = exp(big dt): whole steps first, then the Taylor series of big over the remainder (< dt).
+    Whole steps first: over step i the integral is e^{-j w i dt} g.z_i with z_{i+1} = exp(A dt) z_i (real) and
+    g the row ``component`` of the Van Loan block int_0^dt e^{(A - j w) s} ds; over the remainder r (< dt) the
+    Taylor series sum_k [(A - j w)^k z]_component r^(k+1) / (k+1)!.
     """
-    m, n = y0.shape
+    m, n = z0.shape
     out = np.empty(m, dtype=np.complex128)
-    y = np.empty(n, dtype=np.complex128)
-    tmp = np.empty(n, dtype=np.complex128)
-    term = np.empty(n, dtype=np.complex128)
+    z = np.empty(n)
+    tmp = np.empty(n)
+    v = np.empty(n, dtype=np.complex128)
+    vtmp = np.empty(n, dtype=np.complex128)
     for p in range(m):
-        y[:] = y0[p]
+        z[:] = z0[p]
         chunks = int(np.floor(lengths[p] / dt))
-        for _ in range(chunks):
-            for i in range(n):
-                acc = 0j
+        total = 0j
+        for i in range(chunks):
+            acc = 0j
+            for k in range(n):
+                acc += g[k] * z[k]
+            total += np.exp(-1j * w * dt * i) * acc
+            for a in range(n):
+                r = 0.0
                 for k in range(n):
-                    acc += step[i, k] * y[k]
-                tmp[i] = acc
-            y[:] = tmp
+                    r += exp_step[a, k] * z[k]
+                tmp[a] = r
+            z[:] = tmp
         rest = lengths[p] - chunks * dt
-        term[:] = y
-        total = y[component]
+        phase = np.exp(-1j * w * dt * chunks)
+        for i in range(n):
+            v[i] = phase * z[i] * rest
+        total += v[component]
         for k in range(1, TAYLOR_TERMS):
             for i in range(n):
-                acc = 0j
+                acc = -1j * w * v[i]
                 for j in range(n):
-                    acc += big[i, j] * term[j]
-                tmp[i] = acc * (rest / k)
-            term[:] = tmp
-            total += term[component]
+                    acc += A[i, j] * v[j]
+                vtmp[i] = acc * (rest / (k + 1))
+            v[:] = vtmp
+            total += v[component]
         out[p] = total
     return out

@@ -180,10 +180,20 @@ class LinearModeSystem:
 class EngineRun:
     """Recorded segments of one run: segment k starts at ``t0[k]`` in state ``z0[k]`` and mode ``slot[k]``."""
 
-    def __init__(self, system, t_end, t0, z0, slot, ref, cause, vel, n_events, diverged=False):
+    def __init__(self, system, t_end, t0, z0, slot, ref, cause, vel, n_events, diverged=False, z_end=None,
+                 ref_end=0):
         self.system, self.t_end, self.diverged = system, t_end, diverged
         self.t0, self.z0, self.slot, self.ref, self.cause, self.vel = t0, z0, slot, ref, cause, vel
         self.n_events = n_events
+        self.z_end, self.ref_end = z_end, ref_end    # state at t_end (d relative to wall ref_end): continue here
+
+    def then(self, later: "EngineRun") -> "EngineRun":
+        """This run followed by ``later``, a run continued from this one's end (one record list)."""
+        cat = [np.concatenate([a, b]) for a, b in zip((self.t0, self.z0, self.slot, self.ref, self.cause, self.vel),
+                                                      (later.t0, later.z0, later.slot, later.ref, later.cause,
+                                                       later.vel))]
+        return EngineRun(self.system, later.t_end, *cat, self.n_events + later.n_events, later.diverged,
+                         later.z_end, later.ref_end)
 
     @property
     def contact(self) -> np.ndarray:
@@ -210,9 +220,10 @@ class EngineRun:
     def fourier_integrals(self, starts, ends, w: float, component: int) -> np.ndarray:
         """Exact integrals of z[component](t) e^{-j w t} dt over pieces [starts, ends] inside segments.
 
-        y = e^{-j w s} z obeys y' = (A - j w) y and its integral Y' = y: one block exponential per mode over the
-        step dt (Van Loan), applied step by step to every piece of that mode, then the Taylor series of the block
-        matrix over each remainder (shorter than dt), compiled (:func:`_effects_core.van_loan_pieces`).
+        y = e^{-j w s} z obeys y' = (A - j w) y and its integral Y' = y: over a whole step dt the integral is
+        e^{-j w s_i} g.z(s_i) with g a row of the Van Loan block exponential (one per mode), z stepped by the
+        real exp(A dt); over each remainder (shorter than dt) the Taylor series of its integral, compiled
+        (:func:`_effects_core.van_loan_pieces`).
         """
         starts = np.asarray(starts, dtype=float)
         ends = np.asarray(ends, dtype=float)
@@ -228,10 +239,9 @@ class EngineRun:
             big = np.zeros((2 * n, 2 * n), complex)
             big[:n, :n] = sysm.mats[slot] - 1j * w * np.eye(n)
             big[n:, :n] = np.eye(n)
-            step = core.expm_taylor(big * dt)
-            y = np.zeros((m.size, 2 * n), complex)
-            y[:, :n] = zs[m]
-            total = core.van_loan_pieces(step, big, y, ends[m] - starts[m], dt, n + component)
+            g = core.expm_taylor(big * dt)[n + component, :n].copy()
+            total = core.van_loan_pieces(sysm.exps[slot], g, sysm.mats[slot], np.ascontiguousarray(zs[m]),
+                                         ends[m] - starts[m], dt, float(w), component)
             out[m] = np.exp(-1j * w * starts[m]) * total
         return out
 
@@ -281,7 +291,7 @@ def run(system: LinearModeSystem, z: np.ndarray, t_end: float, v_stick: float, m
         bufs, capacity = new, new_capacity
     n = int(ist[4])
     t0, z0, sl, rf, cause, vel = (b[:n].copy() for b in bufs)
-    return EngineRun(system, t_end, t0, z0, sl, rf, cause, vel, int(ist[2]), diverged)
+    return EngineRun(system, t_end, t0, z0, sl, rf, cause, vel, int(ist[2]), diverged, z, int(ist[1]))
 
 
 def _buffers(capacity, n):

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import threading
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import replace
 from pathlib import Path
 from typing import Callable
 
@@ -36,6 +37,7 @@ _OMEGA_REF = 1.0                               # frequency of the similarity-tab
 _REGIME_BASE = 1000                            # label = (period * BASE + impacts per cycle) * BASE + sticking
 FAILED = -2                                    # regime label of a sample whose simulation failed
 _BRANCH_REL = 1e-4                             # relative difference of D that makes another start a new branch
+_MIN_Y_WINDOW = 0.25                           # 2-D tables: narrowest ln w range built (two lines at least)
 _BLOCK_BASE_INTERVALS = 8                      # a canonical block holds 8 base intervals
 _PRIOR_SIMULATIONS_PER_BLOCK = 60              # progress estimate (per start) before the first block is done
 # alternative starts probed for coexisting motions, in similarity units (h = 1, w = 1, force beta):
@@ -161,7 +163,7 @@ class DynamicBacklash(DescribingFunction):
                                        edge_dx=_checks.positive("edge_dx", edge_dx),
                                        probe_dx=_checks.positive("probe_dx", probe_dx),
                                        block_dx=_BLOCK_BASE_INTERVALS * base_dx, origin=_U_START)
-        self._y_settings = TableSettings(tol=tol, method=method, base_dx=0.25, min_dx=max(min_dx, 1e-3))
+        self._y_settings = TableSettings(tol=tol, method=method, base_dx=1.0, min_dx=max(min_dx, 1e-3))
         self._use_cache = bool(cache)
         self._progress = progress
         self._tick = None
@@ -185,7 +187,9 @@ class DynamicBacklash(DescribingFunction):
         if self.similarity:
             p["mass_ratio"] = self.m1 / self.m2        # D(beta) depends on m1/m2 and eps only
         else:
-            p.update(m1=self.m1, m2=self.m2, h=self.h, y_settings=settings_dict(self._y_settings))
+            p.update(m1=self.m1, m2=self.m2, h=self.h, y_settings=settings_dict(self._y_settings),
+                     line_settings=settings_dict(self._line_settings), y_rate=self._y_rate,
+                     u_min=self._u_min)
         return p
 
     @property
@@ -201,6 +205,38 @@ class DynamicBacklash(DescribingFunction):
     def table(self):
         """The current table (None before the first evaluation)."""
         return self._table
+
+    @property
+    def _line_settings(self) -> TableSettings:
+        """Settings of the 2-D table's lines: value jumps bracketed only to ``edge_dx`` like every other regime
+        change (between lines the band flagged invalid around a jump is set by the lines' spacing in y, far
+        wider than any bracket on one line)."""
+        st = self._settings
+        edge = max(st.edge_dx, st.probe_dx)
+        return replace(st, edge_dx=edge, jump_dx=max(st.jump_dx, edge), min_dx=max(st.min_dx, 0.04 * edge))
+
+    @property
+    def _u_min(self) -> float:
+        """ln beta from which the 2-D table starts (the first point of the 1-D one, just above beta = 1/4,
+        where below N = 0 exactly), -inf where that limit is not known for these effects.
+
+        From rest only M2 moves until the first impact, x2 - x1 = beta h (1 - cos w t) <= 2 beta h: below
+        beta = 1/4 it never reaches a wall of the centred gap. Effects on M1 (damping, spring, friction of M1)
+        do not touch that motion, so there x1 = 0 forever and N = 0.
+        """
+        on_m1 = all(getattr(e, "acts_on", None) == "m1" for e in self.effects)
+        return _U_START if on_m1 else -math.inf
+
+    @property
+    def _y_rate(self) -> float:
+        """Rate r of the 2-D table's interpolation coordinate exp(-r ln w) = w^-r between lines.
+
+        At fixed beta every effect enters through one dimensionless group proportional to a power of 1/w
+        (its ``frequency_power``: c/(M2 w), k/(M2 w^2), f/(M2 h w^2)), and D = N M2 w^2 is a smooth function
+        of those groups: interpolated in w^-p with p the smallest such power, D is smooth down to the
+        effect-free limit w -> infinity (in ln w it flattens exponentially there and bends fast at low w).
+        """
+        return float(min((getattr(e, "frequency_power", 1) for e in self.effects), default=1))
 
     # ------------------------------------------------------------------ sampling
     def _extract(self, force: np.ndarray, omega: np.ndarray, initial=None, attractor=None):
@@ -324,7 +360,7 @@ class DynamicBacklash(DescribingFunction):
         if self.similarity:
             self._table = Table1D.from_arrays(f.arrays, self._settings)
         else:
-            self._table = Table2D.from_arrays(f.arrays, self._settings, self._y_settings)
+            self._table = Table2D.from_arrays(f.arrays, self._line_settings, self._y_settings)
         self._loaded_from_cache = True
 
     def _store(self) -> None:
@@ -365,12 +401,16 @@ class DynamicBacklash(DescribingFunction):
         self._load_cached()
         pad = 1e-12
         sw = (s_lo - pad, max(s_hi, s_lo + self._settings.base_dx) + pad)
-        yw = (v_lo - pad, max(v_hi, v_lo + self._y_settings.base_dx) + pad)
+        yw = (v_lo - pad, max(v_hi, v_lo + _MIN_Y_WINDOW) + pad)
         if self._table is not None and self._table.covers(sw, yw, shear=2.0):
             return
         if self._table is None:
-            self._table = Table2D(self._settings, self._y_settings)
-        self._build(lambda progress, checkpoint: self._table.extend(self._sampler_2d, sw, yw, progress, shear=2.0), 1)
+            self._table = Table2D(self._line_settings, self._y_settings, self._y_rate, self._u_min)
+        # progress in lines (saved after each): the lines on the base grid in y and a prior of twice as many
+        # added by the refinement in y (the damped scene: 6 + 11); the time left is corrected as lines finish
+        n_lines = 3 * (int(math.ceil((yw[1] - yw[0]) / self._y_settings.base_dx)) + 1)
+        self._build(lambda progress, checkpoint: self._table.extend(self._sampler_2d, sw, yw, progress, shear=2.0,
+                                                                    checkpoint=checkpoint), n_lines)
 
     def prepare(self, F, omega) -> "DynamicBacklash":
         """Build (or load) the table over the window spanned by force amplitudes F and frequencies omega."""
@@ -411,9 +451,10 @@ class DynamicBacklash(DescribingFunction):
                 self._ensure_1d(float(np.exp(u.max())))
                 tv = self._table.evaluate(u)
         else:
-            need = ~nan & (beta > 0)
+            u_min = self._u_min
+            need = ~nan & (beta > (BETA_NO_IMPACT if u_min > -math.inf else 0.0))     # N = 0 below u_min
             if np.any(need):
-                u, v = np.log(beta[need]), np.log(w[need])
+                u, v = np.maximum(np.log(beta[need]), u_min), np.log(w[need])
                 s_ = u + 2.0 * v
                 self._ensure_2d(float(u.max()), float(s_.min()), float(s_.max()), float(v.min()), float(v.max()))
                 tv = self._table.evaluate(u, v)
@@ -491,7 +532,7 @@ class DynamicBacklash(DescribingFunction):
         if f is None:
             return False
         self._table = (Table1D.from_arrays(f.arrays, self._settings) if self.similarity
-                       else Table2D.from_arrays(f.arrays, self._settings, self._y_settings))
+                       else Table2D.from_arrays(f.arrays, self._line_settings, self._y_settings))
         return True
 
     def __repr__(self) -> str:

@@ -31,7 +31,8 @@ from ._effects_core import GROUND_EVENT  # noqa: F401  (segment cause of stick-s
 from ._effects_core import D, FREE, STUCK_B, U, V1, X1
 from .kernel import ImpactEvents
 
-__all__ = ["ViscousDamping", "LoadSpring", "CoulombFriction", "simulate_with_effects", "EffectsTrajectory"]
+__all__ = ["ViscousDamping", "LoadSpring", "CoulombFriction", "simulate_with_effects", "EffectsTrajectory",
+           "EffectsRun"]
 
 C, S = 4, 5   # forcing oscillator slots of the open-loop state
 
@@ -40,11 +41,14 @@ C, S = 4, 5   # forcing oscillator slots of the open-loop state
 class ViscousDamping:
     """Viscous damper of coefficient ``c`` (N s/m, >= 0; 0 is the undamped model) from M1 to ground.
 
-    Breaks the similarity law.
+    Breaks the similarity law: at fixed beta the motion depends on c / (M2 w), a power 1 of 1/w
+    (``frequency_power``).
     """
 
     c: float
     keeps_similarity = False
+    frequency_power = 1
+    acts_on = "m1"
 
     def __post_init__(self):
         object.__setattr__(self, "c", _checks.nonnegative("c", self.c))
@@ -54,11 +58,13 @@ class ViscousDamping:
 class LoadSpring:
     """Linear spring of stiffness ``k`` (N/m, >= 0; 0 is no spring) from M1 to ground, relaxed at x1 = 0.
 
-    Breaks the similarity law.
+    Breaks the similarity law: at fixed beta the motion depends on k / (M2 w^2) (``frequency_power`` 2).
     """
 
     k: float
     keeps_similarity = False
+    frequency_power = 2
+    acts_on = "m1"
 
     def __post_init__(self):
         object.__setattr__(self, "k", _checks.nonnegative("k", self.k))
@@ -68,17 +74,24 @@ class LoadSpring:
 class CoulombFriction:
     """Coulomb friction of level ``force`` (N) between ``mass`` ("m1" or "m2") and ground.
 
-    Static and kinetic levels are equal. Breaks the similarity law.
+    Static and kinetic levels are equal. Breaks the similarity law: at fixed beta the motion depends on
+    force / (M2 h w^2) (``frequency_power`` 2).
     """
 
     force: float
     mass: str = "m2"
     keeps_similarity = False
+    frequency_power = 2
 
     def __post_init__(self):
         object.__setattr__(self, "force", _checks.positive("force", self.force))
         if self.mass not in ("m1", "m2"):
             raise ValueError(f"mass must be 'm1' or 'm2', got {self.mass!r}")
+
+    @property
+    def acts_on(self) -> str:
+        """The mass the effect acts on ("m1" or "m2")."""
+        return self.mass
 
 
 
@@ -172,6 +185,61 @@ def open_loop_system(p, effects) -> _engine.LinearModeSystem:
     osc[0, S], osc[1, C] = -p.omega, p.omega
     return _engine.LinearModeSystem(p.m1, p.m2, p.h, p.restitution, force2, osc, damping=c, stiffness=k,
                                     friction=friction, extra_scales=(2.0 * math.pi / p.omega,))
+
+
+class EffectsRun:
+    """A continuable open-loop run of the engine with effects, with the interface of
+    :class:`dfloop.impact.kernel.KernelRun`: ``advance(t)`` moves the motion on to time t (s), ``forget()``
+    drops the stored segments, ``trajectory()`` is the motion since the last forget.
+
+    An adaptive transient (longer windows until the period is detected) then simulates every period once,
+    instead of from rest again for every window.
+
+    Parameters
+    ----------
+    params : ImpactParameters
+    effects : tuple
+        Effect objects of this module.
+    chatter_tol : float
+        See :func:`simulate_with_effects`.
+    """
+
+    def __init__(self, params, effects, chatter_tol: float):
+        self.params, self.effects = params, tuple(effects)
+        self._system = open_loop_system(params, self.effects)
+        self._v_stick = chatter_tol * max(params.h * params.omega, params.force / (params.m2 * params.omega))
+        self._z = np.array([0.0, 0.0, 0.5 * params.h, 0.0, 1.0, 0.0, 1.0])   # rest, centred gap, at t = 0
+        self._ref = 0
+        self._run = None            # segments since the last forget
+        self.n_events = 0           # events since t = 0
+        self.t = 0.0                # time reached (s)
+
+    def advance(self, t_end: float, max_events: int, keep: bool = True) -> None:
+        """Run on to ``t_end`` (s); raises EventLimitError when the events since t = 0 would exceed max_events.
+
+        ``keep=False`` stores only the segment running at ``t_end`` (memory bounded for long transients).
+        """
+        if t_end <= self.t:
+            return
+        p = self.params
+        periods = (t_end - self.t) / p.period if keep else 0.0
+        run = _engine.run(self._system, self._z, t_end, self._v_stick, max(int(max_events) - self.n_events, 0),
+                          ref=self._ref, t_start=self.t, record_from=self.t if keep else t_end,
+                          capacity=int(4 * periods) + 16,
+                          what=f"forced motion F = {p.force:g} N, w = {p.omega:g} rad/s")
+        self.n_events += run.n_events
+        self._z, self._ref, self.t = run.z_end, run.ref_end, float(t_end)
+        self._run = run if (self._run is None or not keep) else self._run.then(run)
+
+    def forget(self) -> None:
+        """Drop the stored segments; the next :meth:`advance` records from the time reached."""
+        self._run = None
+
+    def trajectory(self) -> EffectsTrajectory:
+        """The motion since the last :meth:`forget` (or since t = 0)."""
+        if self._run is None:
+            raise ValueError("no motion stored since the last forget(): advance first")
+        return EffectsTrajectory(self.params, self.effects, self._run)
 
 
 def simulate_with_effects(p, t_end: float, effects: tuple, max_events: int, chatter_tol: float, *,
