@@ -341,7 +341,7 @@ class DynamicBacklash(DescribingFunction):
             def checkpoint():
                 count["blocks"] += 1
                 per_block = count["sims"] / count["blocks"]
-                bar.set_total(int(count["sims"] + (n_blocks - count["blocks"]) * per_block))
+                bar.set_total(int(count["sims"] + max(n_blocks - count["blocks"], 0) * per_block))
                 self._store()
 
             self._tick = tick

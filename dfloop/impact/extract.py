@@ -24,8 +24,9 @@ import numpy as np
 from .. import _checks
 from . import _core
 from ._core import IMPACT_A, IMPACT_B
+from .effects import EffectsRun
 from .kernel import (DEFAULT_CHATTER_TOL, EventLimitError, ImpactParameters, KernelRun, Trajectory,
-                     _event_limit_message, default_max_events, kernel_arrays, simulate)
+                     _event_limit_message, default_max_events, kernel_arrays)
 from .limits import beta_lower_limit
 
 __all__ = ["ImpactDF", "ImpactDFBatch", "describing_function_from_trajectory", "impact_describing_function",
@@ -358,9 +359,13 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
         if initial is not None or attractor is not None:
             raise ValueError("initial, attractor: supported by the paper's model only (no effects)")
 
-        def window(t_a: float, t_b: float) -> Trajectory:
-            return simulate(p.m1, p.m2, p.h, p.restitution, p.force, p.omega, t_b, effects=effects,
-                            max_events=max_events, chatter_tol=chatter_tol)
+        erun = EffectsRun(p, effects, chatter_tol)
+
+        def window(t_a: float, t_b: float) -> Trajectory:  # every period simulated once, only the window kept
+            erun.advance(t_a, max_events, keep=False)
+            erun.forget()
+            erun.advance(t_b, max_events)
+            return erun.trajectory()
 
         return _describe(p, window, transient, periods, max_transient)
     if transient is None:
