@@ -60,6 +60,23 @@ def _regime_label(period, impacts, sticking):
         + np.asarray(sticking, dtype=np.int64)
 
 
+def _matched_orbits(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+    """Orbit ``b``'s rows reordered to match orbit ``a``'s (rows gap / h, u / v_scale, mode: p points, then
+    their p mirror points): the cyclic shift with the same modes and the smallest distance. None when the
+    orbits cannot be matched (different periods or modes)."""
+    if a.shape != b.shape or a.shape[0] == 0:
+        return None
+    p = a.shape[0] // 2
+    best, out = math.inf, None
+    for s in range(p):
+        idx = np.r_[(np.arange(p) + s) % p, p + (np.arange(p) + s) % p]
+        if np.array_equal(a[:, 2], b[idx, 2]):
+            d = float(np.max(np.abs(a[:, :2] - b[idx, :2])))
+            if d < best:
+                best, out = d, b[idx]
+    return out
+
+
 class DynamicBacklash(DescribingFunction):
     """Describing function of the two-mass impact system, force amplitude F (N) -> x1 (m).
 
@@ -94,6 +111,11 @@ class DynamicBacklash(DescribingFunction):
         Widest accepted interval in ln beta between two samples of the same regime: wider intervals are
         probed inside even when the interpolation check passed (regime windows narrower than this can
         still hide between two samples; see docs/tables.md).
+    window_dx : float
+        Spacing in ln beta of the window probes (paper's model, adaptive transient): between two samples of
+        one periodic regime the motion from rest is simulated at points at most window_dx apart until it
+        settles on the nearer sample's orbit (a few periods); a probe that does not settle there is sampled
+        and bracketed like any regime change. Windows narrower than window_dx can still be missed.
     starts : int
         Start states probed besides rest at every sample (paper's model) to find coexisting periodic motions.
         Where another start settles on a different periodic motion, the value from rest is kept, every
@@ -132,6 +154,7 @@ class DynamicBacklash(DescribingFunction):
                  eps: float | None = None, tol: float = 1e-5, method: str = "cubic",
                  transient_periods: int | None = None, max_transient_periods: int = 4000, periods: int = 20,
                  base_dx: float = 0.1, min_dx: float = 2e-4, edge_dx: float = 1e-2, probe_dx: float = 0.05,
+                 window_dx: float = 2e-3,
                  starts: int = 2, beta_max: float = 1e4, max_events: int | None = None, cache: bool = True,
                  progress: bool | None | Callable[[int, str], None] = None):
         self.m1 = _checks.positive("m1", m1)
@@ -160,6 +183,7 @@ class DynamicBacklash(DescribingFunction):
                                        min_dx=_checks.positive("min_dx", min_dx),
                                        edge_dx=_checks.positive("edge_dx", edge_dx),
                                        probe_dx=_checks.positive("probe_dx", probe_dx),
+                                       window_dx=_checks.positive("window_dx", window_dx),
                                        block_dx=_BLOCK_BASE_INTERVALS * base_dx, origin=_U_START)
         self._y_settings = TableSettings(tol=tol, method=method, base_dx=0.25, min_dx=max(min_dx, 1e-3))
         self._use_cache = bool(cache)
@@ -167,6 +191,8 @@ class DynamicBacklash(DescribingFunction):
         self._tick = None
         self._table: Table1D | Table2D | None = None
         self._loaded_from_cache = False
+        self._orbits: dict[float, np.ndarray] = {}      # orbits from rest of this build's samples, by ln beta
+        self._last_orbits = np.empty(0, dtype=object)
 
     # ------------------------------------------------------------------ identity
     @property
@@ -228,6 +254,7 @@ class DynamicBacklash(DescribingFunction):
 
     def _samples(self, force: np.ndarray, omega: np.ndarray) -> Samples:
         r = self._extract(force, omega)
+        self._last_orbits = r.orbit
         _, label, regular, failed = self._labels(r)
         value = np.where(failed, 0.0, np.nan_to_num(np.asarray(r.N, dtype=complex)) * self.m2 * omega ** 2)
         spread = np.where(failed, np.inf, 0.0)
@@ -269,7 +296,36 @@ class DynamicBacklash(DescribingFunction):
     def _sampler_1d(self, u: np.ndarray) -> Samples:
         beta = np.exp(u)
         omega = np.full(u.shape, _OMEGA_REF)
-        return self._samples(beta * self.m2 * self.h * _OMEGA_REF ** 2, omega)
+        s = self._samples(beta * self.m2 * self.h * _OMEGA_REF ** 2, omega)
+        self._orbits.update(zip(u.tolist(), self._last_orbits.ravel()))
+        return s
+
+    def _prober_1d(self, u: np.ndarray, u_a: np.ndarray, u_b: np.ndarray) -> tuple[np.ndarray, Samples]:
+        """Window probes: the motion from rest at ln beta = u (u_a < u < u_b), stopped as soon as it settles
+        on the orbit from rest interpolated between the samples at u_a and u_b (or on its mirror): the same
+        motion. Returns (settled, samples from rest) (no other starts: the table samples a probe fully
+        when it is another branch)."""
+        # the orbit at u, interpolated linearly between the two samples' matched orbits (within O(dx^2) of
+        # the orbit at u on the same branch); orbits that cannot be matched give the nearer one
+        matched = {}
+        orbits = np.empty(u.size, dtype=object)
+        for i, (x, a, b) in enumerate(zip(u.tolist(), u_a.tolist(), u_b.tolist())):
+            oa, ob = self._orbits[a], self._orbits[b]
+            if (a, b) not in matched:
+                matched[a, b] = _matched_orbits(oa, ob)
+            t = (x - a) / (b - a)
+            mb = matched[a, b]
+            if mb is None:
+                orbits[i] = oa if t <= 0.5 else ob
+            else:
+                orbits[i] = oa.copy()
+                orbits[i][:, :2] = (1.0 - t) * oa[:, :2] + t * mb[:, :2]
+        r = self._extract(np.exp(u) * self.m2 * self.h * _OMEGA_REF ** 2, np.full(u.shape, _OMEGA_REF),
+                          attractor=orbits)
+        settled = np.asarray(r.settled, dtype=bool)
+        _, label, regular, _ = self._labels(r)
+        value = np.nan_to_num(np.asarray(r.N, dtype=complex)) * self.m2 * _OMEGA_REF ** 2
+        return settled, Samples(value, label, regular & ~settled)
 
     def _sampler_2d(self, u: np.ndarray, v: float) -> Samples:
         w = math.exp(v)
@@ -352,8 +408,14 @@ class DynamicBacklash(DescribingFunction):
             self._table = Table1D(self._settings)
         missing = self._table.missing_blocks(_U_START, u_hi)
         if missing.size:
-            self._build(lambda progress, checkpoint: self._table.extend(self._sampler_1d, _U_START, u_hi, progress,
-                                                                         checkpoint), int(missing.size))
+            # window probes need the adaptive run's orbits (a fixed transient has none): otherwise probe_dx only
+            prober = self._prober_1d if self.transient_periods is None else None
+            self._orbits = {}
+            try:
+                self._build(lambda progress, checkpoint: self._table.extend(
+                    self._sampler_1d, _U_START, u_hi, progress, checkpoint, prober), int(missing.size))
+            finally:
+                self._orbits = {}
 
     def _ensure_2d(self, u_hi: float, s_lo: float, s_hi: float, v_lo: float, v_hi: float) -> None:
         """Cover ln F - ln(M2 h) = u + 2 v in [s_lo, s_hi] for v = ln w in [v_lo, v_hi] (u = ln beta <= u_hi).
