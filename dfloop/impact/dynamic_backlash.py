@@ -193,6 +193,8 @@ class DynamicBacklash(DescribingFunction):
         self._loaded_from_cache = False
         self._orbits: dict[float, np.ndarray] = {}      # orbits from rest of this build's samples, by ln beta
         self._last_orbits = np.empty(0, dtype=object)
+        self._other: dict[float, np.ndarray] = {}       # orbit of another periodic motion found, by ln beta
+        self._last_other = np.empty(0, dtype=object)
 
     # ------------------------------------------------------------------ identity
     @property
@@ -266,6 +268,7 @@ class DynamicBacklash(DescribingFunction):
                  "periods_used": np.asarray(r.periods_used, dtype=float),
                  "failed": failed.astype(float)}
         branches = np.ones(force.shape)
+        other = np.empty(force.shape, dtype=object)       # orbit of the farthest other branch found
         # other starts only where rest settled on a periodic motion (elsewhere the value is invalid anyway)
         probe = np.flatnonzero(regular) if not self.effects else np.empty(0, dtype=np.int64)
         for k in range(self.starts):
@@ -285,10 +288,14 @@ class DynamicBacklash(DescribingFunction):
             differ = (alt_label != FAILED) & ((alt_label != label) | (np.abs(alt_value - value)
                                                                       > _BRANCH_REL * np.abs(value)))
             branches += differ
+            farther = differ & (np.abs(alt_value - value) > spread)
+            for j in np.flatnonzero(farther[probe]):
+                other[probe[j]] = alt.orbit[j]
             spread = np.where(differ, np.maximum(spread, np.abs(alt_value - value)), spread)
             extra[f"start{k}.re"], extra[f"start{k}.im"] = alt_value.real, alt_value.imag
             extra[f"start{k}.regime"] = alt_label.astype(float)
         extra["branches"] = branches
+        self._last_other = other
         # a converged sample is within the period detection's tolerance of its orbit: its own uncertainty
         uncertainty = np.abs(value) * (np.nan_to_num(np.asarray(r.periodicity, dtype=float)) + PERIODICITY_TOL)
         return Samples(value, label, regular, extra, spread, uncertainty)
@@ -298,7 +305,36 @@ class DynamicBacklash(DescribingFunction):
         omega = np.full(u.shape, _OMEGA_REF)
         s = self._samples(beta * self.m2 * self.h * _OMEGA_REF ** 2, omega)
         self._orbits.update(zip(u.tolist(), self._last_orbits.ravel()))
+        self._other.update((x, o) for x, o in zip(u.tolist(), self._last_other.ravel()) if o is not None)
         return s
+
+    def _follow_1d(self, u_from: np.ndarray, u_to: np.ndarray, value_to: np.ndarray) -> np.ndarray:
+        """Branch continuation: the periodic motions found at u_from (the other branch, and the rest motion
+        when it is not u_to's), followed to the neighbouring sample u_to: runs at u_to started on a point of
+        each orbit, stopped if they settle on u_to's rest orbit. Returns, per pair, the largest distance of D
+        from the rest value ``value_to`` among the runs that stay another periodic motion (0: none)."""
+        force = np.exp(u_to) * self.m2 * self.h * _OMEGA_REF ** 2
+        omega = np.full(u_to.shape, _OMEGA_REF)
+        vscale = np.maximum(self.h * omega, force / (self.m2 * omega))
+        rest = np.empty(u_to.size, dtype=object)
+        rest[:] = [self._orbits[b] for b in u_to.tolist()]
+        out = np.zeros(u_to.size)
+        for source in (self._other, self._orbits):
+            orbits = [source[a] for a in u_from.tolist()]
+            # a free-flight start on the orbit (x1 = v1 = 0: the relative motion is what matters)
+            by_force = {}
+            for i, (f, o) in enumerate(zip(force.tolist(), orbits)):
+                row = o[np.argmax(o[:, 2] == o[0, 2])]
+                by_force[f] = (0.0, 0.0, float(np.clip(row[0], 0.0, 1.0)) * self.h, float(row[1] * vscale[i]))
+            r = self._extract(force, omega, lambda f, w: by_force[float(f)], attractor=rest)
+            _, _, regular, _ = self._labels(r)
+            d = np.nan_to_num(np.asarray(r.N, dtype=complex)) * self.m2 * _OMEGA_REF ** 2
+            dist = np.abs(d - value_to)
+            other = regular & ~np.asarray(r.settled, dtype=bool) & (dist > _BRANCH_REL * np.abs(value_to))
+            for i in np.flatnonzero(other & (dist > out)):
+                self._other[float(u_to[i])] = r.orbit[i]
+            out = np.where(other, np.maximum(out, dist), out)
+        return out
 
     def _prober_1d(self, u: np.ndarray, u_a: np.ndarray, u_b: np.ndarray) -> tuple[np.ndarray, Samples]:
         """Window probes: the motion from rest at ln beta = u (u_a < u < u_b), stopped as soon as it settles
@@ -410,12 +446,13 @@ class DynamicBacklash(DescribingFunction):
         if missing.size:
             # window probes need the adaptive run's orbits (a fixed transient has none): otherwise probe_dx only
             prober = self._prober_1d if self.transient_periods is None else None
-            self._orbits = {}
+            follow = self._follow_1d if self.transient_periods is None and self.starts else None
+            self._orbits, self._other = {}, {}
             try:
                 self._build(lambda progress, checkpoint: self._table.extend(
-                    self._sampler_1d, _U_START, u_hi, progress, checkpoint, prober), int(missing.size))
+                    self._sampler_1d, _U_START, u_hi, progress, checkpoint, prober, follow), int(missing.size))
             finally:
-                self._orbits = {}
+                self._orbits, self._other = {}, {}
 
     def _ensure_2d(self, u_hi: float, s_lo: float, s_hi: float, v_lo: float, v_hi: float) -> None:
         """Cover ln F - ln(M2 h) = u + 2 v in [s_lo, s_hi] for v = ln w in [v_lo, v_hi] (u = ln beta <= u_hi).

@@ -206,7 +206,8 @@ class Table1D:
     def extend(self, sampler: Callable[[np.ndarray], Samples], lo: float, hi: float,
                progress: Callable[[int, str], None] | None = None,
                checkpoint: Callable[[], None] | None = None,
-               prober: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None) -> None:
+               prober: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None,
+               follow: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None) -> None:
         """Add the missing canonical blocks covering [lo, hi], each built and refined on its own.
 
         ``checkpoint()``, if given, is called after every finished block (e.g. to save the table).
@@ -218,6 +219,11 @@ class Table1D:
         points at most ``settings.window_dx`` apart; a probe of another branch is
         sampled and the table refined around it like any other sample, so a regime window is bracketed
         as soon as one probe falls inside it.
+        ``follow(x_from, x_to, value_to)``, if given, continues another branch found at sample x_from (its
+        ``spread`` > 0) to the neighbouring sample x_to and returns the distance of that branch from the
+        value at x_to (0: the branch is gone there); it is applied from every sample with another branch to
+        its neighbours until the branches end, so a region of coexisting branches is flagged as a whole
+        and not only at the samples where a sampler's own search found them.
         """
         lo, hi = float(lo), float(hi)
         if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
@@ -234,6 +240,8 @@ class Table1D:
             part._refine(sampler, progress, self.x.size)
             if prober is not None and math.isfinite(st.window_dx):
                 part._probe_windows(sampler, prober, progress, self.x.size)
+            if follow is not None:
+                part._follow_branches(follow)
             self.n_probed += part.n_probed
             part.block = np.full(part.x.size, k, dtype=np.int64)
             self.n_sampled = part.n_sampled
@@ -456,6 +464,26 @@ class Table1D:
             self._reopen_near_points(new)
             self._refine(sampler, progress, offset)
         raise RuntimeError(f"window probing did not finish in {bound} rounds (window_dx={st.window_dx:g})")
+
+    def _follow_branches(self, follow) -> None:
+        """Continue other branches (spread > 0, finite) to neighbouring samples with none, until they end."""
+        tried = set()
+        for _ in range(self.x.size + 1):
+            has = np.isfinite(self.spread) & (self.spread > 0) & self.regular
+            pairs = [(i, j) for i in np.flatnonzero(has) for j in (i - 1, i + 1)
+                     if 0 <= j < self.x.size and self.regular[j] and self.spread[j] == 0 and (i, j) not in tried]
+            if not pairs:
+                return
+            tried.update(pairs)
+            src, dst = np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
+            dst, first = np.unique(dst, return_index=True)     # one continuation per sample and round
+            src = src[first]
+            found = np.asarray(follow(self.x[src], self.x[dst], self.value[dst]), dtype=float)
+            self.spread[dst] = np.maximum(self.spread[dst], found)
+            if "branches" in self.extra:
+                self.extra["branches"][dst] += found > 0
+            self._segments = None
+        raise RuntimeError("branch continuation did not end")
 
     def _reopen_neighbours(self, new_jump: np.ndarray, reach: int = 2) -> None:
         for i in np.flatnonzero(new_jump):
