@@ -80,6 +80,36 @@ def test_window_narrower_than_probe_dx_is_found_by_window_probes_and_bracketed()
     assert np.all(np.abs(new - 0.415) < 0.1)      # sample brackets the window or rechecks its neighbours
 
 
+def test_branch_continuation_flags_the_whole_coexistence_region_and_no_more():
+    """Closed form: a second branch coexists for x in [0.30, 0.62]; the sampler's own search finds it only at
+    samples with x in [0.45, 0.5]. Continued from there, every sample inside the region gets the spread
+    (not valid) and none outside (valid, within its error of the closed form)."""
+    region, seen = (0.30, 0.62), (0.45, 0.5)
+
+    def sampler(x):
+        s = smooth_sampler(x)
+        found = (x >= seen[0]) & (x <= seen[1])
+        return Samples(s.value, s.regime, s.regular, {}, np.where(found, 0.5, 0.0))
+
+    calls = []
+
+    def follow(x_from, x_to, value_to):
+        calls.append(x_to.size)
+        assert np.all(np.abs(x_to - x_from) > 0)
+        return np.where((x_to >= region[0]) & (x_to <= region[1]), 0.5, 0.0)
+
+    t = Table1D.build(sampler, 0.0, 1.0, TableSettings(tol=1e-5, block_dx=1.0), follow=follow)
+    inside = (t.x >= region[0]) & (t.x <= region[1])
+    assert np.all(t.spread[inside] == 0.5) and np.all(t.spread[~inside] == 0.0)
+    q = np.random.default_rng(4).uniform(0.0, 1.0, 500)
+    tv = t.evaluate(q)
+    assert not np.any(tv.valid[(q > region[0]) & (q < region[1])])
+    assert np.all(np.abs(tv.value - smooth_sampler(q).value)[tv.valid] <= tv.error[tv.valid])
+    out = (q < region[0] - 0.05) | (q > region[1] + 0.05)
+    assert np.all(tv.valid[out])
+    assert sum(calls) <= np.count_nonzero(inside) + 2      # each sample continued to once, ends included
+
+
 def smooth_sampler(x):
     return Samples(np.exp(1j * x) * (1 + 0.3 * np.sin(3 * x)), np.ones(x.shape, int), np.ones(x.shape, bool),
                    {"x": x.copy()})

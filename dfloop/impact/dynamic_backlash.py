@@ -114,13 +114,15 @@ class DynamicBacklash(DescribingFunction):
     window_dx : float
         Spacing in ln beta of the window probes (paper's model, adaptive transient): between two samples of
         one periodic regime the motion from rest is simulated at points at most window_dx apart until it
-        settles on the nearer sample's orbit (a few periods); a probe that does not settle there is sampled
-        and bracketed like any regime change. Windows narrower than window_dx can still be missed.
+        settles on the orbit interpolated between the two samples' orbits (a few periods); a probe that
+        reaches another motion is sampled and bracketed like any regime change. Windows narrower than
+        window_dx can still be missed (docs/tables.md gives the measured rate).
     starts : int
         Start states probed besides rest at every sample (paper's model) to find coexisting periodic motions.
         Where another start settles on a different periodic motion, the value from rest is kept, every
         branch is stored with the sample, ``validity`` is False and ``error_estimate`` includes the
-        distance to the farthest branch.
+        distance to the farthest branch; such a branch is followed to the neighbouring samples until it ends
+        (branch continuation), so the whole region where it coexists is flagged.
     max_events : int, optional
         Event bound per simulated sample (default sized from the run length); a sample that reaches it is
         recorded as failed (not valid, infinite error estimate) and the build goes on.

@@ -167,10 +167,11 @@ class Table1D:
     @classmethod
     def build(cls, sampler: Callable[[np.ndarray], Samples], lo: float, hi: float,
               settings: TableSettings | None = None, progress: Callable[[int, str], None] | None = None,
-              checkpoint: Callable[[], None] | None = None, prober=None) -> "Table1D":
-        """Tabulate ``sampler`` over the blocks covering [lo, hi] (x units), refined to ``settings.tol``."""
+              checkpoint: Callable[[], None] | None = None, prober=None, follow=None) -> "Table1D":
+        """Tabulate ``sampler`` over the blocks covering [lo, hi] (x units), refined to ``settings.tol``
+        (``prober``, ``follow``: see :meth:`extend`)."""
         table = cls(settings)
-        table.extend(sampler, lo, hi, progress, checkpoint, prober)
+        table.extend(sampler, lo, hi, progress, checkpoint, prober, follow)
         return table
 
     @property
