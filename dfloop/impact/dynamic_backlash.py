@@ -23,6 +23,7 @@ import numpy as np
 from .. import _checks
 from ..describing.base import DescribingFunction
 from . import cache as _cache
+from ._core import FREE as FREE_MODE
 from .extract import PERIODICITY_TOL
 from .limits import BETA_NO_IMPACT
 from ..progress import progress_bar
@@ -323,10 +324,12 @@ class DynamicBacklash(DescribingFunction):
         out = np.zeros(u_to.size)
         for source in (self._other, self._orbits):
             orbits = [source[a] for a in u_from.tolist()]
-            # a free-flight start on the orbit (x1 = v1 = 0: the relative motion is what matters)
+            # a start on the orbit (a free-flight point if it has one; x1 = v1 = 0: only the relative
+            # motion matters, a common velocity is a drift that the DF removes)
             by_force = {}
             for i, (f, o) in enumerate(zip(force.tolist(), orbits)):
-                row = o[np.argmax(o[:, 2] == o[0, 2])]
+                free = np.flatnonzero(o[:, 2] == FREE_MODE)
+                row = o[free[0] if free.size else 0]
                 by_force[f] = (0.0, 0.0, float(np.clip(row[0], 0.0, 1.0)) * self.h, float(row[1] * vscale[i]))
             r = self._extract(force, omega, lambda f, w: by_force[float(f)], attractor=rest)
             _, _, regular, _ = self._labels(r)

@@ -15,6 +15,12 @@ its own samples only, and interpolation never crosses a block edge, so the value
 alone: extending a table (in any order) only adds blocks, never changes existing ones. A sampler may also
 report a per-sample ``spread`` (how far other branches of a non-unique function lie from the value, inf
 for a failed sample): it is added to the error estimate and makes the value invalid.
+
+Two optional hooks of :meth:`Table1D.extend`, both block-local (so the content stays order-independent):
+a cheap *prober* that says whether the function at points between two samples of one regime is still that
+branch (regime windows wider than ``TableSettings.window_dx`` cannot hide between samples), and a *follow*
+that continues another branch found at a sample to its neighbours until it ends (a whole region of
+non-unique values is flagged, not only the samples where the sampler's own search found it).
 """
 from __future__ import annotations
 
