@@ -312,33 +312,42 @@ class DynamicBacklash(DescribingFunction):
         return s
 
     def _follow_1d(self, u_from: np.ndarray, u_to: np.ndarray, value_to: np.ndarray) -> np.ndarray:
-        """Branch continuation: the periodic motions found at u_from (the other branch, and the rest motion
-        when it is not u_to's), followed to the neighbouring sample u_to: runs at u_to started on a point of
-        each orbit, stopped if they settle on u_to's rest orbit. Returns, per pair, the largest distance of D
-        from the rest value ``value_to`` among the runs that stay another periodic motion (0: none)."""
+        """Branch continuation: the motions found at u_from (the other periodic branch, and the rest motion),
+        followed to the neighbouring sample u_to: runs at u_to started on a point of each orbit, stopped if
+        they settle on u_to's rest orbit. A run that reaches another periodic motion, or an irregular one
+        (a chaotic attractor coexisting with the periodic motion from rest), makes N not unique at u_to.
+        Returns, per pair, the largest distance of D (the irregular motion's average) from the rest value
+        ``value_to`` among those runs (0: none); a periodic branch found is continued further from u_to."""
         force = np.exp(u_to) * self.m2 * self.h * _OMEGA_REF ** 2
         omega = np.full(u_to.shape, _OMEGA_REF)
         vscale = np.maximum(self.h * omega, force / (self.m2 * omega))
-        rest = np.empty(u_to.size, dtype=object)
-        rest[:] = [self._orbits[b] for b in u_to.tolist()]
         out = np.zeros(u_to.size)
         for source in (self._other, self._orbits):
-            orbits = [source[a] for a in u_from.tolist()]
+            orbits = [source.get(a) for a in u_from.tolist()]
+            idx = np.array([i for i, o in enumerate(orbits) if o is not None and o.shape[0] > 0], dtype=np.int64)
+            if idx.size == 0:
+                continue
             # a start on the orbit (a free-flight point if it has one; x1 = v1 = 0: only the relative
             # motion matters, a common velocity is a drift that the DF removes)
             by_force = {}
-            for i, (f, o) in enumerate(zip(force.tolist(), orbits)):
+            for i in idx.tolist():
+                o = orbits[i]
                 free = np.flatnonzero(o[:, 2] == FREE_MODE)
                 row = o[free[0] if free.size else 0]
-                by_force[f] = (0.0, 0.0, float(np.clip(row[0], 0.0, 1.0)) * self.h, float(row[1] * vscale[i]))
-            r = self._extract(force, omega, lambda f, w: by_force[float(f)], attractor=rest)
-            _, _, regular, _ = self._labels(r)
+                by_force[float(force[i])] = (0.0, 0.0, float(np.clip(row[0], 0.0, 1.0)) * self.h,
+                                             float(row[1] * vscale[i]))
+            rest = np.empty(idx.size, dtype=object)
+            rest[:] = [self._orbits[b] for b in u_to[idx].tolist()]
+            r = self._extract(force[idx], omega[idx], lambda f, w: by_force[float(f)], attractor=rest)
+            _, _, regular, failed = self._labels(r)
             d = np.nan_to_num(np.asarray(r.N, dtype=complex)) * self.m2 * _OMEGA_REF ** 2
-            dist = np.abs(d - value_to)
-            other = regular & ~np.asarray(r.settled, dtype=bool) & (dist > _BRANCH_REL * np.abs(value_to))
-            for i in np.flatnonzero(other & (dist > out)):
-                self._other[float(u_to[i])] = r.orbit[i]
-            out = np.where(other, np.maximum(out, dist), out)
+            dist = np.abs(d - value_to[idx])
+            moved = ~np.asarray(r.settled, dtype=bool) & ~failed
+            other = moved & (~regular | (dist > _BRANCH_REL * np.abs(value_to[idx])))
+            dist = np.where(regular, dist, np.maximum(dist, _BRANCH_REL * np.abs(value_to[idx])))
+            for k in np.flatnonzero(other & regular & (dist > out[idx])):
+                self._other[float(u_to[idx[k]])] = r.orbit[k]
+            out[idx] = np.where(other, np.maximum(out[idx], dist), out[idx])
         return out
 
     def _prober_1d(self, u: np.ndarray, u_a: np.ndarray, u_b: np.ndarray) -> tuple[np.ndarray, Samples]:
