@@ -49,6 +49,67 @@ def test_regime_window_between_samples_of_one_regime_is_probed_and_bracketed():
         assert probed.jumps()[i] and probed.x[i + 1] - probed.x[i] <= probed.settings.edge_dx
 
 
+def test_window_narrower_than_probe_dx_is_found_by_window_probes_and_bracketed():
+    """A window narrower than probe_dx (the full-sample probes miss it) but wider than window_dx: the cheap
+    prober (here: recognises regime 1 only) sends the probes that fall inside to the sampler, the window is
+    bracketed on both sides, and every valid value is within its error of the closed form. Probes are not
+    samples: only those inside the window are simulated in full."""
+    window = (0.4131, 0.4167)                     # 0.0036 wide
+    def sampler(x):
+        inside = (x > window[0]) & (x < window[1])
+        return Samples(np.exp(1j * x) * (1 + np.where(inside, 0.2, 0.0)), np.where(inside, 2, 1),
+                       np.ones(x.shape, bool))
+
+    def prober(xp, xa, xb):
+        assert np.all((xa < xp) & (xp < xb))
+        s = sampler(xp)
+        return s.regime == 1, s
+
+    st = TableSettings(tol=1e-3, base_dx=0.1, block_dx=1.0, probe_dx=0.05, window_dx=0.002)
+    blind = Table1D.build(sampler, 0.0, 1.0, st)
+    assert not np.any(blind.regime == 2)          # probe_dx alone misses it
+    t = Table1D.build(sampler, 0.0, 1.0, st, prober=prober)
+    assert t.n_probed >= 1.0 / 0.002 - t.x.size
+    q = np.concatenate([np.linspace(*window, 40), np.random.default_rng(2).uniform(0.0, 1.0, 400)])
+    tv = t.evaluate(q)
+    assert np.all(np.abs(tv.value - sampler(q).value)[tv.valid] <= tv.error[tv.valid])
+    for edge in window:
+        i = np.searchsorted(t.x, edge) - 1
+        assert t.jumps()[i] and t.x[i + 1] - t.x[i] <= st.edge_dx
+    new = np.setdiff1d(t.x, blind.x)              # probes outside the window were not sampled: every new
+    assert np.all(np.abs(new - 0.415) < 0.1)      # sample brackets the window or rechecks its neighbours
+
+
+def test_branch_continuation_flags_the_whole_coexistence_region_and_no_more():
+    """Closed form: a second branch coexists for x in [0.30, 0.62]; the sampler's own search finds it only at
+    samples with x in [0.45, 0.5]. Continued from there, every sample inside the region gets the spread
+    (not valid) and none outside (valid, within its error of the closed form)."""
+    region, seen = (0.30, 0.62), (0.45, 0.5)
+
+    def sampler(x):
+        s = smooth_sampler(x)
+        found = (x >= seen[0]) & (x <= seen[1])
+        return Samples(s.value, s.regime, s.regular, {}, np.where(found, 0.5, 0.0))
+
+    calls = []
+
+    def follow(x_from, x_to, value_to):
+        calls.append(x_to.size)
+        assert np.all(np.abs(x_to - x_from) > 0)
+        return np.where((x_to >= region[0]) & (x_to <= region[1]), 0.5, 0.0)
+
+    t = Table1D.build(sampler, 0.0, 1.0, TableSettings(tol=1e-5, block_dx=1.0), follow=follow)
+    inside = (t.x >= region[0]) & (t.x <= region[1])
+    assert np.all(t.spread[inside] == 0.5) and np.all(t.spread[~inside] == 0.0)
+    q = np.random.default_rng(4).uniform(0.0, 1.0, 500)
+    tv = t.evaluate(q)
+    assert not np.any(tv.valid[(q > region[0]) & (q < region[1])])
+    assert np.all(np.abs(tv.value - smooth_sampler(q).value)[tv.valid] <= tv.error[tv.valid])
+    out = (q < region[0] - 0.05) | (q > region[1] + 0.05)
+    assert np.all(tv.valid[out])
+    assert sum(calls) <= np.count_nonzero(inside) + 2      # each sample continued to once, ends included
+
+
 def smooth_sampler(x):
     return Samples(np.exp(1j * x) * (1 + 0.3 * np.sin(3 * x)), np.ones(x.shape, int), np.ones(x.shape, bool),
                    {"x": x.copy()})
@@ -90,33 +151,55 @@ def test_query_in_a_block_never_built_is_refused():
 # ---------------------------------------------------------------------------------------- the impact model
 @pytest.fixture(scope="module")
 def eps08():
-    """eps = 0.8 near the no-impact limit: period-3/5 windows and coexisting motions (one block, no cache)."""
-    return DynamicBacklash(M1, M2, H, 0.8, cache=False, progress=False, **FAST)
+    """eps = 0.8 near the no-impact limit: period-3/5 windows and coexisting motions (default settings)."""
+    return DynamicBacklash(M1, M2, H, 0.8, cache=False, progress=False)
 
 
-def direct(eps, w, **kw):
+def direct(eps, w, force=F, **kw):
     """1000 transient periods, then 36: enough to detect every period up to MAX_DETECTED_PERIOD = 12."""
-    return impact_describing_function(M1, M2, H, eps, F, w, transient_periods=1000, periods=36, **kw)
+    return impact_describing_function(M1, M2, H, eps, force, w, transient_periods=1000, periods=36, **kw)
 
 
-def test_valid_values_within_their_error_of_a_long_direct_simulation_including_period3_windows(eps08):
-    """Dense random (w, eps) with the period-3/5 windows between period-1 samples (eps = 0.7 near 33.8 rad/s,
-    eps = 0.8 at 43.7-44.4 rad/s): no valid value is farther from a 1000-period simulation than its estimate.
-    The eps = 0.7 period-5 window spans only 0.0045 in ln beta (w = 33.78-33.85 rad/s), narrower than the
-    default probe_dx: the guarantee holds for windows wider than probe_dx, so that table probes at 0.004."""
+@pytest.fixture(scope="module")
+def default_tables():
+    """Default tables (no per-case settings), one per eps, built once for the module."""
+    return {eps: DynamicBacklash(M1, M2, H, eps, cache=False, progress=False) for eps in (0.5, 0.7, 0.9)}
+
+
+def _check_against_long_runs(db, eps, F_, w):
+    n, err, ok = db(F_, w), db.error_estimate(F_, w), db.validity(F_, w)
+    for fi, wi, ni, ei, vi in zip(np.broadcast_to(F_, w.shape), w, n, err, ok):
+        if vi:
+            ref = direct(eps, wi, force=fi)
+            assert ref.regular and abs(ni - ref.N) <= ei, (eps, fi, wi, ni, ref.N, ei)
+    return int(np.count_nonzero(ok))
+
+
+def test_valid_values_within_their_error_of_a_long_direct_simulation_in_narrow_windows(eps08, default_tables):
+    """Default tables, dense random w inside and around the narrow regime windows between period-1 samples
+    (eps = 0.7: period 5 for w = 33.78-33.85 rad/s, only 0.0045 wide in ln beta, narrower than probe_dx;
+    eps = 0.8: period-3/5 windows near 35.3 rad/s and at 43.7-44.4 rad/s): no valid value is farther from
+    a 1000-period simulation than its error estimate, and the eps = 0.7 window itself is not valid-and-wrong."""
     rng = np.random.default_rng(11)
-    cases = [(0.7, rng.uniform(33.3, 34.3, 12)), (0.8, rng.uniform(43.7, 44.4, 12))]
     n_valid = 0
-    for eps, w in cases:
-        db = eps08 if eps == 0.8 else DynamicBacklash(M1, M2, H, eps, cache=False, progress=False, probe_dx=0.004,
-                                                      **FAST)
-        n, err, ok = db(F, w), db.error_estimate(F, w), db.validity(F, w)
-        for wi, ni, ei, vi in zip(w, n, err, ok):
-            ref = direct(eps, wi)
-            if vi:
-                assert ref.regular and abs(ni - ref.N) <= ei
-        n_valid += int(np.count_nonzero(ok))
-    assert n_valid >= 8           # the check is not vacuous
+    inside = np.linspace(33.78, 33.84, 4)                       # the period-5 window, from rest
+    n_valid += _check_against_long_runs(default_tables[0.7], 0.7, F, np.r_[rng.uniform(33.3, 34.3, 12), inside])
+    for lo, hi in ((35.0, 35.6), (43.7, 44.4)):
+        n_valid += _check_against_long_runs(eps08, 0.8, F, rng.uniform(lo, hi, 10))
+    assert n_valid >= 8            # the check is not vacuous
+
+
+def test_valid_values_within_their_error_on_a_dense_random_sample_of_F_w_eps(eps08, default_tables):
+    """Dense random (F, w, eps) over the paper's band (F 10..50 N, w 8..60 rad/s) at four restitutions."""
+    rng = np.random.default_rng(2026)
+    n_valid = 0
+    for eps in (0.5, 0.7, 0.8, 0.9):
+        db = eps08 if eps == 0.8 else default_tables[eps]
+        F_ = rng.uniform(10.0, 50.0, 12)
+        w = np.exp(rng.uniform(math.log(8.0), math.log(60.0), 12))
+        for fi, wi in zip(F_, w):
+            n_valid += _check_against_long_runs(db, eps, fi, np.array([wi]))
+    assert n_valid >= 20
 
 
 def test_same_N_from_an_empty_cache_and_from_a_cache_filled_in_another_order(tmp_path, monkeypatch):
@@ -139,11 +222,11 @@ def test_interrupted_build_resumes_from_the_saved_blocks(monkeypatch):
     calls = {"n": 0}
     original = DynamicBacklash._extract
 
-    def flaky(self, force, omega, initial=None):
+    def flaky(self, force, omega, initial=None, attractor=None):
         calls["n"] += 1
         if calls["n"] > 25:
             raise KeyboardInterrupt
-        return original(self, force, omega, initial)
+        return original(self, force, omega, initial, attractor)
 
     monkeypatch.setattr(DynamicBacklash, "_extract", flaky)
     with pytest.raises(KeyboardInterrupt):
@@ -185,7 +268,9 @@ def test_coexisting_branches_are_kept_and_make_N_not_unique(eps08):
 
     db = eps08
     t = db.similarity_table(0.27)
-    multi = np.flatnonzero((t.extra["branches"] > 1) & t.regular)     # rest periodic, another start too
+    alts = np.array([t.extra[f"start{k}.re"] + 1j * t.extra[f"start{k}.im"] for k in range(db.starts)])
+    found = np.any(np.abs(alts - t.value) > 1e-4 * np.abs(t.value), axis=0)   # by one of the starts
+    multi = np.flatnonzero(found & t.regular)                         # rest periodic, another start too
     assert multi.size > 0
     for i in multi[:: max(1, multi.size // 3)]:
         force = math.exp(t.x[i]) * M2 * H                   # the table's similarity runs: w = 1 rad/s, D = N

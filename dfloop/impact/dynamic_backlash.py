@@ -24,6 +24,7 @@ import numpy as np
 from .. import _checks
 from ..describing.base import DescribingFunction
 from . import cache as _cache
+from ._core import FREE as FREE_MODE
 from .extract import PERIODICITY_TOL
 from .limits import BETA_NO_IMPACT
 from ..progress import progress_bar
@@ -62,6 +63,23 @@ def _regime_label(period, impacts, sticking):
         + np.asarray(sticking, dtype=np.int64)
 
 
+def _matched_orbits(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+    """Orbit ``b``'s rows reordered to match orbit ``a``'s (rows gap / h, u / v_scale, mode: p points, then
+    their p mirror points): the cyclic shift with the same modes and the smallest distance. None when the
+    orbits cannot be matched (different periods or modes)."""
+    if a.shape != b.shape or a.shape[0] == 0:
+        return None
+    p = a.shape[0] // 2
+    best, out = math.inf, None
+    for s in range(p):
+        idx = np.r_[(np.arange(p) + s) % p, p + (np.arange(p) + s) % p]
+        if np.array_equal(a[:, 2], b[idx, 2]):
+            d = float(np.max(np.abs(a[:, :2] - b[idx, :2])))
+            if d < best:
+                best, out = d, b[idx]
+    return out
+
+
 class DynamicBacklash(DescribingFunction):
     """Describing function of the two-mass impact system, force amplitude F (N) -> x1 (m).
 
@@ -96,11 +114,18 @@ class DynamicBacklash(DescribingFunction):
         Widest accepted interval in ln beta between two samples of the same regime: wider intervals are
         probed inside even when the interpolation check passed (regime windows narrower than this can
         still hide between two samples; see docs/tables.md).
+    window_dx : float
+        Spacing in ln beta of the window probes (paper's model, adaptive transient): between two samples of
+        one periodic regime the motion from rest is simulated at points at most window_dx apart until it
+        settles on the orbit interpolated between the two samples' orbits (a few periods); a probe that
+        reaches another motion is sampled and bracketed like any regime change. Windows narrower than
+        window_dx can still be missed (docs/tables.md gives the measured rate).
     starts : int
         Start states probed besides rest at every sample (paper's model) to find coexisting periodic motions.
         Where another start settles on a different periodic motion, the value from rest is kept, every
         branch is stored with the sample, ``validity`` is False and ``error_estimate`` includes the
-        distance to the farthest branch.
+        distance to the farthest branch; such a branch is followed to the neighbouring samples until it ends
+        (branch continuation), so the whole region where it coexists is flagged.
     max_events : int, optional
         Event bound per simulated sample (default sized from the run length); a sample that reaches it is
         recorded as failed (not valid, infinite error estimate) and the build goes on.
@@ -134,6 +159,7 @@ class DynamicBacklash(DescribingFunction):
                  eps: float | None = None, tol: float = 1e-5, method: str = "cubic",
                  transient_periods: int | None = None, max_transient_periods: int = 4000, periods: int = 20,
                  base_dx: float = 0.1, min_dx: float = 2e-4, edge_dx: float = 1e-2, probe_dx: float = 0.05,
+                 window_dx: float = 2e-3,
                  starts: int = 2, beta_max: float = 1e4, max_events: int | None = None, cache: bool = True,
                  progress: bool | None | Callable[[int, str], None] = None):
         self.m1 = _checks.positive("m1", m1)
@@ -162,6 +188,7 @@ class DynamicBacklash(DescribingFunction):
                                        min_dx=_checks.positive("min_dx", min_dx),
                                        edge_dx=_checks.positive("edge_dx", edge_dx),
                                        probe_dx=_checks.positive("probe_dx", probe_dx),
+                                       window_dx=_checks.positive("window_dx", window_dx),
                                        block_dx=_BLOCK_BASE_INTERVALS * base_dx, origin=_U_START)
         self._y_settings = TableSettings(tol=tol, method=method, base_dx=1.0, min_dx=max(min_dx, 1e-3))
         self._use_cache = bool(cache)
@@ -169,6 +196,10 @@ class DynamicBacklash(DescribingFunction):
         self._tick = None
         self._table: Table1D | Table2D | None = None
         self._loaded_from_cache = False
+        self._orbits: dict[float, np.ndarray] = {}      # orbits from rest of this build's samples, by ln beta
+        self._last_orbits = np.empty(0, dtype=object)
+        self._other: dict[float, np.ndarray] = {}       # orbit of another periodic motion found, by ln beta
+        self._last_other = np.empty(0, dtype=object)
 
     # ------------------------------------------------------------------ identity
     @property
@@ -264,6 +295,7 @@ class DynamicBacklash(DescribingFunction):
 
     def _samples(self, force: np.ndarray, omega: np.ndarray) -> Samples:
         r = self._extract(force, omega)
+        self._last_orbits = r.orbit
         _, label, regular, failed = self._labels(r)
         value = np.where(failed, 0.0, np.nan_to_num(np.asarray(r.N, dtype=complex)) * self.m2 * omega ** 2)
         spread = np.where(failed, np.inf, 0.0)
@@ -275,6 +307,7 @@ class DynamicBacklash(DescribingFunction):
                  "periods_used": np.asarray(r.periods_used, dtype=float),
                  "failed": failed.astype(float)}
         branches = np.ones(force.shape)
+        other = np.empty(force.shape, dtype=object)       # orbit of the farthest other branch found
         # other starts only where rest settled on a periodic motion (elsewhere the value is invalid anyway)
         probe = np.flatnonzero(regular) if not self.effects else np.empty(0, dtype=np.int64)
         for k in range(self.starts):
@@ -294,10 +327,14 @@ class DynamicBacklash(DescribingFunction):
             differ = (alt_label != FAILED) & ((alt_label != label) | (np.abs(alt_value - value)
                                                                       > _BRANCH_REL * np.abs(value)))
             branches += differ
+            farther = differ & (np.abs(alt_value - value) > spread)
+            for j in np.flatnonzero(farther[probe]):
+                other[probe[j]] = alt.orbit[j]
             spread = np.where(differ, np.maximum(spread, np.abs(alt_value - value)), spread)
             extra[f"start{k}.re"], extra[f"start{k}.im"] = alt_value.real, alt_value.imag
             extra[f"start{k}.regime"] = alt_label.astype(float)
         extra["branches"] = branches
+        self._last_other = other
         # a converged sample is within the period detection's tolerance of its orbit: its own uncertainty
         uncertainty = np.abs(value) * (np.nan_to_num(np.asarray(r.periodicity, dtype=float)) + PERIODICITY_TOL)
         return Samples(value, label, regular, extra, spread, uncertainty)
@@ -305,7 +342,76 @@ class DynamicBacklash(DescribingFunction):
     def _sampler_1d(self, u: np.ndarray) -> Samples:
         beta = np.exp(u)
         omega = np.full(u.shape, _OMEGA_REF)
-        return self._samples(beta * self.m2 * self.h * _OMEGA_REF ** 2, omega)
+        s = self._samples(beta * self.m2 * self.h * _OMEGA_REF ** 2, omega)
+        self._orbits.update(zip(u.tolist(), self._last_orbits.ravel()))
+        self._other.update((x, o) for x, o in zip(u.tolist(), self._last_other.ravel()) if o is not None)
+        return s
+
+    def _follow_1d(self, u_from: np.ndarray, u_to: np.ndarray, value_to: np.ndarray) -> np.ndarray:
+        """Branch continuation: the motions found at u_from (the other periodic branch, and the rest motion),
+        followed to the neighbouring sample u_to: runs at u_to started on a point of each orbit, stopped if
+        they settle on u_to's rest orbit. A run that reaches another periodic motion, or an irregular one
+        (a chaotic attractor coexisting with the periodic motion from rest), makes N not unique at u_to.
+        Returns, per pair, the largest distance of D (the irregular motion's average) from the rest value
+        ``value_to`` among those runs (0: none); a periodic branch found is continued further from u_to."""
+        force = np.exp(u_to) * self.m2 * self.h * _OMEGA_REF ** 2
+        omega = np.full(u_to.shape, _OMEGA_REF)
+        vscale = np.maximum(self.h * omega, force / (self.m2 * omega))
+        out = np.zeros(u_to.size)
+        for source in (self._other, self._orbits):
+            orbits = [source.get(a) for a in u_from.tolist()]
+            idx = np.array([i for i, o in enumerate(orbits) if o is not None and o.shape[0] > 0], dtype=np.int64)
+            if idx.size == 0:
+                continue
+            # a start on the orbit (a free-flight point if it has one; x1 = v1 = 0: only the relative
+            # motion matters, a common velocity is a drift that the DF removes)
+            by_force = {}
+            for i in idx.tolist():
+                o = orbits[i]
+                free = np.flatnonzero(o[:, 2] == FREE_MODE)
+                row = o[free[0] if free.size else 0]
+                by_force[float(force[i])] = (0.0, 0.0, float(np.clip(row[0], 0.0, 1.0)) * self.h,
+                                             float(row[1] * vscale[i]))
+            rest = np.empty(idx.size, dtype=object)
+            rest[:] = [self._orbits[b] for b in u_to[idx].tolist()]
+            r = self._extract(force[idx], omega[idx], lambda f, w: by_force[float(f)], attractor=rest)
+            _, _, regular, failed = self._labels(r)
+            d = np.nan_to_num(np.asarray(r.N, dtype=complex)) * self.m2 * _OMEGA_REF ** 2
+            dist = np.abs(d - value_to[idx])
+            moved = ~np.asarray(r.settled, dtype=bool) & ~failed
+            other = moved & (~regular | (dist > _BRANCH_REL * np.abs(value_to[idx])))
+            dist = np.where(regular, dist, np.maximum(dist, _BRANCH_REL * np.abs(value_to[idx])))
+            for k in np.flatnonzero(other & regular & (dist > out[idx])):
+                self._other[float(u_to[idx[k]])] = r.orbit[k]
+            out[idx] = np.where(other, np.maximum(out[idx], dist), out[idx])
+        return out
+
+    def _prober_1d(self, u: np.ndarray, u_a: np.ndarray, u_b: np.ndarray) -> tuple[np.ndarray, Samples]:
+        """Window probes: the motion from rest at ln beta = u (u_a < u < u_b), stopped as soon as it settles
+        on the orbit from rest interpolated between the samples at u_a and u_b (or on its mirror): the same
+        motion. Returns (settled, samples from rest) (no other starts: the table samples a probe fully
+        when it is another branch)."""
+        # the orbit at u, interpolated linearly between the two samples' matched orbits (within O(dx^2) of
+        # the orbit at u on the same branch); orbits that cannot be matched give the nearer one
+        matched = {}
+        orbits = np.empty(u.size, dtype=object)
+        for i, (x, a, b) in enumerate(zip(u.tolist(), u_a.tolist(), u_b.tolist())):
+            oa, ob = self._orbits[a], self._orbits[b]
+            if (a, b) not in matched:
+                matched[a, b] = _matched_orbits(oa, ob)
+            t = (x - a) / (b - a)
+            mb = matched[a, b]
+            if mb is None:
+                orbits[i] = oa if t <= 0.5 else ob
+            else:
+                orbits[i] = oa.copy()
+                orbits[i][:, :2] = (1.0 - t) * oa[:, :2] + t * mb[:, :2]
+        r = self._extract(np.exp(u) * self.m2 * self.h * _OMEGA_REF ** 2, np.full(u.shape, _OMEGA_REF),
+                          attractor=orbits)
+        settled = np.asarray(r.settled, dtype=bool)
+        _, label, regular, _ = self._labels(r)
+        value = np.nan_to_num(np.asarray(r.N, dtype=complex)) * self.m2 * _OMEGA_REF ** 2
+        return settled, Samples(value, label, regular & ~settled)
 
     def _sampler_2d(self, u: np.ndarray, v: float) -> Samples:
         w = math.exp(v)
@@ -388,8 +494,15 @@ class DynamicBacklash(DescribingFunction):
             self._table = Table1D(self._settings)
         missing = self._table.missing_blocks(_U_START, u_hi)
         if missing.size:
-            self._build(lambda progress, checkpoint: self._table.extend(self._sampler_1d, _U_START, u_hi, progress,
-                                                                         checkpoint), int(missing.size))
+            # window probes need the adaptive run's orbits (a fixed transient has none): otherwise probe_dx only
+            prober = self._prober_1d if self.transient_periods is None else None
+            follow = self._follow_1d if self.transient_periods is None and self.starts else None
+            self._orbits, self._other = {}, {}
+            try:
+                self._build(lambda progress, checkpoint: self._table.extend(
+                    self._sampler_1d, _U_START, u_hi, progress, checkpoint, prober, follow), int(missing.size))
+            finally:
+                self._orbits, self._other = {}, {}
 
     def _ensure_2d(self, u_hi: float, s_lo: float, s_hi: float, v_lo: float, v_hi: float) -> None:
         """Cover ln F - ln(M2 h) = u + 2 v in [s_lo, s_hi] for v = ln w in [v_lo, v_hi] (u = ln beta <= u_hi).

@@ -15,6 +15,12 @@ its own samples only, and interpolation never crosses a block edge, so the value
 alone: extending a table (in any order) only adds blocks, never changes existing ones. A sampler may also
 report a per-sample ``spread`` (how far other branches of a non-unique function lie from the value, inf
 for a failed sample): it is added to the error estimate and makes the value invalid.
+
+Two optional hooks of :meth:`Table1D.extend`, both block-local (so the content stays order-independent):
+a cheap *prober* that says whether the function at points between two samples of one regime is still that
+branch (regime windows wider than ``TableSettings.window_dx`` cannot hide between samples), and a *follow*
+that continues another branch found at a sample to its neighbours until it ends (a whole region of
+non-unique values is flagged, not only the samples where the sampler's own search found it).
 """
 from __future__ import annotations
 
@@ -78,6 +84,9 @@ class TableSettings:
     probe_dx : widest interval between two regular samples that is accepted without a probe inside it
         (intervals wider than this are split even when the value check passed, so a regime window wider
         than probe_dx cannot hide between two samples of the same regime).
+    window_dx : spacing of the cheap regime probes (see :meth:`Table1D.extend`'s ``prober``): every interval
+        between two regular samples of one regime is probed at points at most window_dx apart (a regime
+        window wider than window_dx cannot hide there); inf: none. Used only when a prober is given.
     block_dx : length of the canonical blocks (a multiple of base_dx is best).
     origin : anchor of the block lattice (x = origin + k block_dx are block edges).
     """
@@ -92,6 +101,7 @@ class TableSettings:
     method: str = "cubic"
     max_samples: int = 50_000
     probe_dx: float = math.inf
+    window_dx: float = math.inf
     block_dx: float = 1.0
     origin: float = 0.0
 
@@ -100,6 +110,8 @@ class TableSettings:
             raise ValueError(f"probe_dx must be a number > 0 (inf: no probes), got {self.probe_dx!r}")
         if not (isinstance(self.origin, (int, float)) and math.isfinite(self.origin)):
             raise ValueError(f"origin must be a finite number, got {self.origin!r}")
+        if not (isinstance(self.window_dx, (int, float)) and self.window_dx > 0 and not math.isnan(self.window_dx)):
+            raise ValueError(f"window_dx must be a number > 0 (inf: no window probes), got {self.window_dx!r}")
         for name in ("tol", "base_dx", "min_dx", "jump_dx", "edge_dx", "jump_rel", "block_dx"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
@@ -152,17 +164,20 @@ class Table1D:
         self.err = np.empty(0)          # absolute error estimate of the interpolant on the interval
         self.checked = np.empty(0, dtype=bool)
         self.value_jump = np.empty(0, dtype=bool)
+        self.probed = np.empty(0, dtype=bool)  # window-probed (building a block only; not stored)
         self.n_sampled = 0
+        self.n_probed = 0                       # cheap probes run by this object (not stored)
         self._segments = None
 
     # ------------------------------------------------------------------ building
     @classmethod
     def build(cls, sampler: Callable[[np.ndarray], Samples], lo: float, hi: float,
               settings: TableSettings | None = None, progress: Callable[[int, str], None] | None = None,
-              checkpoint: Callable[[], None] | None = None) -> "Table1D":
-        """Tabulate ``sampler`` over the blocks covering [lo, hi] (x units), refined to ``settings.tol``."""
+              checkpoint: Callable[[], None] | None = None, prober=None, follow=None) -> "Table1D":
+        """Tabulate ``sampler`` over the blocks covering [lo, hi] (x units), refined to ``settings.tol``
+        (``prober``, ``follow``: see :meth:`extend`)."""
         table = cls(settings)
-        table.extend(sampler, lo, hi, progress, checkpoint)
+        table.extend(sampler, lo, hi, progress, checkpoint, prober, follow)
         return table
 
     @property
@@ -197,10 +212,25 @@ class Table1D:
 
     def extend(self, sampler: Callable[[np.ndarray], Samples], lo: float, hi: float,
                progress: Callable[[int, str], None] | None = None,
-               checkpoint: Callable[[], None] | None = None) -> None:
+               checkpoint: Callable[[], None] | None = None,
+               prober: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None,
+               follow: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None) -> None:
         """Add the missing canonical blocks covering [lo, hi], each built and refined on its own.
 
         ``checkpoint()``, if given, is called after every finished block (e.g. to save the table).
+        ``prober(xp, xa, xb)``, if given, returns ``(settled, samples)`` per probe point xa < xp < xb:
+        ``settled`` True where the function there is recognised cheaply as the same smooth branch as at the
+        samples xa and xb; elsewhere ``samples`` (value, regime, regular) says what the probe found, and it
+        is the same branch when its regime is the interval's and its value passes the refinement's check
+        against the interpolant. Every interval between two regular samples of one regime is probed at
+        points at most ``settings.window_dx`` apart; a probe of another branch is
+        sampled and the table refined around it like any other sample, so a regime window is bracketed
+        as soon as one probe falls inside it.
+        ``follow(x_from, x_to, value_to)``, if given, continues another branch found at sample x_from (its
+        ``spread`` > 0) to the neighbouring sample x_to and returns the distance of that branch from the
+        value at x_to (0: the branch is gone there); it is applied from every sample with another branch to
+        its neighbours until the branches end, so a region of coexisting branches is flagged as a whole
+        and not only at the samples where a sampler's own search found them.
         """
         lo, hi = float(lo), float(hi)
         if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
@@ -215,6 +245,11 @@ class Table1D:
             x[0], x[-1] = a, b
             part._insert(x, part._sample(sampler, x, progress, f"block {k}: base grid", self.x.size))
             part._refine(sampler, progress, self.x.size)
+            if prober is not None and math.isfinite(st.window_dx):
+                part._probe_windows(sampler, prober, progress, self.x.size)
+            if follow is not None:
+                part._follow_branches(follow)
+            self.n_probed += part.n_probed
             part.block = np.full(part.x.size, k, dtype=np.int64)
             self.n_sampled = part.n_sampled
             self._merge(part)
@@ -279,6 +314,7 @@ class Table1D:
     def _insert(self, xn: np.ndarray, s: Samples, err=None, checked=None, value_jump=None) -> None:
         """Insert samples; new intervals get (err, checked, value_jump) pairs (left, right) if given."""
         n_old = self.x.size
+        old_x, old_probed = self.x, self.probed
         x = np.concatenate([self.x, xn])
         order = np.argsort(x, kind="stable")
         self.x = x[order]
@@ -299,6 +335,14 @@ class Table1D:
         new_err = np.full(self.x.size - 1, np.inf)
         new_checked = np.zeros(self.x.size - 1, dtype=bool)
         new_vj = np.zeros(self.x.size - 1, dtype=bool)
+        new_probed = np.zeros(self.x.size - 1, dtype=bool)
+        if old_probed.size == n_old - 1 and n_old > 1:
+            # a new point inside a window-probed interval leaves both its sides probed
+            parent = np.clip(np.searchsorted(old_x, xn) - 1, 0, n_old - 2)
+            r = rank[n_old:]
+            for pos in (r - 1, r):
+                ok = (pos >= 0) & (pos < new_probed.size)
+                new_probed[pos[ok]] |= old_probed[parent[ok]]
         if n_old > 1:
             # an old interval (i, i+1) whose endpoints stayed adjacent keeps its attributes
             left, right = rank[:n_old - 1], rank[1:n_old]
@@ -306,13 +350,15 @@ class Table1D:
             new_err[left[keep]] = self.err[keep]
             new_checked[left[keep]] = self.checked[keep]
             new_vj[left[keep]] = self.value_jump[keep]
+            if old_probed.size == n_old - 1:
+                new_probed[left[keep]] = old_probed[keep]
         if err is not None:
             r = rank[n_old:]                   # position of each new point
             for side, pos in ((0, r - 1), (1, r)):
                 new_err[pos] = err[:, side]
                 new_checked[pos] = checked[:, side]
                 new_vj[pos] = value_jump[:, side]
-        self.err, self.checked, self.value_jump = new_err, new_checked, new_vj
+        self.err, self.checked, self.value_jump, self.probed = new_err, new_checked, new_vj, new_probed
         self._segments = None
 
     def _scale(self, v: np.ndarray) -> np.ndarray:
@@ -385,6 +431,66 @@ class Table1D:
         else:
             raise RuntimeError(f"table refinement bound of {max_gen} generations reached")
         self._segments = None
+
+    def _probe_windows(self, sampler, prober, progress, offset: int = 0) -> None:
+        """Probe every interval between two regular samples of one regime (unique value) at spacing
+        <= window_dx with ``prober``; sample the probes that may be another regime and refine around them,
+        until every such interval is probed."""
+        st = self.settings
+        bound = 64
+        for _ in range(bound):
+            width = np.diff(self.x)
+            same = (~self.jumps() & self.regular[:-1] & self.regular[1:]
+                    & (self.spread[:-1] == 0) & (self.spread[1:] == 0))
+            todo = np.flatnonzero(same & ~self.probed & (width > st.window_dx))
+            self.probed[same & (width <= st.window_dx)] = True
+            if todo.size == 0:
+                return
+            counts = np.ceil(width[todo] / st.window_dx).astype(np.int64)
+            owner = np.repeat(todo, counts - 1)
+            frac = np.concatenate([np.arange(1, c) / c for c in counts])
+            xp = self.x[owner] + frac * width[owner]
+            settled, s = prober(xp, self.x[owner], self.x[owner + 1])
+            settled = np.asarray(settled, dtype=bool).reshape(xp.shape)
+            # a probe that ran to its own motion is the same branch when its regime is the interval's and its
+            # value passes the refinement's check against the interpolant there
+            key = _regime_key(self.regime, self.regular)[owner]
+            pv = np.nan_to_num(np.asarray(s.value, dtype=complex).reshape(xp.shape))
+            pkey = _regime_key(np.asarray(s.regime).reshape(xp.shape), np.asarray(s.regular).reshape(xp.shape))
+            close = np.abs(pv - self._interpolate(xp, owner)) <= st.tol * self._scale(pv)
+            ok = settled | ((pkey == key) & close)
+            self.n_probed += xp.size
+            self.probed[todo] = True
+            new = xp[~ok]
+            if new.size == 0:
+                continue
+            s = self._sample(sampler, new, progress, "window probes", offset)
+            inf = np.full((new.size, 2), np.inf)
+            no = np.zeros((new.size, 2), dtype=bool)
+            self._insert(new, s, inf, no, no.copy())
+            self._reopen_near_points(new)
+            self._refine(sampler, progress, offset)
+        raise RuntimeError(f"window probing did not finish in {bound} rounds (window_dx={st.window_dx:g})")
+
+    def _follow_branches(self, follow) -> None:
+        """Continue other branches (spread > 0, finite) to neighbouring samples with none, until they end."""
+        tried = set()
+        for _ in range(self.x.size + 1):
+            has = np.isfinite(self.spread) & (self.spread > 0) & self.regular
+            pairs = [(i, j) for i in np.flatnonzero(has) for j in (i - 1, i + 1)
+                     if 0 <= j < self.x.size and self.regular[j] and self.spread[j] == 0 and (i, j) not in tried]
+            if not pairs:
+                return
+            tried.update(pairs)
+            src, dst = np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
+            dst, first = np.unique(dst, return_index=True)     # one continuation per sample and round
+            src = src[first]
+            found = np.asarray(follow(self.x[src], self.x[dst], self.value[dst]), dtype=float)
+            self.spread[dst] = np.maximum(self.spread[dst], found)
+            if "branches" in self.extra:
+                self.extra["branches"][dst] += found > 0
+            self._segments = None
+        raise RuntimeError("branch continuation did not end")
 
     def _reopen_neighbours(self, new_jump: np.ndarray, reach: int = 2) -> None:
         for i in np.flatnonzero(new_jump):
