@@ -119,15 +119,13 @@ class LinearModeSystem:
         self.valid[slot] = True
 
     def _step(self, extra_scales):
-        """1/32 of the fastest time scale: 2 pi/|lambda| (oscillatory) or 1/|lambda| (decaying) of every mode."""
+        """1/STEPS_PER_SCALE of the fastest time scale: 2 pi/|lambda| (oscillatory) or 1/|lambda| (decaying) of
+        every mode's eigenvalues lambda (all modes in one batched call)."""
         scales = [float(s) for s in extra_scales]
-        for A, ok in zip(self.mats, self.valid):
-            if not ok:
-                continue
-            for lam in np.linalg.eigvals(A):
-                size = abs(lam)
-                if size > 1e-12:
-                    scales.append(2.0 * math.pi / size if abs(lam.imag) >= abs(lam.real) else 1.0 / size)
+        for lam in np.linalg.eigvals(self.mats[self.valid]).ravel():
+            size = abs(lam)
+            if size > 1e-12:
+                scales.append(2.0 * math.pi / size if abs(lam.imag) >= abs(lam.real) else 1.0 / size)
         if not scales:
             raise ValueError("the system has no time scale (no force, no dynamics)")
         return min(scales) / STEPS_PER_SCALE
@@ -139,26 +137,28 @@ class LinearModeSystem:
         kinds = np.zeros((N_SLOTS, 4), dtype=np.int64)
         nrows = np.zeros(N_SLOTS, dtype=np.int64)
         ed, e1 = self._unit(D), self._unit(one)
+        gap_rows = [[(ed + wall * e1, core.HIT_A), ((h - wall) * e1 - ed, core.HIT_B)] for wall in (0.0, h)]
+        if self.friction is not None:
+            v = self._unit(V1) + (self._unit(U) if self.friction[1] == 1 else 0.0)
+            f_e1 = self.friction[0] * e1
         for slot in np.flatnonzero(self.valid):
             contact, g = divmod(int(slot), 3)
-            for ref, wall in ((0, 0.0), (1, h)):
-                out = []
-                if contact == FREE:   # gap = d + wall in [0, h]
-                    out += [(ed + wall * e1, core.HIT_A), ((h - wall) * e1 - ed, core.HIT_B)]
+            out = []                  # rows of the slot that do not depend on the reference wall
+            if contact != FREE:
+                P = self.contact_force[slot]
+                out += [(P if contact == STUCK_A else -P, core.SEPARATE)]
+            if self.friction is not None:
+                if g == 0:
+                    R = self.ground_force[slot]
+                    out += [(f_e1 - R, core.SLIP), (f_e1 + R, core.SLIP)]
                 else:
-                    P = self.contact_force[slot]
-                    out += [(P if contact == STUCK_A else -P, core.SEPARATE)]
-                if self.friction is not None:
-                    v = self._unit(V1) + (self._unit(U) if self.friction[1] == 1 else 0.0)
-                    if g == 0:
-                        R = self.ground_force[slot]
-                        out += [(self.friction[0] * e1 - R, core.SLIP), (self.friction[0] * e1 + R, core.SLIP)]
-                    else:
-                        out += [((1.0 if g == 1 else -1.0) * v, core.STOP)]
-                for j, (r, kind) in enumerate(out):
+                    out += [((1.0 if g == 1 else -1.0) * v, core.STOP)]
+            for ref in (0, 1):
+                both = (gap_rows[ref] if contact == FREE else []) + out
+                for j, (r, kind) in enumerate(both):
                     rows[slot, ref, j] = r
                     kinds[slot, j] = kind
-                nrows[slot] = len(out)
+            nrows[slot] = len(both)
         return rows, kinds, nrows
 
     def parameters(self, v_stick, limit=np.inf):
