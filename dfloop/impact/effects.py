@@ -12,7 +12,7 @@ similarity law** (``keeps_similarity`` is False): with any of them N(F, w) is a 
 Engine (:mod:`dfloop.impact._engine`): in every mode (free / stuck together on side A or B) x (friction mass
 slipping +, slipping -, stuck) the motion is a linear ODE z' = A z of z = [x1, v1, d, u, cos wt, sin wt, 1]
 (d: gap from the wall of the last impact, u = v2 - v1), solved exactly by the matrix exponential. Events
-(impacts, separation, stop, stick-slip) are roots of linear functionals r.z(s), bracketed on steps of 1/32 of
+(impacts, separation, stop, stick-slip) are roots of linear functionals r.z(s), bracketed on steps of 1/16 of
 the fastest time scale and refined to rounding level on the Taylor series of exp(A s) over the step. The whole
 event loop (step scan, root refinement, impact law, chatter cut, mode selection, records) is compiled
 (:mod:`dfloop.impact._effects_core`); its cost per impact is measured against the closed-form JIT kernel of the
