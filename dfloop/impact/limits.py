@@ -90,7 +90,8 @@ class MeasuredLimits:
         eq. 12, beta ~ 1: below it in beta, one alternate collision on each side).
     beta_irregular_end : largest beta with irregular motion (the observed lower limit of the model's
         regular range, the paper's w_c of eq. 10); nan if no irregular motion up to the table's end.
-    beta_jumps, jump_sizes : jumps in N between two regular regimes, located by bisection, and |dD|.
+    beta_jumps, jump_sizes : jumps in N between two regular impacting regimes (N != 0 on both sides), located
+        by bisection, and |dD|.
     """
 
     beta_no_impact: float
@@ -136,12 +137,15 @@ def measured_limits(backlash, beta_max: float = 100.0, rel_tol: float = 1e-9) ->
     table = backlash.similarity_table(beta_max)
     beta = np.exp(table.x)
     jump = table.jumps()
-    start = int(np.argmax(table.regular))          # first regular sample (grazing at beta -> 1/4+ is not)
+    # impacting periodic motion: regular with N != 0 (just above beta = 1/4 the motion from rest may graze and
+    # settle into free flight, N = 0 exactly, or wander irregularly: neither starts the regular band)
+    impacting = table.regular & (table.value != 0)
+    start = int(np.argmax(impacting))
     breaks = np.flatnonzero(jump[start:]) + start
     beta_regular_end = float(beta[breaks[0]]) if breaks.size else float(beta[-1])
     irregular = np.flatnonzero(~table.regular)
     beta_irregular_end = float(beta[irregular[-1]]) if irregular.size else math.nan
-    sharp = np.flatnonzero(jump & table.regular[:-1] & table.regular[1:])
+    sharp = np.flatnonzero(jump & impacting[:-1] & impacting[1:])
     sizes = np.abs(table.value[sharp + 1] - table.value[sharp])
     return MeasuredLimits(0.5 * (lo + hi), beta_regular_end, beta_irregular_end,
                           np.sqrt(beta[sharp] * beta[sharp + 1]), sizes)
