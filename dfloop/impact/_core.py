@@ -27,6 +27,7 @@ DONE, BUFFER_FULL = 0, 1
 # Bisection at least halves the bracket every step; reaching a relative width of 4e-16 from any bracket whose
 # root exceeds 1e-20 of its length takes < 130 halvings, so the bound is never the limiting factor.
 _MAX_ROOT_ITERATIONS = 200
+_ZERO = np.int64(0)  # a typed zero for calls inside compiled code (a literal 0 adds a Literal[int] signature)
 
 
 @njit(cache=True, nogil=True)
@@ -503,7 +504,8 @@ def run_periods(params, state, seg, seg_mode, seg_cause, ctl, k0, strobe, half, 
             if room <= 0:
                 ctl[C_KFIRST], ctl[C_RESTARTS], ctl[C_MATCHES], ctl[C_FAILS] = k_first, restarts, matches, fails
                 return EVENT_LIMIT, k, 0, n_events
-            n, status = run_kernel(params, state, tb, seg[:room], seg_mode[:room], seg_cause[:room], 0)
+            # a typed zero: a literal 0 would compile run_kernel a second time (Literal[int] signature)
+            n, status = run_kernel(params, state, tb, seg[:room], seg_mode[:room], seg_cause[:room], _ZERO)
             n_events += n
             for i in range(n):
                 t_i = seg[i, T0]
@@ -682,8 +684,8 @@ def adaptive_run(kparams, state, ctl, orbit, k_max, capacity):
     side_off = np.zeros(cap + 1, dtype=np.int64)
     sides = np.empty(64 * window, dtype=np.int8)
     strobe[0, SX1], strobe[0, SGAP], strobe[0, SU], strobe[0, SMODE] = state[2], state[4] / h, state[5] / vscale, FREE
-    k = 0
-    events = 0
+    k = _ZERO          # typed zeros: literal ones would compile run_periods twice (Literal[int] signatures)
+    events = _ZERO
     while True:
         ctl[C_KMAX] = cap
         status, k, period, events = run_periods(kparams, state, seg, seg_mode, seg_cause, ctl, k, strobe, half,
