@@ -105,7 +105,10 @@ class DynamicBacklash(DescribingFunction):
         converged (:func:`dfloop.impact.extract.impact_describing_function`), at most
         ``max_transient_periods``.
     periods : int
-        Forcing periods used for the fundamental, per simulated sample.
+        Forcing periods of each sample's detection window: with the adaptive transient a motion is periodic
+        once it repeats over the last ``periods`` periods (over 3 for an exact repeat), and its fundamental is
+        averaged over the whole cycles of the periods it was checked on (the window when it is irregular);
+        with a fixed ``transient_periods``, the periods integrated after the transient.
     base_dx, min_dx : float
         Initial spacing and smallest refined interval of the table in ln beta (and ln w for 2-D tables).
     edge_dx : float
