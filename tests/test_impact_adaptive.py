@@ -112,3 +112,6 @@ def test_batch_equals_single_calls_and_keeps_event_limits_bounded():
         impact_describing_function(M1, M2, H, 0.6, F, 30.0, attractor=np.zeros((3, 2)), **ADAPTIVE)
     with pytest.raises(ValueError, match="attractor"):
         impact_describing_function(M1, M2, H, 0.6, F, 30.0, attractor=np.zeros((2, 3)), transient_periods=10)
+    for bad in ("orbit", np.full((2, 3), np.nan)):
+        with pytest.raises(ValueError, match="attractor"):
+            impact_describing_function(M1, M2, H, 0.6, F, 30.0, attractor=bad, **ADAPTIVE)

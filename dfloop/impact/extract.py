@@ -421,9 +421,14 @@ def _adaptive_inputs(dim: ImpactParameters, chatter_tol: float, initial, periods
 
 
 def _attractor_array(attractor) -> np.ndarray:
-    orbit = _NO_ORBIT if attractor is None else np.ascontiguousarray(attractor, dtype=float)
+    try:
+        orbit = _NO_ORBIT if attractor is None else np.ascontiguousarray(attractor, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"attractor must be the (2 p, 3) orbit of an adaptive ImpactDF, got {attractor!r}") from None
     if orbit.ndim != 2 or orbit.shape[1] != 3 or orbit.shape[0] % 2 or orbit.shape[0] > 2 * _core.MAX_PERIOD:
         raise ValueError(f"attractor must be the (2 p, 3) orbit of an adaptive ImpactDF, got shape {orbit.shape}")
+    if not np.all(np.isfinite(orbit)):
+        raise ValueError("attractor must be finite (the orbit of a periodic ImpactDF), got NaN or inf entries")
     return orbit
 
 
