@@ -164,11 +164,8 @@ def test_tangent_seeds_equal_loops(seed):
     k = rng.integers(0, 4)
     ci, cj = rng.integers(0, max(na - 1, 1), size=k), rng.integers(0, max(nv - 1, 1), size=k)
     for threshold in (0.1, 0.6):
-        si, sj, sm = tangent_seeds(P, ci.astype(np.int64), cj.astype(np.int64), threshold, allowed)
+        ni, nj = (x.astype(np.int64) for x in np.nonzero(allowed))   # the allowed nodes, row-major
+        si, sj, sm = tangent_seeds(P, ci.astype(np.int64), cj.astype(np.int64), threshold, ni, nj)
         ref = ref_seeds(P, ci, cj, threshold, allowed)
         assert list(zip(si.tolist(), sj.tolist())) == [(i, j) for i, j, _ in ref]
         assert same_floats(sm, [x for *_, x in ref])
-        # the same with the allowed nodes given as row-major index arrays
-        ni, nj = (x.astype(np.int64) for x in np.nonzero(allowed))
-        li, lj, lm = tangent_seeds(P, ci.astype(np.int64), cj.astype(np.int64), threshold, (ni, nj))
-        assert li.tolist() == si.tolist() and lj.tolist() == sj.tolist() and same_floats(lm, sm)

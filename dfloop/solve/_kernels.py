@@ -107,17 +107,15 @@ def candidate_cells(ln_n: np.ndarray, eps_a: np.ndarray, ln_g: np.ndarray, eps_v
     return keep // nv, keep % nv
 
 
-def tangent_seeds(P: np.ndarray, ci: np.ndarray, cj: np.ndarray, threshold: float, allowed):
+def tangent_seeds(P: np.ndarray, ci: np.ndarray, cj: np.ndarray, threshold: float, si: np.ndarray, sj: np.ndarray):
     """Grid nodes where m = |1 + P|^2 / (1 + |P|^2) (scale-free, 0 only at roots) is a local minimum
-    (8 neighbours) below ``threshold``, excluding nodes within one node of a cell of non-zero winding
-    (cells ci, cj) and nodes that are not ``allowed``.
+    (8 neighbours) below ``threshold``, among the candidate nodes (si, sj) (row-major int64 index arrays: the
+    work scales with their number, not with the grid), excluding nodes within one node of a cell of non-zero
+    winding (cells ci, cj).
 
-    ``allowed`` is a boolean (na, nv) mask, or the row-major int64 index arrays (i, j) of the allowed nodes
-    (cheaper when they are few: the work then scales with their number, not with the grid).
     Returns int64 index arrays (i, j) of the seeds in row-major order and m at them.
     """
     na, nv = P.shape
-    si, sj = _indices(allowed) if isinstance(allowed, np.ndarray) else allowed
     # drop the 4 x 4 nodes from one before a winding cell's corners to one after
     ei = (ci[:, None] + np.repeat(np.arange(-1, 3), 4)[None, :]).ravel()
     ej = (cj[:, None] + np.tile(np.arange(-1, 3), 4)[None, :]).ravel()

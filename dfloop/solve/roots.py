@@ -576,12 +576,11 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
         # many zeros on grid edges or multiple windings: look for a curve of zeros before isolating
         pts = np.array(suspects + list(zip((a[ii] + a[ii + 1]) / 2, (v[jj] + v[jj + 1]) / 2))).T
         check_continuum(res, pts[0], pts[1], window, tol)
-    if cells is None:
-        allowed = np.ones(P.shape, bool)
+    if cells is None:  # every node, row-major
+        nodes = np.arange(P.size, dtype=np.int64)
     else:  # the corners of the candidate cells, row-major (the work then scales with them, not the grid)
-        corners = np.unique(np.concatenate([(cells[0] + di) * P.shape[1] + cells[1] + dj
-                                            for di in (0, 1) for dj in (0, 1)]))
-        allowed = (corners // P.shape[1], corners % P.shape[1])
+        nodes = np.unique(np.concatenate([(cells[0] + di) * P.shape[1] + cells[1] + dj
+                                          for di in (0, 1) for dj in (0, 1)]))
     cells = Box(a[ii], a[ii + 1], v[jj], v[jj + 1])
     single = np.abs(wind) == 1
     roots_a, roots_v, crossings = [], [], []
@@ -618,7 +617,7 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
             roots_v.extend(fv)
             crossings.extend(fc)
     # tangent-like pairs cancel in a cell's winding: search from local minima of the relative residual
-    si, sj, sm = tangent_seeds(P, ii, jj, _TANGENT_THRESHOLD, allowed)
+    si, sj, sm = tangent_seeds(P, ii, jj, _TANGENT_THRESHOLD, nodes // P.shape[1], nodes % P.shape[1])
     if si.size > _MAX_TANGENT_SEEDS:
         best = np.argsort(sm)[:_MAX_TANGENT_SEEDS]
         si, sj = si[best], sj[best]
