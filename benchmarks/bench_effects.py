@@ -23,7 +23,8 @@ from pathlib import Path
 
 from dfloop.impact.effects import CoulombFriction, LoadSpring, ViscousDamping, simulate_with_effects
 from dfloop.impact.extract import impact_describing_function
-from dfloop.impact.kernel import ImpactParameters, simulate
+from dfloop.impact.kernel import simulate
+from dfloop.impact.model import ImpactParameters
 
 M1, M2, H, F = 1.0, 1.0, 0.1, 50.0
 PERIODS = 200

@@ -107,7 +107,7 @@ def effects_engine_cost() -> list[str]:
     table times one DF sample with effects (200 transient + 40 measured periods), the unit of a 2-D table.
     """
     from dfloop.impact.effects import CoulombFriction, LoadSpring, ViscousDamping, simulate_with_effects
-    from dfloop.impact.kernel import ImpactParameters
+    from dfloop.impact.model import ImpactParameters
 
     eps, w = 0.8, 35.0
     t_end = 40 * 2 * np.pi / w

@@ -24,7 +24,8 @@ import numpy as np
 
 from dfloop.impact import extract
 from dfloop.impact.dynamic_backlash import DynamicBacklash, prepare_many
-from dfloop.impact.kernel import ImpactParameters, KernelRun
+from dfloop.impact.kernel import KernelRun
+from dfloop.impact.model import ImpactParameters
 
 M1, M2, H, EPS = 1.0, 1.0, 0.1, 0.5
 REF = dict(transient_periods=600, periods=40)

@@ -18,7 +18,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
         "CoulombViscousFriction", "NumericDF", "LinearThenStatic", "MassBacklash"),
     "dfloop.describing.interop": ("as_element", "ControlDescribingFunction"),
     "dfloop.impact": (
-        "simulate_impacts", "ImpactParameters", "EventLimitError", "ViscousDamping", "LoadSpring",
+        "simulate_impacts", "ImpactParameters", "ViscousDamping", "LoadSpring",
         "CoulombFriction", "impact_describing_function", "impact_describing_function_batch",
         "describing_function_from_trajectory", "ImpactDF", "ImpactDFBatch", "DynamicBacklash", "prepare_many",
         "cache_dir", "static_limit_frequency", "lower_limit_frequency", "no_impact_frequency", "jump_frequency",
@@ -33,7 +33,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     "dfloop.scene": ("Scene", "SceneError", "Problem", "SceneLoop", "SceneReport", "load_scene", "run_scene",
                      "build", "find_scene", "shipped_scenes", "scene_reference"),
     "dfloop.cache_admin": ("CacheFile", "CacheInfo", "cache_info", "clear_cache"),
-    "dfloop.errors": ("DfloopError", "CacheWarning"),
+    "dfloop.errors": ("DfloopError", "EventLimitError", "CacheWarning"),
     "dfloop.impact.loop": ("simulate_impact_loop", "impact_loop_orbit", "ImpactLoopOrbit"),
     "dfloop.exact": ("ExactCycle", "exact_cycle"),
     "dfloop.confidence": ("Confidence", "cycle_confidence"),

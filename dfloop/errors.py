@@ -7,11 +7,18 @@ by :mod:`dfloop._checks` are :class:`DfloopError`, a ``ValueError`` subclass, so
 """
 from __future__ import annotations
 
-__all__ = ["DfloopError", "CacheWarning"]
+__all__ = ["DfloopError", "EventLimitError", "CacheWarning"]
 
 
 class DfloopError(ValueError):
     """Bad input to a dfloop function or constructor; the message names the parameter and the value."""
+
+
+class EventLimitError(RuntimeError):
+    """A simulation reached its bound on the number of events (impacts, separations, switchings).
+
+    The message says where the run stopped and how to raise the bound (``max_events=``).
+    """
 
 
 class CacheWarning(UserWarning):

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from dfloop.impact import _effects_core as core
 from dfloop.impact.effects import CoulombFriction, LoadSpring, ViscousDamping, open_loop_system
-from dfloop.impact.kernel import ImpactParameters
+from dfloop.impact.model import ImpactParameters
 
 T = core.TAYLOR_TERMS
 _EFFECTS = [(), (ViscousDamping(3.0),), (LoadSpring(200.0),), (CoulombFriction(5.0, "m2"),),

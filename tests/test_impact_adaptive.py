@@ -9,7 +9,8 @@ import pytest
 from dfloop.impact.dynamic_backlash import _STARTS
 from dfloop.impact.extract import (describing_function_from_trajectory, impact_describing_function,
                                    impact_describing_function_batch)
-from dfloop.impact.kernel import ImpactParameters, KernelRun
+from dfloop.impact.kernel import KernelRun
+from dfloop.impact.model import ImpactParameters
 
 M1, M2, H, F = 1.0, 1.0, 0.1, 50.0
 ADAPTIVE = dict(transient_periods=None, periods=20)

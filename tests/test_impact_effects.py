@@ -12,7 +12,9 @@ from scipy.integrate import solve_ivp, trapezoid
 from dfloop.impact.effects import (GROUND_EVENT, CoulombFriction, EffectsRun, LoadSpring, ViscousDamping,
                                    simulate_with_effects)
 from dfloop.impact.extract import describing_function_from_trajectory
-from dfloop.impact.kernel import EventLimitError, ImpactParameters, simulate
+from dfloop.errors import EventLimitError
+from dfloop.impact.kernel import simulate
+from dfloop.impact.model import ImpactParameters
 from dfloop.impact.reference import simulate_solve_ivp
 
 M1, M2, H, F = 1.0, 1.0, 0.1, 50.0

@@ -8,7 +8,8 @@ import sys
 import numpy as np
 import pytest
 
-from dfloop.impact.kernel import EventLimitError, simulate
+from dfloop.errors import EventLimitError
+from dfloop.impact.kernel import simulate
 from dfloop.impact.reference import simulate_solve_ivp
 
 M1, M2, H, F = 1.0, 1.0, 0.1, 50.0
@@ -194,7 +195,7 @@ def test_random_parameters_keep_momentum_and_no_penetration():
 def test_default_event_bound_grows_with_the_run_and_covers_chatter():
     """The default bound is sized from the number of periods; a chattering run of many periods stays inside
     it (counted events per period against the per-period bound), and the error says how to raise it."""
-    from dfloop.impact.kernel import DEFAULT_MAX_EVENTS, default_max_events
+    from dfloop.impact.model import DEFAULT_MAX_EVENTS, default_max_events
 
     assert default_max_events(0.5, 1e-9, 10) == DEFAULT_MAX_EVENTS
     assert default_max_events(0.5, 1e-9, 1e6) > 10 * DEFAULT_MAX_EVENTS
@@ -210,7 +211,8 @@ def test_default_event_bound_grows_with_the_run_and_covers_chatter():
 
 def test_kernel_run_with_forget_is_exact_and_bounded():
     """Continuing a run in pieces and forgetting the past gives the same motion as one run."""
-    from dfloop.impact.kernel import ImpactParameters, KernelRun
+    from dfloop.impact.kernel import KernelRun
+    from dfloop.impact.model import ImpactParameters
 
     p = ImpactParameters(M1, M2, H, 0.5, F, 30.0)
     one = simulate(M1, M2, H, 0.5, F, 30.0, 60 * p.period)

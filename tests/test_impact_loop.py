@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from dfloop.impact import DynamicBacklash, EventLimitError, ViscousDamping
+from dfloop.errors import EventLimitError
+from dfloop.impact import DynamicBacklash, ViscousDamping
 from dfloop.impact import _engine
 from dfloop.impact.loop import _ImpactMap, _Loop, impact_loop_orbit, simulate_impact_loop
 

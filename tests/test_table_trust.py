@@ -7,7 +7,7 @@ import pytest
 
 from dfloop.impact.dynamic_backlash import FAILED, DynamicBacklash
 from dfloop.impact.extract import impact_describing_function
-from dfloop.impact.kernel import EventLimitError
+from dfloop.errors import EventLimitError
 from dfloop.impact.table import Samples, Table1D, TableSettings
 
 M1, M2, H, F = 1.0, 1.0, 0.1, 50.0

@@ -13,6 +13,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from ..errors import EventLimitError
 from . import _effects_core as core
 from ._effects_core import D, FREE, N_SLOTS, STUCK_A, STUCK_B, U, V1, X1
 
@@ -254,10 +256,8 @@ def run(system: LinearModeSystem, z: np.ndarray, t_end: float, v_stick: float, m
     Records before ``record_from`` (s) are dropped except the segment running at that time (bounded memory).
     A state component beyond ``limit`` ends the run early (``diverged``; ``t_end`` is then the time reached).
     ``capacity``: initial record buffers (they double as needed, up to ``max_events`` + 2).
-    Raises :class:`dfloop.impact.kernel.EventLimitError` past ``max_events`` events, naming how to raise it.
+    Raises :class:`dfloop.errors.EventLimitError` past ``max_events`` events, naming how to raise it.
     """
-    from .kernel import EventLimitError
-
     z = np.array(z, dtype=float)
     slot = system.first_slot(z, ref, v_stick)
     fpar, ipar = system.parameters(v_stick, limit)

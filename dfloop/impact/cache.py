@@ -29,13 +29,14 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import __version__
 from ..errors import CacheWarning, DfloopError
 
 __all__ = ["cache_dir", "code_version", "cache_key", "save_table", "load_table", "TableFile"]
 
 _STALE_SECONDS = 3600.0  # temporaries older than this are left over from a killed writer
 _REPORTED: set[tuple] = set()  # write/read failures already reported (one warning per directory and kind)
-_SOURCES = ("table.py", "table2d.py", "dynamic_backlash.py", "kernel.py", "_core.py", "_flight.py", "effects.py",
+_SOURCES = ("table.py", "table2d.py", "dynamic_backlash.py", "kernel.py", "model.py", "_core.py", "_flight.py", "effects.py",
             "_effects_core.py", "_engine.py", "extract.py", "limits.py", "loop.py", "cache.py")
 
 
@@ -50,8 +51,6 @@ def cache_dir() -> Path:
 
 def code_version() -> str:
     """dfloop's version plus a hash of the sources that determine a table's content."""
-    import dfloop
-
     here = Path(__file__).parent
     h = hashlib.sha256()
     for name in _SOURCES:
@@ -59,7 +58,7 @@ def code_version() -> str:
         if p.exists():
             h.update(name.encode())
             h.update(p.read_bytes())
-    return f"{dfloop.__version__}+{h.hexdigest()[:16]}"
+    return f"{__version__}+{h.hexdigest()[:16]}"
 
 
 def _canonical(obj) -> str:

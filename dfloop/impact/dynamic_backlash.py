@@ -25,7 +25,8 @@ from .. import _checks
 from ..describing.base import DescribingFunction
 from . import cache as _cache
 from ._core import FREE as FREE_MODE
-from .extract import PERIODICITY_TOL
+from .extract import PERIODICITY_TOL, impact_describing_function_batch
+from .kernel import simulate
 from .limits import BETA_NO_IMPACT
 from ..progress import progress_bar
 from .table import Samples, Table1D, TableSettings, TableValues, settings_dict
@@ -274,8 +275,6 @@ class DynamicBacklash(DescribingFunction):
 
     # ------------------------------------------------------------------ sampling
     def _extract(self, force: np.ndarray, omega: np.ndarray, initial=None, attractor=None):
-        from .extract import impact_describing_function_batch
-
         return impact_describing_function_batch(self.m1, self.m2, self.h, self.restitution, force, omega,
                                                 effects=self.effects, transient_periods=self.transient_periods,
                                                 max_transient_periods=self.max_transient_periods,
@@ -422,8 +421,6 @@ class DynamicBacklash(DescribingFunction):
 
     def collides(self, beta) -> np.ndarray:
         """Whether a motion from rest collides within its first two forcing periods, per beta (paper's model)."""
-        from .kernel import simulate
-
         beta = np.atleast_1d(np.asarray(beta, dtype=float))
         out = np.empty(beta.shape, dtype=bool)
         for i, b in enumerate(beta.ravel()):

@@ -29,7 +29,7 @@ from .. import _checks
 from . import _engine
 from ._effects_core import GROUND_EVENT  # noqa: F401  (segment cause of stick-slip events, re-exported)
 from ._effects_core import D, FREE, STUCK_B, U, V1, X1
-from .kernel import ImpactEvents
+from .model import ImpactEvents
 
 __all__ = ["ViscousDamping", "LoadSpring", "CoulombFriction", "simulate_with_effects", "EffectsTrajectory",
            "EffectsRun"]

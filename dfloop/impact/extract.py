@@ -25,8 +25,9 @@ from .. import _checks
 from . import _core
 from ._core import IMPACT_A, IMPACT_B
 from .effects import EffectsRun
-from .kernel import (DEFAULT_CHATTER_TOL, EventLimitError, ImpactParameters, KernelRun, Trajectory,
-                     _event_limit_message, default_max_events, kernel_arrays)
+from .kernel import KernelRun, Trajectory, kernel_arrays
+from .model import (DEFAULT_CHATTER_TOL, EventLimitError, ImpactParameters, default_max_events,
+                    event_limit_message)
 from .limits import beta_lower_limit
 
 __all__ = ["ImpactDF", "ImpactDFBatch", "describing_function_from_trajectory", "impact_describing_function",
@@ -318,7 +319,7 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
     periods : int
         Forcing periods integrated (a period-p motion uses a multiple of p).
     max_events : int, optional
-        Bound on the events of the run (default :func:`dfloop.impact.kernel.default_max_events` for the
+        Bound on the events of the run (default :func:`dfloop.impact.model.default_max_events` for the
         longest run this call may make).
     chatter_tol : float
         See :func:`dfloop.impact.kernel.simulate`.
@@ -447,7 +448,7 @@ def _adaptive_point(dim: ImpactParameters, chatter_tol: float, initial, periods:
         _core.adaptive_run(kparams, state, ctl, orbit, k_max, _FIRST_CAPACITY)
     tp = p.period
     if status == _core.EVENT_LIMIT:
-        raise EventLimitError(_event_limit_message(max_events, k * tp, k_max * tp, tp))
+        raise EventLimitError(event_limit_message(max_events, k * tp, k_max * tp, tp))
     below_wc = bool(p.beta > beta_lower_limit(p.restitution))
     if status == _core.SETTLED:
         return ImpactDF(N=complex(np.nan, np.nan), X1=complex(np.nan, np.nan), periodicity=np.nan,
@@ -543,7 +544,7 @@ def impact_describing_function_batch(m1: float, m2: float, h: float, restitution
     """:func:`impact_describing_function` over broadcast arrays ``force`` and ``omega`` (N, rad/s).
 
     Runs in a thread pool of ``workers`` threads (default: the CPU count); the JIT kernel releases the GIL.
-    ``on_event_limit``: 'raise' (default) lets an :class:`~dfloop.impact.kernel.EventLimitError` through;
+    ``on_event_limit``: 'raise' (default) lets an :class:`~dfloop.errors.EventLimitError` through;
     'record' marks that point failed (``failure`` holds the reason) and goes on. ``callback()``, if given,
     is called once per finished point (from the worker threads). ``initial`` is one start state for all
     points or a callable ``initial(force, omega)`` returning the start state of each point. ``attractor``
@@ -658,7 +659,7 @@ def _adaptive_batch(base: ImpactParameters, f: np.ndarray, w: np.ndarray, chatte
     failure = np.full(n, "", dtype=object)
     for i in np.flatnonzero(failed):
         tp = scaled[i].period
-        msg = _event_limit_message(max_events, ires[i, _core.R_K] * tp, k_max * tp, tp)
+        msg = event_limit_message(max_events, ires[i, _core.R_K] * tp, k_max * tp, tp)
         if on_event_limit == "raise":
             raise EventLimitError(msg)
         failure[i] = f"event limit: {msg}"

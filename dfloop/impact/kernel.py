@@ -20,117 +20,12 @@ import numpy as np
 
 from .. import _checks
 from . import _core
-from ._core import (FREE, GAP, IMPACT_A, IMPACT_B, PHI0, STUCK_B, T0, U, U_POST, U_PRE, V1, V1_POST,
-                    V1_PRE, X1)
+from ._core import FREE, GAP, PHI0, STUCK_B, T0, U, U_POST, U_PRE, V1, V1_POST, V1_PRE, X1
+from .effects import simulate_with_effects
+from .model import (DEFAULT_CHATTER_TOL, EventLimitError, ImpactEvents, ImpactParameters, default_max_events,
+                    event_limit_message)
 
-__all__ = ["ImpactParameters", "Trajectory", "simulate", "EventLimitError", "default_max_events", "KernelRun"]
-
-DEFAULT_MAX_EVENTS = 5_000_000      # floor of the default event bound
-DEFAULT_CHATTER_TOL = 1e-9
-_FREE_IMPACTS_PER_PERIOD = 64       # impacts per forcing period outside chatter sequences, in the default bound
-
-
-def default_max_events(restitution: float, chatter_tol: float, periods: float) -> int:
-    """Default bound on the number of events of a run of ``periods`` forcing periods.
-
-    A converging chatter (impacts whose relative speed shrinks by eps each time) reaches the cut speed
-    ``chatter_tol`` after about ln(chatter_tol) / ln(eps) impacts; a period holds at most two such sequences
-    (one per side) plus a few free impacts. The bound is that count per period times ``periods``, and never
-    less than ``DEFAULT_MAX_EVENTS``.
-    """
-    eps = min(max(float(restitution), 1e-3), 1.0 - 1e-3)
-    chatter = math.ceil(math.log(chatter_tol) / math.log(eps)) + 2
-    per_period = 2 * chatter + _FREE_IMPACTS_PER_PERIOD
-    return int(max(DEFAULT_MAX_EVENTS, math.ceil(per_period * max(float(periods), 1.0))))
-
-
-def _event_limit_message(max_events: int, t: float, t_end: float, period: float) -> str:
-    return (f"max_events = {max_events} reached at t = {t:.6g} s (t_end = {t_end:g} s, "
-            f"{t / period:.6g} of {t_end / period:.6g} forcing periods): pass a larger max_events "
-            f"(e.g. max_events={2 * max_events}) to simulate further")
-
-
-class EventLimitError(RuntimeError):
-    """The simulation reached its bound on the number of events (impacts, separations)."""
-
-
-@dataclass(frozen=True)
-class ImpactParameters:
-    """Validated physical parameters (SI units: kg, m, N, rad/s).
-
-    Attributes
-    ----------
-    m1, m2 : float
-        Masses (kg); the force acts on ``m2``, the output is x1.
-    h : float
-        Total clearance (m).
-    restitution : float
-        Coefficient of restitution eps in [0, 1].
-    force : float
-        Force amplitude F (N) of F cos(w t).
-    omega : float
-        Forcing frequency w (rad/s).
-    """
-
-    m1: float
-    m2: float
-    h: float
-    restitution: float
-    force: float
-    omega: float
-
-    def __post_init__(self):
-        for name in ("m1", "m2", "h", "force", "omega"):
-            object.__setattr__(self, name, _checks.positive(name, getattr(self, name)))
-        object.__setattr__(self, "restitution", _checks.in_closed_interval("restitution",
-                                                                           self.restitution, 0.0, 1.0))
-
-    @classmethod
-    def trusted(cls, m1: float, m2: float, h: float, restitution: float, force: float,
-                omega: float) -> "ImpactParameters":
-        """Parameters derived from already validated ones (hot paths): no checks."""
-        self = object.__new__(cls)
-        for name, v in zip(("m1", "m2", "h", "restitution", "force", "omega"),
-                           (m1, m2, h, restitution, force, omega)):
-            object.__setattr__(self, name, float(v))
-        return self
-
-    @property
-    def beta(self) -> float:
-        """Similarity parameter F / (M2 h w^2) (dimensionless)."""
-        return self.force / (self.m2 * self.h * self.omega ** 2)
-
-    @property
-    def period(self) -> float:
-        """Forcing period 2 pi / w (s)."""
-        return 2.0 * math.pi / self.omega
-
-
-class ImpactEvents:
-    """Impact bookkeeping shared by the kernel's :class:`Trajectory` and the effects engine's trajectory.
-
-    Subclasses hold per-segment ``t0`` (s) and ``cause`` (1/2: the segment starts with an impact on side
-    A/B) and implement ``_segment_velocities()`` -> (v1_pre, v2_pre, v1_post, v2_post) per segment (m/s).
-    """
-
-    @property
-    def impact_mask(self) -> np.ndarray:
-        """Boolean mask over segments that start with an impact."""
-        return (self.cause == IMPACT_A) | (self.cause == IMPACT_B)
-
-    @property
-    def n_impacts(self) -> int:
-        """Number of impacts."""
-        return int(np.count_nonzero(self.impact_mask))
-
-    @property
-    def impacts(self) -> dict:
-        """Impact times (s), sides (0 = A, 1 = B), and pre/post velocities v1, v2 (m/s)."""
-        m = self.impact_mask
-        v1_pre, v2_pre, v1_post, v2_post = self._segment_velocities()
-        return {"t": self.t0[m], "side": (self.cause[m] == IMPACT_B).astype(np.int8),
-                "v1_pre": v1_pre[m], "v2_pre": v2_pre[m], "v1_post": v1_post[m], "v2_post": v2_post[m]}
-
+__all__ = ["Trajectory", "simulate", "KernelRun", "kernel_arrays"]
 
 @dataclass(frozen=True, repr=False)
 class Trajectory(ImpactEvents):
@@ -280,7 +175,6 @@ def simulate(m1: float, m2: float, h: float, restitution: float, force: float, o
         if initial is not None:
             raise ValueError("initial: a start other than rest is supported by the paper's model only "
                              "(no effects)")
-        from .effects import simulate_with_effects
         return simulate_with_effects(p, t_end, tuple(effects), int(max_events), chatter_tol)
     run = KernelRun(p, chatter_tol, initial)
     run.advance(t_end, int(max_events))
@@ -334,7 +228,7 @@ class KernelRun:
                 return
             t_now = float(self._state[0])
             if self.n_events >= max_events:
-                raise EventLimitError(_event_limit_message(max_events, t_now, t_end, self.params.period))
+                raise EventLimitError(event_limit_message(max_events, t_now, t_end, self.params.period))
             if keep:
                 expected = 4 * (t_end - t_now) / self.params.period + 16
                 self._grow(int(max(2 * cap, cap + expected)))

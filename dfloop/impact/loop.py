@@ -111,7 +111,7 @@ def simulate_impact_loop(G, element, amplitude: float, frequency: float, *, peri
         Length of the run in periods of ``frequency`` and the uniform sampling of the returned signals.
     max_events : int, optional
         Bound on the number of events (impacts, separations); default 2000 per period. Reaching it raises
-        :class:`dfloop.impact.kernel.EventLimitError`, which says how to raise it.
+        :class:`dfloop.errors.EventLimitError`, which says how to raise it.
     chatter_tol : float
         Relative post-impact speed (of max(h w, amplitude/(M2 w))) below which a converging chatter sticks.
 

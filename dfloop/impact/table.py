@@ -138,7 +138,8 @@ class TableValues:
                 f"max_error={float(np.max(self.error, initial=0.0)):.3g})")
 
 
-def _regime_key(regime: np.ndarray, regular: np.ndarray) -> np.ndarray:
+def regime_key(regime: np.ndarray, regular: np.ndarray) -> np.ndarray:
+    """Regime labels with every non-regular sample mapped to ``IRREGULAR`` (the key that decides jumps)."""
     return np.where(regular, regime, IRREGULAR).astype(np.int64)
 
 
@@ -366,7 +367,7 @@ class Table1D:
 
     def jumps(self) -> np.ndarray:
         """Boolean per interval: True where the interval brackets a jump (regime change or value jump)."""
-        key = _regime_key(self.regime, self.regular)
+        key = regime_key(self.regime, self.regular)
         return (key[:-1] != key[1:]) | self.value_jump
 
     def _refine(self, sampler, progress, offset: int = 0) -> None:
@@ -415,8 +416,8 @@ class Table1D:
             err[:nc] = disc[:, None]
             checked[:nc] = ok[:, None]
             # a check whose midpoint falls in a new regime has found a jump: reopen its neighbours
-            km = _regime_key(s.regime[:nc], s.regular[:nc])
-            key = _regime_key(self.regime, self.regular)
+            km = regime_key(s.regime[:nc], s.regular[:nc])
+            key = regime_key(self.regime, self.regular)
             found = (km != key[check]) | (km != key[check + 1])
             err[nc:] = np.inf
             old_vj = self.value_jump[bisect]
@@ -454,9 +455,9 @@ class Table1D:
             settled = np.asarray(settled, dtype=bool).reshape(xp.shape)
             # a probe that ran to its own motion is the same branch when its regime is the interval's and its
             # value passes the refinement's check against the interpolant there
-            key = _regime_key(self.regime, self.regular)[owner]
+            key = regime_key(self.regime, self.regular)[owner]
             pv = np.nan_to_num(np.asarray(s.value, dtype=complex).reshape(xp.shape))
-            pkey = _regime_key(np.asarray(s.regime).reshape(xp.shape), np.asarray(s.regular).reshape(xp.shape))
+            pkey = regime_key(np.asarray(s.regime).reshape(xp.shape), np.asarray(s.regular).reshape(xp.shape))
             close = np.abs(pv - self._interpolate(xp, owner)) <= st.tol * self._scale(pv)
             ok = settled | ((pkey == key) & close)
             self.n_probed += xp.size
@@ -581,7 +582,7 @@ class Table1D:
         # other branches found at the ends (non-unique N) or failed samples: in the error, and not valid
         spread = np.maximum(self.spread[i], self.spread[i + 1])
         err = err + spread + np.maximum(self.uncertainty[i], self.uncertainty[i + 1])
-        key = _regime_key(self.regime, self.regular)
+        key = regime_key(self.regime, self.regular)
         valid = smooth & self.regular[i] & self.regular[i + 1] & (spread == 0)
         regime = key[i]
         regime[jump] = key[nearer]

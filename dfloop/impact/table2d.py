@@ -12,7 +12,7 @@ from typing import Callable
 
 import numpy as np
 
-from .table import Samples, Table1D, TableSettings, TableValues, _regime_key
+from .table import Samples, Table1D, TableSettings, TableValues, regime_key
 
 __all__ = ["Table2D"]
 
@@ -312,7 +312,7 @@ class Table2D:
         # between lines of one regime is a failure too)
         scale = np.maximum(np.abs(sm.value), self.settings.abs_floor)
         rel = np.where(pred.valid, np.abs(pred.value - sm.value) / scale, 0.0) * self._peak_factor(k, ym)
-        other = pred.valid & (pred.regime != _regime_key(sm.regime, sm.regular))
+        other = pred.valid & (pred.regime != regime_key(sm.regime, sm.regular))
         fail = pred.valid & ((rel > st.tol) | other)
         return xs, rel, fail, int(np.count_nonzero(pred.valid)), _Reuse(lambda x: sampler(x, ym), xs, sm)
 

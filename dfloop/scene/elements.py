@@ -20,6 +20,8 @@ from typing import Any, Literal, Union
 from pydantic import TypeAdapter, ValidationError
 
 from .errors import Problem, SceneError, closest, dotted
+from .plant import make_plant
+from .schema import PLANT_TYPES, validate_plant
 
 __all__ = ["registry", "Signature", "signature", "build", "element_problems", "table_defaults",
            "check_parameter_path"]
@@ -174,8 +176,6 @@ def element_problems(spec: Any, loc: tuple) -> list[Problem]:
     if not isinstance(spec, dict):
         return []
     if _plant_table(spec):
-        from .schema import validate_plant
-
         return validate_plant(spec, loc)[1]
     problems = _check(spec, loc)
     for param, value in spec.items():
@@ -191,9 +191,6 @@ def _make(spec: Any, loc: tuple, extra: dict | None = None) -> Any:
     if not isinstance(spec, dict):
         return spec
     if _plant_table(spec):
-        from .plant import make_plant
-        from .schema import validate_plant
-
         return make_plant(validate_plant(spec, loc)[0], loc)
     name = spec["type"]
     params = {key: _make(value, loc + (key,)) for key, value in spec.items() if key != "type"}
@@ -237,8 +234,6 @@ def table_defaults(table: dict) -> dict[str, Any]:
     """The parameters a table may leave out, with their defaults: a ``{type = ...}`` table's optional constructor
     parameters, or a plant table's optional keys (e.g. ``delay``)."""
     if _plant_table(table):
-        from .schema import PLANT_TYPES
-
         model = PLANT_TYPES.get(table.get("type", "tf"))
         fields = model.model_fields.items() if model is not None else ()
         return {name: f.get_default(call_default_factory=True) for name, f in fields if not f.is_required()}

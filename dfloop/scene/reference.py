@@ -11,7 +11,7 @@ from pydantic import BaseModel
 
 from .elements import registry, signature
 from .load import read_toml, shipped_scenes
-from .schema import PLANT_TYPES, SceneFile, Sweep, SweepRange, _model, type_name
+from .schema import PLANT_TYPES, SceneFile, Sweep, SweepRange, model_of, type_name
 
 __all__ = ["scene_reference"]
 
@@ -138,4 +138,4 @@ def scene_reference() -> str:
 
 def _section_model(section: str) -> type[BaseModel]:
     """The model of a section holding a single table (``[scene]``, ``[analysis]``, ``[figure]``)."""
-    return _model(SceneFile.model_fields[section].annotation)
+    return model_of(SceneFile.model_fields[section].annotation)

@@ -266,12 +266,12 @@ def _variants(annotation: Any) -> dict[str, Any]:
     return found
 
 
-def _model(annotation: Any) -> type[BaseModel] | None:
+def model_of(annotation: Any) -> type[BaseModel] | None:
     """The one model an annotation holds (``M``, ``M | None``), or None."""
     annotation = _unwrap(annotation)
     if isinstance(annotation, type) and issubclass(annotation, BaseModel):
         return annotation
-    models = [m for m in map(_model, typing.get_args(annotation)) if m is not None]
+    models = [m for m in map(model_of, typing.get_args(annotation)) if m is not None]
     return models[0] if len(models) == 1 and not _variants(annotation) else None
 
 
@@ -281,7 +281,7 @@ def _resolve(loc: tuple) -> tuple[type[BaseModel] | None, Any, tuple]:
     field, variants, clean = None, {}, []
     for part in loc:
         if isinstance(part, str) and part in variants:  # a union tag, not a key
-            model, variants = _model(variants[part]), {}
+            model, variants = model_of(variants[part]), {}
             continue
         clean.append(part)
         if isinstance(part, int):  # a list index: still inside the same field
@@ -290,7 +290,7 @@ def _resolve(loc: tuple) -> tuple[type[BaseModel] | None, Any, tuple]:
             return model, None, tuple(clean)
         field = model.model_fields[part]
         variants = _variants(field.annotation)
-        model = _model(field.annotation)
+        model = model_of(field.annotation)
     return model, field, tuple(clean)
 
 

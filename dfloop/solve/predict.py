@@ -15,7 +15,7 @@ from ._kernels import candidate_cells
 from .grid import FD_MIN_WIDTH, STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
 from .plant import as_plant
 from .result import GridReport, JumpCrossing, LimitCycle, LimitCycles
-from .roots import _JUMP_BOX, Residual, dominant_steps, find_roots, greedy_unique
+from .roots import JUMP_BOX, Residual, dominant_steps, find_roots, greedy_unique
 from .stability import MARGINAL_TOL, classify
 
 __all__ = ["predict_limit_cycles"]
@@ -291,9 +291,9 @@ def _confidence(G, N, amplitude: float, frequency: float):
 
 def _jump_crossings(res: Residual, jumps: np.ndarray) -> list[JumpCrossing]:
     """JumpCrossing objects from rows (a, v, winding) of :func:`find_roots`; N on each side of the jump
-    is read at the corners (+-_JUMP_BOX / 2 in log units) with the smallest and largest arg(1 + G N)."""
+    is read at the corners (+-JUMP_BOX / 2 in log units) with the smallest and largest arg(1 + G N)."""
     out = []
-    h = _JUMP_BOX / 2
+    h = JUMP_BOX / 2
     for a, v, wind in jumps:
         ca, cv = a + np.array([-h, h, h, -h]), v + np.array([-h, -h, h, h])
         A, w = np.exp(ca), np.exp(cv)
@@ -301,7 +301,7 @@ def _jump_crossings(res: Residual, jumps: np.ndarray) -> list[JumpCrossing]:
         g = res.plant(w)
         ph = np.angle((1 + g * n) / (1 + g[0] * n[0]))
         lo, hi = int(np.argmin(ph)), int(np.argmax(ph))
-        out.append(JumpCrossing(amplitude=float(np.exp(a)), frequency=float(np.exp(v)), resolution=_JUMP_BOX,
+        out.append(JumpCrossing(amplitude=float(np.exp(a)), frequency=float(np.exp(v)), resolution=JUMP_BOX,
                                 winding=int(wind), G=complex(res.plant(np.array([np.exp(v)]))[0]),
                                 N_sides=(complex(n[lo]), complex(n[hi]))))
     return out

@@ -10,7 +10,7 @@ roots, which cancel in a cell's winding, are found from local minima of |R|^2 / 
 N may jump (regime changes of a tabulated DF, N = 0 beyond a limit frequency). A segment shorter than
 ``_JUMP_LENGTH`` across which R still changes by more than ``_JUMP_SIZE`` (1 + |G N|) is a discontinuity:
 it is not bisected further and its phase step is taken along the chord from R- to R+ (the straight
-homotopy from N- to N+). A box that still winds when it is smaller than ``_JUMP_BOX`` and touches a
+homotopy from N- to N+). A box that still winds when it is smaller than ``JUMP_BOX`` and touches a
 discontinuity holds no root of the continuous equation: it is a *jump crossing*, where G(jw) passes
 through the gap of a -1/N jump, and is reported as such instead of being refined further.
 """
@@ -39,7 +39,7 @@ _TANGENT_THRESHOLD = 0.1  # local minima of |R|^2 / (1 + |GN|^2) below this are 
 _MAX_TANGENT_SEEDS = 5000
 _JUMP_LENGTH = 1e-9  # segments shorter than this (log units, i.e. relative in A and w) ...
 _JUMP_SIZE = 1e-3  # ... across which R changes by more than this times 1 + |G N| are discontinuities
-_JUMP_BOX = 1e-7  # a winding box narrower than this (log units) touching a discontinuity is a jump crossing
+JUMP_BOX = 1e-7  # a winding box narrower than this (log units) touching a discontinuity is a jump crossing
 _JUMP_DOMINANCE = 4.0  # a grid step of G N this many times larger than both neighbouring steps is a jump
 _MEMO_BATCH = 64  # batches of at most this many points are remembered by Residual.slopes ...
 _MEMO_SIZE = 8192  # ... up to this many points (then the memo starts again)
@@ -379,7 +379,7 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
     """Quadrisect one box until its roots sit in boxes of winding +-1, then refine those (bounded).
 
     Returns the refined roots (a, v) and the jump crossings [(a, v, winding), ...]: boxes narrower than
-    ``_JUMP_BOX`` that still wind, hold no refinable root and touch a discontinuity of N.
+    ``JUMP_BOX`` that still wind, hold no refinable root and touch a discontinuity of N.
     """
     found_a, found_v, crossings = [], [], []
     queue = box
@@ -397,7 +397,7 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
             found_v.extend(v[ok])
             single[single] = ok  # failed refinements are subdivided further
         keep = ~single & (wind != 0)
-        tiny = np.maximum(kids.a_hi - kids.a_lo, kids.v_hi - kids.v_lo) < _JUMP_BOX
+        tiny = np.maximum(kids.a_hi - kids.a_lo, kids.v_hi - kids.v_lo) < JUMP_BOX
         crossing = keep & tiny & _touches(kids, jumps)
         crossings.extend(zip((kids.a_lo + kids.a_hi)[crossing] / 2, (kids.v_lo + kids.v_hi)[crossing] / 2,
                              wind[crossing]))
