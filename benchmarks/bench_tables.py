@@ -24,6 +24,7 @@ import numpy as np
 
 from dfloop.impact import extract
 from dfloop.impact.dynamic_backlash import DynamicBacklash, prepare_many
+from dfloop.impact.sampling import ImpactSampler
 from dfloop.impact.kernel import KernelRun
 from dfloop.impact.model import ImpactParameters
 
@@ -152,14 +153,14 @@ def main(argv: list[str]) -> None:
     rows.append(measure("1-D similarity table, small window", lambda: DynamicBacklash(M1, M2, H, EPS, **base),
                         Fs, ws, refs, regs, small))
     print(rows[-1])
-    original = DynamicBacklash._extract
-    DynamicBacklash._extract = _paper_physics
+    original = ImpactSampler.extract
+    ImpactSampler.extract = _paper_physics
     try:
         rows.append(measure("2-D (ln beta, ln w) table, small window",
                             lambda: DynamicBacklash(M1, M2, H, EPS, effects=(_TwoD(),), **base),
                             Fs, ws, refs, regs, small))
     finally:
-        DynamicBacklash._extract = original
+        ImpactSampler.extract = original
     print(rows[-1])
     lines = ["# bench_tables: dynamic-backlash DF tables, cost and accuracy", "",
              "## Paper-model tables of Figs. 5-8 from an empty cache", "",

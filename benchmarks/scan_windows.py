@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dfloop.impact.dynamic_backlash import _U_START, DynamicBacklash
+from dfloop.impact.dynamic_backlash import U_START, DynamicBacklash
 
 M1, M2, H = 1.0, 1.0, 0.1
 
@@ -27,8 +27,8 @@ M1, M2, H = 1.0, 1.0, 0.1
 def scan(eps: float, u: np.ndarray):
     """(D, regime label, regular) of the motion from rest at ln beta = u (similarity units, w = 1 rad/s)."""
     db = DynamicBacklash(M1, M2, H, eps, cache=False, progress=False, starts=0)
-    r = db._extract(np.exp(u) * M2 * H, np.ones(u.size))        # the table's own run from rest
-    _, label, regular, _ = db._labels(r)
+    r = db.sampler.extract(np.exp(u) * M2 * H, np.ones(u.size))        # the table's own run from rest
+    label, regular, _ = db.sampler.labels(r)
     return np.nan_to_num(np.asarray(r.N, dtype=complex)) * M2, label, regular
 
 
@@ -60,7 +60,7 @@ def main() -> None:
     ap.add_argument("--eps", type=float, nargs="+", default=[0.5, 0.7, 0.8, 0.9])
     ap.add_argument("--write", action="store_true")
     a = ap.parse_args()
-    u = _U_START + 1e-6 + np.arange(0.0, a.span, a.dx)
+    u = U_START + 1e-6 + np.arange(0.0, a.span, a.dx)
     lines = ["# scan_windows: regime windows the default table misses", "",
              f"Motion from rest at {u.size} points {a.dx:g} apart in ln beta, ln beta in "
              f"[{u[0]:.4f}, {u[-1]:.4f}] (M1 = M2, w = 1 rad/s similarity units). 'windows' = runs of one "

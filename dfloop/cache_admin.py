@@ -1,9 +1,9 @@
 """The table cache on disk: what it holds per code version, and clearing it (``dfloop cache info|clear``).
 
-Every cache file records the code version that wrote it (:func:`dfloop.impact.cache.code_version`); a file of
+Every cache file records the code version that wrote it (:func:`dfloop.tables.cache.code_version`); a file of
 another version is never read again (its key differs), so it only takes space: ``clear_cache(stale=True)``
 removes exactly those, and files that no longer parse. Only dfloop's own files are touched: ``*.npz`` tables and
-``*.tmp`` leftovers of interrupted writes, directly in :func:`dfloop.impact.cache.cache_dir`.
+``*.tmp`` leftovers of interrupted writes, directly in :func:`dfloop.tables.cache.cache_dir`.
 """
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .impact.cache import cache_dir, code_version
+from .tables.cache import cache_dir, code_version
 
 __all__ = ["CacheFile", "CacheInfo", "cache_info", "clear_cache"]
 

@@ -39,7 +39,7 @@ from dfloop.describing.composition import MassBacklash  # noqa: E402
 from dfloop.impact.dynamic_backlash import DynamicBacklash, prepare_many  # noqa: E402
 from dfloop.impact.extract import impact_describing_function  # noqa: E402
 from dfloop.impact.limits import (jump_frequency, lower_limit_frequency, measured_limits,  # noqa: E402
-                                  no_impact_frequency, omega_of, static_limit_frequency)
+                                  no_impact_frequency, omega_of)
 
 M1, M2, H, F = 1.0, 1.0, 0.1, 50.0
 EPS_ALL = tuple(round(0.1 * k, 1) for k in range(1, 10))
@@ -188,7 +188,7 @@ def fmt(x, d=1):
 def claims_table(sl, direct, props, jmp, static) -> str:
     oct_txt = f"octaves [w0, 2 w0], w0 = {OCTAVES[0]:g} down to {OCTAVES[-1]:g} rad/s, F = {F:g} N"
     rows = []
-    w5 = float(static_limit_frequency(F, M1, M2, H))
+    w5 = float(static.limit_frequency(F))
     n_below, n_above = static(F, np.array([w5 * (1 - 1e-6)]))[0], static(F, np.array([w5 * (1 + 1e-6)]))[0]
     rows.append(("Eq. (5): static backlash applies for w < w_L = [2F/(h(M1+M2))]^(1/2)",
                  f"F = 50 N: w_L = {w5:.3f} rad/s; N(w_L(1-1e-6)) = {abs(n_below):.3g} m/N, "

@@ -13,6 +13,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import dfloop as df  # noqa: E402
+from dfloop.plot import plot_residual_map
 
 # plant G(s) = 1.5 / (s (s + 1)^2) and a backlash of total clearance h = 0.2 in the loop of Fig. 1
 G = ct.tf([1.5], [1, 2, 1, 0])
@@ -27,7 +28,7 @@ for c in cycles:  # closed-loop time simulation from inside and outside each pre
 out = pathlib.Path(tempfile.gettempdir())
 cplt = cycles.plot(G, N)  # a control.ControlPlot: .lines, .axes, .figure (same as df.plot_nyquist(G, N, cycles))
 cplt.figure.savefig(out / "dfloop_quickstart_nyquist.png", dpi=120)
-cplt = df.plot_residual_map(G, N, cycles)
+cplt = plot_residual_map(G, N, cycles)
 cplt.figure.savefig(out / "dfloop_quickstart_residual.png", dpi=120)
 plt.close("all")
 print("figures written to", out)

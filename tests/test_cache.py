@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from dfloop.errors import CacheWarning
-from dfloop.impact import cache
+from dfloop.tables import cache
 
 
 @pytest.fixture
@@ -80,25 +80,36 @@ def test_cache_dir_from_environment(monkeypatch, tmp_path):
 
 
 def test_code_version_covers_every_module_the_tables_run():
-    """The cache key hashes the sources that decide a table's content: every module of dfloop.impact that
-    dynamic_backlash.py imports, directly or through another one, must be among them (a change there must
-    invalidate cached tables)."""
+    """The cache key hashes the sources that decide a table's content: every module of dfloop.impact and
+    dfloop.tables that dynamic_backlash.py imports, directly or through another one (relative imports of any
+    level, inside functions too), must be among them (a change there must invalidate cached tables); and every
+    listed source exists (a renamed module would silently drop out of the hash)."""
     import ast
     from pathlib import Path
 
-    from dfloop.impact import cache
+    from dfloop.tables import cache
 
-    here = Path(cache.__file__).parent
-    seen, todo = set(), ["dynamic_backlash.py"]
+    root = Path(cache.__file__).parent.parent            # the dfloop package
+    seen, todo = set(), ["impact/dynamic_backlash.py"]
     while todo:
         name = todo.pop()
-        if name in seen or not (here / name).exists():
+        if name in seen:
             continue
         seen.add(name)
-        for node in ast.walk(ast.parse((here / name).read_text())):
-            if isinstance(node, ast.ImportFrom) and node.level == 1:
-                if node.module:
-                    todo.append(node.module.split(".")[0] + ".py")
-                else:
-                    todo.extend(a.name + ".py" for a in node.names)
-    assert seen <= set(cache._SOURCES), sorted(seen - set(cache._SOURCES))
+        package = Path(name).parent
+        for node in ast.walk(ast.parse((root / name).read_text())):
+            if not (isinstance(node, ast.ImportFrom) and node.level >= 1):
+                continue
+            base = package
+            for _ in range(node.level - 1):
+                base = base.parent
+            stems = ([base / Path(*node.module.split("."))] if node.module else []) + \
+                    [base / Path(*(node.module.split(".") if node.module else [])) / a.name for a in node.names]
+            for stem in stems:
+                for candidate in (stem.with_suffix(".py"), stem / "__init__.py"):
+                    if (root / candidate).is_file() and candidate.parts[0] in ("impact", "tables"):
+                        todo.append(candidate.as_posix())
+    seen = {n for n in seen if not n.endswith("__init__.py")}
+    assert {"tables/table1d.py", "tables/store.py", "impact/kernel.py"} <= seen      # the walk reaches them
+    assert seen <= set(cache.SOURCES), sorted(seen - set(cache.SOURCES))
+    assert all((root / name).is_file() for name in cache.SOURCES)

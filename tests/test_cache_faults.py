@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from dfloop.errors import CacheWarning
-from dfloop.impact import cache
+from dfloop.tables import cache
 from dfloop.impact.dynamic_backlash import DynamicBacklash
 
 F, W = 50.0, np.array([34.0, 36.0, 40.0])

@@ -132,7 +132,7 @@ def test_cli_module_imports_only_the_standard_library():
 @pytest.fixture
 def cache(tmp_path, monkeypatch):
     """A cache with 2 files of the current code version, 3 of an old one, a truncated file and a stray .tmp."""
-    import dfloop.impact.cache as c
+    import dfloop.tables.cache as c
 
     monkeypatch.setenv("DFLOOP_CACHE_DIR", str(tmp_path / "cache"))
     arrays = {"x": np.arange(50.0)}
@@ -188,10 +188,10 @@ def test_cache_clear_stale_spares_a_write_in_progress(cache):
 def test_cli_loading_gives_table_builds_a_progress_bar_unless_the_scene_sets_one(tmp_path):
     from dfloop.scene import load_scene
 
-    assert isinstance(load_scene("dynamic_backlash_pd", progress=True).element._progress, TableProgress)
-    assert load_scene("dynamic_backlash_pd").element._progress is False  # quiet unless asked (--quiet)
+    assert isinstance(load_scene("dynamic_backlash_pd", progress=True).element.store.progress, TableProgress)
+    assert load_scene("dynamic_backlash_pd").element.store.progress is False  # quiet unless asked (--quiet)
     own = tmp_path / "own.toml"
     own.write_text((ROOT / "models" / "dynamic_backlash_pd.toml").read_text().replace(
         "restitution = 0.5", "restitution = 0.5\nprogress = false"))
-    assert load_scene(own, progress=True).element._progress is False
+    assert load_scene(own, progress=True).element.store.progress is False
     assert load_scene("backlash_servo", progress=True).element.h == 1.0  # no progress parameter: nothing added

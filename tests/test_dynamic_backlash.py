@@ -4,8 +4,9 @@ import math
 import numpy as np
 import pytest
 
-from dfloop.impact import cache
+from dfloop.tables import cache
 from dfloop.impact.dynamic_backlash import DynamicBacklash, prepare_many
+from dfloop.impact.sampling import ImpactSampler
 from dfloop.impact.extract import impact_describing_function
 
 M1, M2, H, EPS = 1.0, 1.0, 0.1, 0.5
@@ -210,7 +211,7 @@ def test_two_dimensional_table_matches_direct_simulation(monkeypatch):
                                                         transient_periods=self.transient_periods,
                                                         periods=self.periods)
 
-    monkeypatch.setattr(DynamicBacklash, "_extract", paper_physics)
+    monkeypatch.setattr(ImpactSampler, "extract", paper_physics)
     db = DynamicBacklash(M1, M2, H, EPS, effects=(_Marker(),), **KW)
     assert not db.similarity
     F = np.array([40.0, 50.0, 44.0, 47.0])
@@ -257,7 +258,7 @@ def test_eps_is_an_alias_of_restitution_and_the_label_uses_restitution(monkeypat
     with pytest.raises(ValueError, match="restitution"):
         DynamicBacklash(M1, M2, H)
     labels = []
-    from dfloop.impact import dynamic_backlash as mod
+    from dfloop.tables import store as mod
 
     real = mod.progress_bar
 
@@ -322,7 +323,7 @@ def test_interrupted_two_dimensional_build_resumes_from_the_lines_saved(monkeypa
                                                         transient_periods=self.transient_periods,
                                                         periods=self.periods)
 
-    monkeypatch.setattr(DynamicBacklash, "_extract", paper_physics)
+    monkeypatch.setattr(ImpactSampler, "extract", paper_physics)
     F, w = np.array([38.0, 46.0, 42.0]), np.array([12.0, 45.0, 36.0])     # three lines, two at a time
     full = DynamicBacklash(M1, M2, H, EPS, effects=(_Marker(),), cache=False, **KW)
     n_full, err_full = full(F, w), full.error_estimate(F, w)
@@ -334,10 +335,10 @@ def test_interrupted_two_dimensional_build_resumes_from_the_lines_saved(monkeypa
             raise KeyboardInterrupt
         return paper_physics(self, force, omega, initial)
 
-    monkeypatch.setattr(DynamicBacklash, "_extract", flaky)
+    monkeypatch.setattr(ImpactSampler, "extract", flaky)
     with pytest.raises(KeyboardInterrupt):
         DynamicBacklash(M1, M2, H, EPS, effects=(_Marker(),), **KW)(F, w)
-    monkeypatch.setattr(DynamicBacklash, "_extract", paper_physics)
+    monkeypatch.setattr(ImpactSampler, "extract", paper_physics)
     resumed = DynamicBacklash(M1, M2, H, EPS, effects=(_Marker(),), **KW)
     assert resumed.cache_path.exists()
     n = resumed(F, w)

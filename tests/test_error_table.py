@@ -29,6 +29,10 @@ import numpy as np
 import pytest
 
 import dfloop as df
+from dfloop.describing import negative_inverse
+from dfloop.impact import (ImpactParameters, beta_of, impact_describing_function, impact_describing_function_batch,
+                           lower_limit_frequency, no_impact_frequency, prepare_many, simulate_impacts)
+from dfloop.solve import as_plant, graphical_stability
 from dfloop import cli, harmonics
 from dfloop.errors import DfloopError
 from dfloop.impact.kernel import simulate
@@ -148,16 +152,16 @@ PROBES: list[Probe] = [
     Probe("DynamicBacklash(...).amplitude_domain(omega)", "omega = None", lambda: DB.amplitude_domain(None), ValueError,
           ("omega is required", "None")),
     Probe("impact_describing_function_batch(..., workers)", "workers = 0",
-          lambda: df.impact_describing_function_batch(1.0, 1.0, 0.1, 0.5, 50.0, [30.0], workers=0), ValueError,
+          lambda: impact_describing_function_batch(1.0, 1.0, 0.1, 0.5, 50.0, [30.0], workers=0), ValueError,
           ("workers must be an integer >= 1", "0")),
-    Probe("no_impact_frequency(F, m2, h)", "F = 50 + 1j", lambda: df.no_impact_frequency(50.0 + 1j, 1.0, 0.1), ValueError,
+    Probe("no_impact_frequency(F, m2, h)", "F = 50 + 1j", lambda: no_impact_frequency(50.0 + 1j, 1.0, 0.1), ValueError,
           ("F must be real", "(50+1j)")),
     Probe("ViscousDamping(c)", "c = -1", lambda: df.ViscousDamping(-1.0), DfloopError, ("c must be", "-1.0")),
     Probe("LoadSpring(k)", "k = nan", lambda: df.LoadSpring(np.nan), DfloopError, ("k must not be NaN",)),
     Probe("CoulombFriction(force, mass)", 'mass = "m3"', lambda: df.CoulombFriction(1.0, "m3"), ValueError,
           ("mass must be 'm1' or 'm2'", "'m3'")),
     Probe("ImpactParameters(m1, m2, h, restitution, force, omega)", "m1 = 0",
-          lambda: df.ImpactParameters(0.0, 1.0, 0.1, 0.5, 50.0, 30.0), DfloopError, ("m1 must be > 0", "0.0")),
+          lambda: ImpactParameters(0.0, 1.0, 0.1, 0.5, 50.0, 30.0), DfloopError, ("m1 must be > 0", "0.0")),
     # ------------------------------------------------------------------ evaluating elements: N(A, omega)
     *[Probe(entry, f"{name} = {label}", (lambda call=call, value=value: call(value)), DfloopError, (name, *frag))
       for entry, name, call in _ELEMENT_CALLS for label, value, frag in _BAD_AMPLITUDES],
@@ -206,7 +210,7 @@ PROBES: list[Probe] = [
     Probe("DynamicBacklash.prepare(F, omega)", "F = -5", lambda: DB.prepare(-5.0, 30.0), DfloopError, ("F (amplitude) must be >= 0", "-5.0")),
     Probe("DynamicBacklash.save(path)", "before any evaluation", lambda: df.DynamicBacklash(1.0, 1.0, 0.1, 0.5).save(_SCRATCH / "t.npz"),
           ValueError, ("nothing to save",)),
-    Probe("negative_inverse(N, A, omega)", "A = -1", lambda: df.negative_inverse(SAT, -1.0), DfloopError, ("A (amplitude) must be >= 0", "-1.0")),
+    Probe("negative_inverse(N, A, omega)", "A = -1", lambda: negative_inverse(SAT, -1.0), DfloopError, ("A (amplitude) must be >= 0", "-1.0")),
     # ------------------------------------------------------------------ solver
     Probe("predict_limit_cycles(G, N, ...)", "tol = None", lambda: df.predict_limit_cycles(G3, SAT, tol=None), ValueError,
           ("tol must be a real number", "None")),
@@ -245,9 +249,9 @@ PROBES: list[Probe] = [
     Probe("predict_limit_cycles(G, N, ...)", "grid = (1, 100)", lambda: df.predict_limit_cycles(G3, SAT, grid=(1, 100)), ValueError,
           ("grid sizes must lie in", "(1, 100)")),
     Probe("graphical_stability(G, N, amplitude, frequency)", "N frequency-dependent",
-          lambda: df.graphical_stability(G3, MB, 1.0, 1.0), ValueError, ("N must be amplitude-only",)),
-    Probe("as_plant(G)", "G = 3", lambda: df.as_plant(3), ValueError, ("G must be a python-control tf/ss/frd or a callable", "int")),
-    Probe("as_plant(G)", "discrete-time G", lambda: df.as_plant(ct.tf([1.0], [1.0, -0.5], 0.1)), ValueError,
+          lambda: graphical_stability(G3, MB, 1.0, 1.0), ValueError, ("N must be amplitude-only",)),
+    Probe("as_plant(G)", "G = 3", lambda: as_plant(3), ValueError, ("G must be a python-control tf/ss/frd or a callable", "int")),
+    Probe("as_plant(G)", "discrete-time G", lambda: as_plant(ct.tf([1.0], [1.0, -0.5], 0.1)), ValueError,
           ("continuous-time", "dt=0.1")),
     # ------------------------------------------------------------------ verification
     Probe("simulate_loop(G, N, amplitude, frequency, ...)", "amplitude = -1", lambda: df.simulate_loop(G3, SAT, -1.0, 1.0),
@@ -278,26 +282,26 @@ PROBES: list[Probe] = [
           DfloopError, ("perturbation must lie in [0.001, 0.95]", "2.0")),
     # ------------------------------------------------------------------ impact kernel, DF extraction, limits
     Probe("simulate_impacts(m1, m2, h, restitution, force, omega, t_end, ...)", "t_end = 0",
-          lambda: df.simulate_impacts(1.0, 1.0, 0.1, 0.5, 50.0, 30.0, 0.0), DfloopError, ("t_end must be > 0", "0.0")),
+          lambda: simulate_impacts(1.0, 1.0, 0.1, 0.5, 50.0, 30.0, 0.0), DfloopError, ("t_end must be > 0", "0.0")),
     Probe("simulate_impacts(m1, m2, h, restitution, force, omega, t_end, ...)", "max_events = 0",
-          lambda: df.simulate_impacts(1.0, 1.0, 0.1, 0.5, 50.0, 30.0, 1.0, max_events=0), ValueError,
+          lambda: simulate_impacts(1.0, 1.0, 0.1, 0.5, 50.0, 30.0, 1.0, max_events=0), ValueError,
           ("max_events must be >= 1", "0")),
     Probe("simulate_impacts(m1, m2, h, restitution, force, omega, t_end, ...)", "restitution = -0.1",
-          lambda: df.simulate_impacts(1.0, 1.0, 0.1, -0.1, 50.0, 30.0, 1.0), DfloopError, ("restitution must lie in", "-0.1")),
+          lambda: simulate_impacts(1.0, 1.0, 0.1, -0.1, 50.0, 30.0, 1.0), DfloopError, ("restitution must lie in", "-0.1")),
     Probe("Trajectory.evaluate(t)", "t = -1", lambda: simulate(1.0, 1.0, 0.1, 0.5, 50.0, 30.0, 1.0).evaluate(-1.0), ValueError,
           ("t must lie in [0, t_end = 1.0]",)),
     Probe("impact_describing_function(m1, m2, h, restitution, force, omega, ...)", "omega = 0",
-          lambda: df.impact_describing_function(1.0, 1.0, 0.1, 0.5, 50.0, 0.0), DfloopError, ("omega must be > 0", "0.0")),
+          lambda: impact_describing_function(1.0, 1.0, 0.1, 0.5, 50.0, 0.0), DfloopError, ("omega must be > 0", "0.0")),
     Probe("impact_describing_function(m1, m2, h, restitution, force, omega, ...)", "periods = 0",
-          lambda: df.impact_describing_function(1.0, 1.0, 0.1, 0.5, 50.0, 30.0, periods=0), DfloopError,
+          lambda: impact_describing_function(1.0, 1.0, 0.1, 0.5, 50.0, 30.0, periods=0), DfloopError,
           ("periods must be > 0", "0.0")),
     Probe("impact_describing_function_batch(m1, m2, h, restitution, force, omega, ...)", "force = [] (empty grid)",
-          lambda: df.impact_describing_function_batch(1.0, 1.0, 0.1, 0.5, [], 30.0), ValueError, ("empty grid",)),
-    Probe("beta_of(F, omega, m2, h)", "m2 = 0", lambda: df.beta_of(50.0, 30.0, 0.0, 0.1), DfloopError, ("m2 must be > 0", "0.0")),
-    Probe("beta_of(F, omega, m2, h)", "omega = -30", lambda: df.beta_of(50.0, -30.0, 1.0, 0.1), ValueError, ("omega must be finite and > 0",)),
-    Probe("lower_limit_frequency(F, m2, h, restitution)", "restitution = 1.2", lambda: df.lower_limit_frequency(50.0, 1.0, 0.1, 1.2),
+          lambda: impact_describing_function_batch(1.0, 1.0, 0.1, 0.5, [], 30.0), ValueError, ("empty grid",)),
+    Probe("beta_of(F, omega, m2, h)", "m2 = 0", lambda: beta_of(50.0, 30.0, 0.0, 0.1), DfloopError, ("m2 must be > 0", "0.0")),
+    Probe("beta_of(F, omega, m2, h)", "omega = -30", lambda: beta_of(50.0, -30.0, 1.0, 0.1), ValueError, ("omega must be finite and > 0",)),
+    Probe("lower_limit_frequency(F, m2, h, restitution)", "restitution = 1.2", lambda: lower_limit_frequency(50.0, 1.0, 0.1, 1.2),
           DfloopError, ("restitution must lie in", "1.2")),
-    Probe("prepare_many(elements, F, omega, workers)", "workers = 0", lambda: df.prepare_many([], 1.0, 1.0, workers=0), ValueError,
+    Probe("prepare_many(elements, F, omega, workers)", "workers = 0", lambda: prepare_many([], 1.0, 1.0, workers=0), ValueError,
           ("workers must be >= 1", "0")),
     # ------------------------------------------------------------------ harmonics
     Probe("harmonics.fundamental(t, x, omega)", "omega = 0", lambda: harmonics.fundamental(np.arange(5.0), np.zeros(5), 0.0),

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from dfloop.impact.dynamic_backlash import _STARTS
+from dfloop.impact.sampling import STARTS
 from dfloop.impact.extract import (describing_function_from_trajectory, impact_describing_function,
                                    impact_describing_function_batch)
 from dfloop.impact.kernel import KernelRun
@@ -72,7 +72,7 @@ def test_a_start_that_settles_on_the_rest_orbit_reaches_the_rest_motion():
         w = omega_of(beta)
         rest = impact_describing_function(M1, M2, H, eps, F, w, **ADAPTIVE)
         assert rest.regular and rest.orbit.shape == (2 * rest.period, 3)
-        for gap, u_rel in _STARTS[:2]:          # the starts a table probes by default
+        for gap, u_rel in STARTS[:2]:          # the starts a table probes by default
             start = (0.0, 0.0, gap * H, u_rel * F / (M2 * w))
             s = impact_describing_function(M1, M2, H, eps, F, w, initial=start, attractor=rest.orbit, **ADAPTIVE)
             long = impact_describing_function(M1, M2, H, eps, F, w, initial=start, **LONG)

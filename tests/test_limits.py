@@ -4,6 +4,7 @@ import math
 import numpy as np
 import pytest
 
+from dfloop.describing.composition import MassBacklash
 from dfloop.impact import limits as L
 from dfloop.impact.dynamic_backlash import DynamicBacklash
 from dfloop.impact.kernel import simulate
@@ -17,7 +18,7 @@ def tmp_cache(tmp_path, monkeypatch):
 
 
 def test_closed_forms_against_paper_numbers():
-    assert L.static_limit_frequency(50.0, M1, M2, H) == pytest.approx(math.sqrt(2 * 50 / (0.1 * 2)))
+    assert MassBacklash(M1, M2, H).limit_frequency(50.0) == pytest.approx(math.sqrt(2 * 50 / (0.1 * 2)))
     assert L.no_impact_frequency(50.0, M2, H) == pytest.approx(2 * math.sqrt(500.0))
     assert L.jump_frequency(50.0, M2, H) == pytest.approx(math.sqrt(500.0))
     # the paper's Figs. 10-11 note: eps = 0.2, F = 50 N gives w_c = 23.9 rad/s
@@ -68,7 +69,7 @@ def test_measured_limits_against_the_paper():
 @pytest.mark.parametrize("call, name", [
     (lambda: L.no_impact_frequency(-1.0, M2, H), "F"),
     (lambda: L.no_impact_frequency(1.0, 0.0, H), "m2"),
-    (lambda: L.static_limit_frequency(1.0, M1, M2, float("nan")), "h"),
+    (lambda: MassBacklash(M1, M2, float("nan")).limit_frequency(1.0), "h"),
     (lambda: L.lower_limit_frequency(1.0, M2, H, 1.2), "restitution"),
     (lambda: L.beta_lower_limit(-0.1), "restitution"),
     (lambda: L.beta_of(1.0, float("nan"), M2, H), "omega"),

@@ -9,6 +9,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 import dfloop as df  # noqa: E402
+from dfloop.solve import as_plant
 from dfloop.describing.base import DescribingFunction  # noqa: E402
 from dfloop.plot.nyquist import plot_nyquist, plot_residual_map  # noqa: E402
 
@@ -30,7 +31,7 @@ def test_nyquist_draws_plant_locus_and_cycles_by_stability():
     (g_line,), (n_line,) = cplt.lines[0], cplt.lines[1]
     w_pick = np.geomspace(*cycles.omega_window, 2000)[100]
     x, y = g_line.get_data()
-    gp = df.as_plant(G)(np.array([w_pick]))[0]
+    gp = as_plant(G)(np.array([w_pick]))[0]
     assert np.min(np.abs(x + 1j * y - gp)) < 1e-12
     xs, ys = n_line.get_data()
     lo, hi = cycles.amplitude_window
@@ -75,7 +76,7 @@ def test_residual_map_shows_the_relative_residual_and_zero_lines():
     mesh = ax.collections[0]
     A = np.geomspace(0.15, 3.0, 40)
     w = np.geomspace(0.05, 5.0, 50)
-    P = N(A)[:, None] * df.as_plant(G)(w)[None, :]
+    P = N(A)[:, None] * as_plant(G)(w)[None, :]
     expected = np.log10(np.maximum(np.abs(1 + P) / (1 + np.abs(P)), 1e-16))
     np.testing.assert_allclose(np.asarray(mesh.get_array()).reshape(40, 50), expected)
     assert ax.get_xscale() == "log" and ax.get_yscale() == "log"

@@ -11,6 +11,7 @@ import pytest
 from scipy.optimize import brentq
 
 import dfloop as df
+from dfloop.solve import as_plant
 from dfloop.describing.base import DescribingFunction
 from dfloop.impact.dynamic_backlash import DynamicBacklash
 from dfloop.solve import JumpCrossing
@@ -35,7 +36,7 @@ class SteppedDF(DescribingFunction):
 
 
 def _g(w):
-    return df.as_plant(G_SYN)(np.atleast_1d(np.asarray(w, float)))
+    return as_plant(G_SYN)(np.atleast_1d(np.asarray(w, float)))
 
 
 def _reference_roots(w_j):
@@ -132,7 +133,7 @@ def _pd_through(nl, beta0, w0, tau):
 
 
 def _check_against_table(cycles, G, nl):
-    g = df.as_plant(G)
+    g = as_plant(G)
     for c in cycles:
         gn = g(np.array([c.frequency]))[0] * nl(c.amplitude, c.frequency)
         assert abs(1 + gn) <= 1e-10 * (1 + abs(gn))
@@ -166,7 +167,7 @@ def test_dynamic_backlash_gap_at_w_L_is_a_jump_crossing(backlash):
     beta = j.amplitude / (M2 * H * j.frequency ** 2)
     assert 0.25 < beta < 0.25 * (1 + 1e-2)                          # on the jump right above beta = 1/4
     # below the jump N is (numerically) zero, above it G N is real and below -1: the chord R- -> R+ hits 0
-    g = df.as_plant(G)(np.array([j.frequency]))[0]
+    g = as_plant(G)(np.array([j.frequency]))[0]
     n_lo, n_hi = backlash(j.amplitude * (1 - 2e-7), j.frequency), backlash(j.amplitude * (1 + 2e-7), j.frequency)
     assert abs(g * n_lo) < 1e-9
     assert (g * n_hi).real < -1 and abs(np.angle(-g * n_hi)) < 1e-5

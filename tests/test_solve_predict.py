@@ -8,6 +8,7 @@ import pytest
 from scipy.optimize import brentq
 
 import dfloop as df
+from dfloop.solve import as_plant
 from dfloop.describing.base import DescribingFunction
 
 H_SIMPLE = ct.tf([1], [1, 2, 2, 1])
@@ -16,7 +17,7 @@ H_MULTIPLE = H_SIMPLE * ct.tf(*ct.pade(5, 4)) * 4
 
 
 def _assert_residuals(cycles, G, N):
-    g = df.as_plant(G)
+    g = as_plant(G)
     for c in cycles:
         n = N(c.amplitude, c.frequency) if N.frequency_dependent else N(c.amplitude)
         r = abs(1 + g(np.array([c.frequency]))[0] * n)
@@ -132,7 +133,7 @@ def test_backlash_locus_from_infinity_with_integrator_matches_brute_force():
     cycles = df.predict_limit_cycles(G, N, omega=(0.01, 100), amplitude=(0.1 * (1 + 1e-12), 100))
     # brute force: arg G(jw) = -pi/2 - 2 atan(w) is monotone, so for each A the only candidate frequency
     # is w(A) = tan(-(arg(-1/N(A)) + pi/2) / 2); roots are the zeros of |G(j w(A))| |N(A)| - 1 along A
-    g = df.as_plant(G)
+    g = as_plant(G)
 
     def h(A):
         w = np.tan(-(np.angle(-1 / N(A)) + np.pi / 2) / 2)
@@ -202,7 +203,7 @@ def test_frequency_dependent_dfs_match_equivalent_amplitude_only_loops():
     G = ct.tf([2], [1, 2, 2, 1])
     tau = 0.3
     fd = df.predict_limit_cycles(G, _DelayedSaturation(tau), omega=(0.1, 10), amplitude=(1, 50))
-    eq = df.predict_limit_cycles(lambda w: df.as_plant(G)(w) * np.exp(-1j * w * tau), df.Saturation(1.0),
+    eq = df.predict_limit_cycles(lambda w: as_plant(G)(w) * np.exp(-1j * w * tau), df.Saturation(1.0),
                                  omega=(0.1, 10), amplitude=(1, 50))
     assert len(fd) == len(eq) >= 1
     np.testing.assert_allclose([c.frequency for c in fd], [c.frequency for c in eq], rtol=1e-9)
@@ -229,7 +230,7 @@ def test_table_repr_and_result_fields():
     assert "2 limit cycle(s)" in text and "omega window [0.1, 1000]" in text
     assert text.count("unstable") == 2 and "Loeb det" in text
     c = cycles[0]
-    assert c.G == pytest.approx(df.as_plant(H_MULTIPLE)(np.array([c.frequency]))[0])
+    assert c.G == pytest.approx(as_plant(H_MULTIPLE)(np.array([c.frequency]))[0])
     assert c.G == pytest.approx(-1 / c.N, rel=1e-9)
     assert c.period == pytest.approx(2 * np.pi / c.frequency)
     assert [c.frequency for c in cycles] == sorted(c.frequency for c in cycles)

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import dfloop as df
+from dfloop.solve import as_plant
 from dfloop.solve.roots import Residual
 from dfloop.solve.stability import graphical_stability, loeb
 
@@ -25,8 +26,8 @@ def test_loeb_sign_flipped_by_conjugation():
     G, N = ct.tf([8], [1, 2, 2, 1]), df.Saturation(1.0)
     c = df.predict_limit_cycles(G, N)[0]
     a, v = np.log([c.amplitude]), np.log([c.frequency])
-    base = loeb(Residual(df.as_plant(G), N), a, v)[0][0]
-    conj = df.as_plant(lambda w: np.conj(df.as_plant(G)(w)))
+    base = loeb(Residual(as_plant(G), N), a, v)[0][0]
+    conj = as_plant(lambda w: np.conj(as_plant(G)(w)))
     flipped = loeb(Residual(conj, N), a, v)[0][0]
     assert flipped == pytest.approx(-base, rel=1e-6)
 

@@ -13,6 +13,7 @@ from scipy.optimize import brentq
 
 import dfloop
 from dfloop.continuation import sweep
+from dfloop.solve import graphical_stability
 
 G0 = ct.tf([1], [1, 3, 2, 0])  # 1/(s (s+1)(s+2)): phase crossover sqrt(2) rad/s, |G0| = 1/6 there
 W_PC, G_PC = math.sqrt(2.0), 1.0 / 6.0
@@ -129,7 +130,7 @@ def test_backlash_gain_fold_matches_independent_tangency():
         np.testing.assert_allclose(A, ref[:, 1], rtol=1e-8)
         # stability against the classical graphical rule (a different criterion from Loeb's)
         for K, Ak, wk in zip(p, A, w):
-            assert dfloop.graphical_stability(K * G0, _BL, Ak, wk) == (b.kind == "stable")
+            assert graphical_stability(K * G0, _BL, Ak, wk) == (b.kind == "stable")
     assert {b.kind for b in res.branches} == {"stable", "unstable"}
 
 

@@ -2,8 +2,7 @@
 import numpy as np
 import pytest
 
-from dfloop.impact.table import Samples, Table1D, TableSettings
-from dfloop.impact.table2d import Table2D
+from dfloop.tables import Samples, Table1D, Table2D, TableSettings
 
 X_JUMP = 0.7345678      # regime change
 X_IRREGULAR = 2.0       # beyond: "chaotic" samples (noisy, not regular)

@@ -3,8 +3,7 @@ resumable builds (saved after every line); each against a closed-form function."
 import numpy as np
 import pytest
 
-from dfloop.impact.table import Samples, Table1D, TableSettings
-from dfloop.impact.table2d import Table2D
+from dfloop.tables import Samples, Table1D, Table2D, TableSettings
 
 
 def d(x, y):

@@ -2,8 +2,7 @@
 import numpy as np
 import pytest
 
-from dfloop.impact.table import Samples, TableSettings
-from dfloop.impact.table2d import Table2D
+from dfloop.tables import Samples, Table2D, TableSettings
 
 
 def f2(x, y):

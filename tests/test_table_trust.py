@@ -5,10 +5,11 @@ import math
 import numpy as np
 import pytest
 
-from dfloop.impact.dynamic_backlash import FAILED, DynamicBacklash
+from dfloop.impact.dynamic_backlash import DynamicBacklash
+from dfloop.impact.sampling import FAILED, ImpactSampler
 from dfloop.impact.extract import impact_describing_function
 from dfloop.errors import EventLimitError
-from dfloop.impact.table import Samples, Table1D, TableSettings
+from dfloop.tables import Samples, Table1D, TableSettings
 
 M1, M2, H, F = 1.0, 1.0, 0.1, 50.0
 FAST = dict(base_dx=0.025, periods=20)         # blocks of 0.2 in ln beta keep each build small
@@ -220,7 +221,7 @@ def test_interrupted_build_resumes_from_the_saved_blocks(monkeypatch):
     full = DynamicBacklash(M1, M2, H, 0.5, starts=0, cache=False, **FAST)
     n_full = full(F, w)
     calls = {"n": 0}
-    original = DynamicBacklash._extract
+    original = ImpactSampler.extract
 
     def flaky(self, force, omega, initial=None, attractor=None):
         calls["n"] += 1
@@ -228,10 +229,10 @@ def test_interrupted_build_resumes_from_the_saved_blocks(monkeypatch):
             raise KeyboardInterrupt
         return original(self, force, omega, initial, attractor)
 
-    monkeypatch.setattr(DynamicBacklash, "_extract", flaky)
+    monkeypatch.setattr(ImpactSampler, "extract", flaky)
     with pytest.raises(KeyboardInterrupt):
         DynamicBacklash(M1, M2, H, 0.5, starts=0, **FAST)(F, w)
-    monkeypatch.setattr(DynamicBacklash, "_extract", original)
+    monkeypatch.setattr(ImpactSampler, "extract", original)
     resumed = DynamicBacklash(M1, M2, H, 0.5, starts=0, **FAST)
     assert resumed.cache_path.exists()
     np.testing.assert_array_equal(resumed(F, w), n_full)
@@ -264,7 +265,7 @@ def test_coexisting_branches_are_kept_and_make_N_not_unique(eps08):
     other branch is stored, validity is False and the error estimate reaches the other branch. Independent
     check: 1000-period simulations from rest and from that start settle on two different motions with the
     stored values."""
-    from dfloop.impact.dynamic_backlash import _STARTS
+    from dfloop.impact.sampling import STARTS
 
     db = eps08
     t = db.similarity_table(0.27)
@@ -277,7 +278,7 @@ def test_coexisting_branches_are_kept_and_make_N_not_unique(eps08):
         alts = [complex(t.extra[f"start{k}.re"][i], t.extra[f"start{k}.im"][i]) for k in range(db.starts)]
         k = int(np.argmax([abs(a - t.value[i]) for a in alts]))
         assert abs(alts[k] - t.value[i]) == pytest.approx(t.spread[i], rel=1e-12)
-        gap, u_rel = _STARTS[k]
+        gap, u_rel = STARTS[k]
         long = dict(transient_periods=1000, periods=36)     # periods up to 12 detectable
         rest = impact_describing_function(M1, M2, H, 0.8, force, 1.0, **long)
         other = impact_describing_function(M1, M2, H, 0.8, force, 1.0, initial=(0.0, 0.0, gap * H, u_rel * force / M2),

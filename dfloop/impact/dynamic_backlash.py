@@ -7,13 +7,19 @@ Paper's model (no effects): with x = h xi and tau = w t the motion depends only 
 beta = F / (M2 h w^2), M1/M2 and eps, so D is a function of beta alone: one adaptive table in ln beta
 serves every (F, w). For beta <= 1/4 (w >= w_L of eq. 11) the masses never touch: N = 0 exactly.
 Effects that add a time or length scale (:mod:`dfloop.impact.effects`) break the law: the table is then
-two-dimensional in (ln beta, ln w). Tables are built lazily over the window callers ask for and cached
-on disk (:mod:`dfloop.impact.cache`).
+two-dimensional in (ln beta, ln w).
+
+The element is thin: it maps (F, w) to table coordinates and back, and decides which window a request needs.
+What a sample is (the exact runs, regime labels, coexisting motions) is :class:`dfloop.impact.sampling.
+ImpactSampler`; the tables themselves, their lazy builds with progress and their disk cache are
+:mod:`dfloop.tables` (:class:`dfloop.tables.TableStore`). A call can therefore simulate (a table build over a
+window not yet covered, minutes for a wide window from an empty cache); :meth:`DynamicBacklash.prepare` does
+that build up front, and a second evaluation of the same window, in this process or the next, simulates
+nothing.
 """
 from __future__ import annotations
 
 import math
-import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
@@ -23,28 +29,16 @@ import numpy as np
 
 from .. import _checks
 from ..describing.base import DescribingFunction
-from . import cache as _cache
-from ._core import FREE as FREE_MODE
-from .extract import PERIODICITY_TOL, impact_describing_function_batch
-from .kernel import simulate
+from ..tables import Table1D, Table2D, TableSettings, TableStore, TableValues, settings_dict
 from .limits import BETA_NO_IMPACT
-from ..progress import progress_bar
-from .table import Samples, Table1D, TableSettings, TableValues, settings_dict
-from .table2d import Table2D
+from .sampling import STARTS, ImpactSampler
 
 __all__ = ["DynamicBacklash", "prepare_many"]
 
-_U_START = math.log(BETA_NO_IMPACT) + 1e-9     # first table point, just above the no-impact limit
-_OMEGA_REF = 1.0                               # frequency of the similarity-table simulations (rad/s)
-_REGIME_BASE = 1000                            # label = (period * BASE + impacts per cycle) * BASE + sticking
-FAILED = -2                                    # regime label of a sample whose simulation failed
-_BRANCH_REL = 1e-4                             # relative difference of D that makes another start a new branch
+U_START = math.log(BETA_NO_IMPACT) + 1e-9      # first table point (ln beta), just above the no-impact limit
 _MIN_Y_WINDOW = 0.25                           # 2-D tables: narrowest ln w range built (two lines at least)
 _BLOCK_BASE_INTERVALS = 8                      # a canonical block holds 8 base intervals
 _PRIOR_SIMULATIONS_PER_BLOCK = 60              # progress estimate (per start) before the first block is done
-# alternative starts probed for coexisting motions, in similarity units (h = 1, w = 1, force beta):
-# (gap / h, u / (beta h w)) with x1 = v1 = 0; rest with a centred gap is the default start
-_STARTS = ((0.1, 1.5), (0.9, -1.5), (0.5, 3.0), (0.3, -0.75))
 
 
 def _effects_tuple(effects) -> tuple:
@@ -57,28 +51,6 @@ def _effects_tuple(effects) -> tuple:
             raise ValueError(f"effects: {e!r} is not an effect object (e.g. dfloop.impact.ViscousDamping(c=...)); "
                              f"got effects={effects!r}")
     return effects
-
-
-def _regime_label(period, impacts, sticking):
-    return (np.asarray(period, dtype=np.int64) * _REGIME_BASE + np.asarray(impacts, dtype=np.int64)) * _REGIME_BASE \
-        + np.asarray(sticking, dtype=np.int64)
-
-
-def _matched_orbits(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
-    """Orbit ``b``'s rows reordered to match orbit ``a``'s (rows gap / h, u / v_scale, mode: p points, then
-    their p mirror points): the cyclic shift with the same modes and the smallest distance. None when the
-    orbits cannot be matched (different periods or modes)."""
-    if a.shape != b.shape or a.shape[0] == 0:
-        return None
-    p = a.shape[0] // 2
-    best, out = math.inf, None
-    for s in range(p):
-        idx = np.r_[(np.arange(p) + s) % p, p + (np.arange(p) + s) % p]
-        if np.array_equal(a[:, 2], b[idx, 2]):
-            d = float(np.max(np.abs(a[:, :2] - b[idx, :2])))
-            if d < best:
-                best, out = d, b[idx]
-    return out
 
 
 class DynamicBacklash(DescribingFunction):
@@ -140,7 +112,7 @@ class DynamicBacklash(DescribingFunction):
         that bound is its ``error_estimate`` and ``validity`` is False there. With effects, requests beyond
         ``beta_max`` raise ValueError.
     cache : bool
-        Load and save tables in :func:`dfloop.impact.cache.cache_dir`.
+        Load and save tables in :func:`dfloop.tables.cache_dir`.
     progress : bool, None or callable
         None (default): a progress bar with the time left (:func:`dfloop.progress.progress_bar`) for builds
         longer than a second; True: from the start; False: none; a callable gets ``(n_samples, stage)``.
@@ -181,8 +153,8 @@ class DynamicBacklash(DescribingFunction):
         self.max_transient_periods = int(_checks.positive("max_transient_periods", max_transient_periods))
         self.periods = int(_checks.positive("periods", periods))
         self.starts = int(_checks.nonnegative("starts", starts))
-        if self.starts > len(_STARTS):
-            raise ValueError(f"starts must be <= {len(_STARTS)}, got {starts!r}")
+        if self.starts > len(STARTS):
+            raise ValueError(f"starts must be <= {len(STARTS)}, got {starts!r}")
         self.max_events = None if max_events is None else int(_checks.positive("max_events", max_events))
         self.beta_max = _checks.positive("beta_max", beta_max)
         if self.beta_max <= BETA_NO_IMPACT:
@@ -193,17 +165,17 @@ class DynamicBacklash(DescribingFunction):
                                        edge_dx=_checks.positive("edge_dx", edge_dx),
                                        probe_dx=_checks.positive("probe_dx", probe_dx),
                                        window_dx=_checks.positive("window_dx", window_dx),
-                                       block_dx=_BLOCK_BASE_INTERVALS * base_dx, origin=_U_START)
+                                       block_dx=_BLOCK_BASE_INTERVALS * base_dx, origin=U_START)
         self._y_settings = TableSettings(tol=tol, method=method, base_dx=1.0, min_dx=max(min_dx, 1e-3))
-        self._use_cache = bool(cache)
-        self._progress = progress
-        self._tick = None
-        self._table: Table1D | Table2D | None = None
-        self._loaded_from_cache = False
-        self._orbits: dict[float, np.ndarray] = {}      # orbits from rest of this build's samples, by ln beta
-        self._last_orbits = np.empty(0, dtype=object)
-        self._other: dict[float, np.ndarray] = {}       # orbit of another periodic motion found, by ln beta
-        self._last_other = np.empty(0, dtype=object)
+        self.sampler = ImpactSampler(self.m1, self.m2, self.h, self.restitution, self.effects,
+                                     transient_periods=self.transient_periods,
+                                     max_transient_periods=self.max_transient_periods, periods=self.periods,
+                                     max_events=self.max_events, starts=self.starts)
+        self.store = TableStore("dynamic_backlash", self.parameters, self._restore, cache=cache, progress=progress,
+                                label=f"DynamicBacklash(restitution={self.restitution:g}) table",
+                                provenance=dict(m1=self.m1, m2=self.m2, h=self.h),
+                                settings={"settings": settings_dict(self._settings),
+                                          "y_settings": settings_dict(self._y_settings)})
 
     # ------------------------------------------------------------------ identity
     @property
@@ -229,17 +201,24 @@ class DynamicBacklash(DescribingFunction):
 
     @property
     def cache_path(self) -> Path:
-        return _cache.cache_dir() / f"dynamic_backlash_{_cache.cache_key(self.parameters())[:32]}.npz"
+        """The table's file in the cache directory (its name holds the cache key)."""
+        return self.store.path
 
     @property
     def n_simulations(self) -> int:
         """Number of motions simulated by this object so far (0 when everything came from the cache)."""
-        return 0 if self._table is None else self._table.n_sampled
+        return self.store.n_sampled
 
     @property
-    def table(self):
+    def table(self) -> Table1D | Table2D | None:
         """The current table (None before the first evaluation)."""
-        return self._table
+        return self.store.table
+
+    def _restore(self, arrays: dict) -> Table1D | Table2D:
+        """The table saved as ``arrays`` (1-D or 2-D, with this element's settings)."""
+        if self.similarity:
+            return Table1D.from_arrays(arrays, self._settings)
+        return Table2D.from_arrays(arrays, self._line_settings, self._y_settings)
 
     @property
     def _line_settings(self) -> TableSettings:
@@ -260,7 +239,7 @@ class DynamicBacklash(DescribingFunction):
         do not touch that motion, so there x1 = 0 forever and N = 0.
         """
         on_m1 = all(getattr(e, "acts_on", None) == "m1" for e in self.effects)
-        return _U_START if on_m1 else -math.inf
+        return U_START if on_m1 else -math.inf
 
     @property
     def _y_rate(self) -> float:
@@ -273,205 +252,18 @@ class DynamicBacklash(DescribingFunction):
         """
         return float(min((getattr(e, "frequency_power", 1) for e in self.effects), default=1))
 
-    # ------------------------------------------------------------------ sampling
-    def _extract(self, force: np.ndarray, omega: np.ndarray, initial=None, attractor=None):
-        return impact_describing_function_batch(self.m1, self.m2, self.h, self.restitution, force, omega,
-                                                effects=self.effects, transient_periods=self.transient_periods,
-                                                max_transient_periods=self.max_transient_periods,
-                                                periods=self.periods, max_events=self.max_events,
-                                                initial=initial, attractor=attractor, on_event_limit="record",
-                                                callback=self._tick)
-
-    def _labels(self, r):
-        """(value D, regime label, regular) of a batch; failed runs get label FAILED, value 0, not regular."""
-        period = np.asarray(r.period, dtype=np.int64)
-        failed = r.failure != ""
-        regular = (period > 0) & ~failed
-        # regime: the period and, for motions without sticking, the impacts per cycle; the number of
-        # chattering impacts before a stuck phase changes continuously-valued motion and is no regime
-        stuck = np.nan_to_num(np.asarray(r.stuck_fraction)) > 0
-        per_cycle = np.rint(np.nan_to_num(np.asarray(r.impacts_per_period)) * np.maximum(period, 1)).astype(np.int64)
-        label = _regime_label(period, np.where(regular & ~stuck, per_cycle, 0), np.where(regular & stuck, 1, 0))
-        label = np.where(failed, FAILED, label)
-        return None, label, regular, failed
-
-    def _samples(self, force: np.ndarray, omega: np.ndarray) -> Samples:
-        r = self._extract(force, omega)
-        self._last_orbits = r.orbit
-        _, label, regular, failed = self._labels(r)
-        value = np.where(failed, 0.0, np.nan_to_num(np.asarray(r.N, dtype=complex)) * self.m2 * omega ** 2)
-        spread = np.where(failed, np.inf, 0.0)
-        extra = {"period": np.asarray(r.period, dtype=np.int64), "periodicity": np.asarray(r.periodicity, dtype=float),
-                 "n_A": np.asarray(r.max_run_A, dtype=float), "n_B": np.asarray(r.max_run_B, dtype=float),
-                 "impacts_per_period": np.asarray(r.impacts_per_period, dtype=float),
-                 "stuck_fraction": np.asarray(r.stuck_fraction, dtype=float),
-                 "transient_periods": np.asarray(r.transient_periods, dtype=float),
-                 "periods_used": np.asarray(r.periods_used, dtype=float),
-                 "failed": failed.astype(float)}
-        branches = np.ones(force.shape)
-        other = np.empty(force.shape, dtype=object)       # orbit of the farthest other branch found
-        # other starts only where rest settled on a periodic motion (elsewhere the value is invalid anyway)
-        probe = np.flatnonzero(regular) if not self.effects else np.empty(0, dtype=np.int64)
-        for k in range(self.starts):
-            gap, u_rel = _STARTS[k]
-            alt_value = np.full(force.shape, np.nan, dtype=complex)
-            alt_label = np.full(force.shape, FAILED, dtype=np.int64)
-            if probe.size:
-                # a start that settles on the rest start's orbit is the same motion: stopped there
-                known = r.orbit[probe] if self.transient_periods is None else None
-                alt = self._extract(force[probe], omega[probe], lambda f, w, gap=gap, u_rel=u_rel:
-                                    (0.0, 0.0, gap * self.h, u_rel * f / (self.m2 * w)), attractor=known)
-                _, lab, alt_regular, _ = self._labels(alt)
-                same = np.asarray(alt.settled, dtype=bool)
-                alt_value[probe] = np.where(same, value[probe], np.nan_to_num(np.asarray(alt.N, dtype=complex))
-                                            * self.m2 * omega[probe] ** 2)
-                alt_label[probe] = np.where(same, label[probe], np.where(alt_regular, lab, FAILED))
-            differ = (alt_label != FAILED) & ((alt_label != label) | (np.abs(alt_value - value)
-                                                                      > _BRANCH_REL * np.abs(value)))
-            branches += differ
-            farther = differ & (np.abs(alt_value - value) > spread)
-            for j in np.flatnonzero(farther[probe]):
-                other[probe[j]] = alt.orbit[j]
-            spread = np.where(differ, np.maximum(spread, np.abs(alt_value - value)), spread)
-            extra[f"start{k}.re"], extra[f"start{k}.im"] = alt_value.real, alt_value.imag
-            extra[f"start{k}.regime"] = alt_label.astype(float)
-        extra["branches"] = branches
-        self._last_other = other
-        # a converged sample is within the period detection's tolerance of its orbit: its own uncertainty
-        uncertainty = np.abs(value) * (np.nan_to_num(np.asarray(r.periodicity, dtype=float)) + PERIODICITY_TOL)
-        return Samples(value, label, regular, extra, spread, uncertainty)
-
-    def _sampler_1d(self, u: np.ndarray) -> Samples:
-        beta = np.exp(u)
-        omega = np.full(u.shape, _OMEGA_REF)
-        s = self._samples(beta * self.m2 * self.h * _OMEGA_REF ** 2, omega)
-        self._orbits.update(zip(u.tolist(), self._last_orbits.ravel()))
-        self._other.update((x, o) for x, o in zip(u.tolist(), self._last_other.ravel()) if o is not None)
-        return s
-
-    def _follow_1d(self, u_from: np.ndarray, u_to: np.ndarray, value_to: np.ndarray) -> np.ndarray:
-        """Branch continuation: the motions found at u_from (the other periodic branch, and the rest motion),
-        followed to the neighbouring sample u_to: runs at u_to started on a point of each orbit, stopped if
-        they settle on u_to's rest orbit. A run that reaches another periodic motion, or an irregular one
-        (a chaotic attractor coexisting with the periodic motion from rest), makes N not unique at u_to.
-        Returns, per pair, the largest distance of D (the irregular motion's average) from the rest value
-        ``value_to`` among those runs (0: none); a periodic branch found is continued further from u_to."""
-        force = np.exp(u_to) * self.m2 * self.h * _OMEGA_REF ** 2
-        omega = np.full(u_to.shape, _OMEGA_REF)
-        vscale = np.maximum(self.h * omega, force / (self.m2 * omega))
-        out = np.zeros(u_to.size)
-        for source in (self._other, self._orbits):
-            orbits = [source.get(a) for a in u_from.tolist()]
-            idx = np.array([i for i, o in enumerate(orbits) if o is not None and o.shape[0] > 0], dtype=np.int64)
-            if idx.size == 0:
-                continue
-            # a start on the orbit (a free-flight point if it has one; x1 = v1 = 0: only the relative
-            # motion matters, a common velocity is a drift that the DF removes)
-            by_force = {}
-            for i in idx.tolist():
-                o = orbits[i]
-                free = np.flatnonzero(o[:, 2] == FREE_MODE)
-                row = o[free[0] if free.size else 0]
-                by_force[float(force[i])] = (0.0, 0.0, float(np.clip(row[0], 0.0, 1.0)) * self.h,
-                                             float(row[1] * vscale[i]))
-            rest = np.empty(idx.size, dtype=object)
-            rest[:] = [self._orbits[b] for b in u_to[idx].tolist()]
-            r = self._extract(force[idx], omega[idx], lambda f, w: by_force[float(f)], attractor=rest)
-            _, _, regular, failed = self._labels(r)
-            d = np.nan_to_num(np.asarray(r.N, dtype=complex)) * self.m2 * _OMEGA_REF ** 2
-            dist = np.abs(d - value_to[idx])
-            moved = ~np.asarray(r.settled, dtype=bool) & ~failed
-            other = moved & (~regular | (dist > _BRANCH_REL * np.abs(value_to[idx])))
-            dist = np.where(regular, dist, np.maximum(dist, _BRANCH_REL * np.abs(value_to[idx])))
-            for k in np.flatnonzero(other & regular & (dist > out[idx])):
-                self._other[float(u_to[idx[k]])] = r.orbit[k]
-            out[idx] = np.where(other, np.maximum(out[idx], dist), out[idx])
-        return out
-
-    def _prober_1d(self, u: np.ndarray, u_a: np.ndarray, u_b: np.ndarray) -> tuple[np.ndarray, Samples]:
-        """Window probes: the motion from rest at ln beta = u (u_a < u < u_b), stopped as soon as it settles
-        on the orbit from rest interpolated between the samples at u_a and u_b (or on its mirror): the same
-        motion. Returns (settled, samples from rest) (no other starts: the table samples a probe fully
-        when it is another branch)."""
-        # the orbit at u, interpolated linearly between the two samples' matched orbits (within O(dx^2) of
-        # the orbit at u on the same branch); orbits that cannot be matched give the nearer one
-        matched = {}
-        orbits = np.empty(u.size, dtype=object)
-        for i, (x, a, b) in enumerate(zip(u.tolist(), u_a.tolist(), u_b.tolist())):
-            oa, ob = self._orbits[a], self._orbits[b]
-            if (a, b) not in matched:
-                matched[a, b] = _matched_orbits(oa, ob)
-            t = (x - a) / (b - a)
-            mb = matched[a, b]
-            if mb is None:
-                orbits[i] = oa if t <= 0.5 else ob
-            else:
-                orbits[i] = oa.copy()
-                orbits[i][:, :2] = (1.0 - t) * oa[:, :2] + t * mb[:, :2]
-        r = self._extract(np.exp(u) * self.m2 * self.h * _OMEGA_REF ** 2, np.full(u.shape, _OMEGA_REF),
-                          attractor=orbits)
-        settled = np.asarray(r.settled, dtype=bool)
-        _, label, regular, _ = self._labels(r)
-        value = np.nan_to_num(np.asarray(r.N, dtype=complex)) * self.m2 * _OMEGA_REF ** 2
-        return settled, Samples(value, label, regular & ~settled)
-
-    def _sampler_2d(self, u: np.ndarray, v: float) -> Samples:
-        w = math.exp(v)
-        return self._samples(np.exp(u) * self.m2 * self.h * w * w, np.full(u.shape, w))
-
-    def collides(self, beta) -> np.ndarray:
-        """Whether a motion from rest collides within its first two forcing periods, per beta (paper's model)."""
-        beta = np.atleast_1d(np.asarray(beta, dtype=float))
-        out = np.empty(beta.shape, dtype=bool)
-        for i, b in enumerate(beta.ravel()):
-            tr = simulate(self.m1, self.m2, self.h, self.restitution, b * self.m2 * self.h * _OMEGA_REF ** 2,
-                          _OMEGA_REF, 4 * math.pi / _OMEGA_REF, effects=self.effects)
-            out.ravel()[i] = tr.n_impacts > 0
-        return out
-
-    # ------------------------------------------------------------------ table management
-    def _build(self, extend, n_blocks: int) -> None:
-        """Run ``extend(progress, checkpoint)`` with a progress bar (time left) and a save after every block."""
-        label = f"DynamicBacklash(restitution={self.restitution:g}) table"
-        user = self._progress if callable(self._progress) else None
-        enabled = None if self._progress is None else (False if user is not None else bool(self._progress))
-        lock = threading.Lock()
-        count = {"sims": 0, "blocks": 0}
-        with progress_bar(label, n_blocks * _PRIOR_SIMULATIONS_PER_BLOCK * (1 + self.starts),
-                          enabled=enabled) as bar:
-            def tick():
-                with lock:
-                    count["sims"] += 1
-                    bar.update(1)
-
-            def checkpoint():
-                count["blocks"] += 1
-                per_block = count["sims"] / count["blocks"]
-                bar.set_total(int(count["sims"] + max(n_blocks - count["blocks"], 0) * per_block))
-                self._store()
-
-            self._tick = tick
+    # ------------------------------------------------------------------ table windows
+    def _build(self, extend, n_units: int) -> None:
+        """Run ``extend(progress, checkpoint)`` through the store (progress bar, save after every unit), with
+        the sampler ticking the bar once per simulation."""
+        def run(progress, checkpoint, tick):
+            self.sampler.tick = tick
             try:
-                extend(user, checkpoint)
+                extend(progress, checkpoint)
             finally:
-                self._tick = None
-        self._store()
+                self.sampler.tick = None
 
-    def _load_cached(self) -> None:
-        if self._table is not None or not self._use_cache:
-            return
-        f = _cache.load_table(self.cache_path, _cache.cache_key(self.parameters()))
-        if f is None:
-            return
-        if self.similarity:
-            self._table = Table1D.from_arrays(f.arrays, self._settings)
-        else:
-            self._table = Table2D.from_arrays(f.arrays, self._line_settings, self._y_settings)
-        self._loaded_from_cache = True
-
-    def _store(self) -> None:
-        if self._use_cache and self._table is not None:
-            self.save(self.cache_path)
+        self.store.build(run, n_units, _PRIOR_SIMULATIONS_PER_BLOCK * (1 + self.starts))
 
     def _check_beta(self, beta_hi: float) -> None:
         if beta_hi > self.beta_max:
@@ -484,25 +276,26 @@ class DynamicBacklash(DescribingFunction):
         if not self.similarity:
             raise ValueError("effects break the similarity law: this DynamicBacklash has a 2-D table")
         self._ensure_1d(float(beta_max))
-        return self._table
+        return self.store.table
 
     def _ensure_1d(self, beta_hi: float) -> None:
         self._check_beta(beta_hi)
-        self._load_cached()
-        u_hi = max(math.log(beta_hi), _U_START + self._settings.base_dx)
-        if self._table is None:
-            self._table = Table1D(self._settings)
-        missing = self._table.missing_blocks(_U_START, u_hi)
+        self.store.load_cached()
+        u_hi = max(math.log(beta_hi), U_START + self._settings.base_dx)
+        if self.store.table is None:
+            self.store.table = Table1D(self._settings)
+        missing = self.store.table.missing_blocks(U_START, u_hi)
         if missing.size:
             # window probes need the adaptive run's orbits (a fixed transient has none): otherwise probe_dx only
-            prober = self._prober_1d if self.transient_periods is None else None
-            follow = self._follow_1d if self.transient_periods is None and self.starts else None
-            self._orbits, self._other = {}, {}
+            s = self.sampler
+            prober = s.probe_1d if self.transient_periods is None else None
+            follow = s.follow_1d if self.transient_periods is None and self.starts else None
+            s.reset()
             try:
-                self._build(lambda progress, checkpoint: self._table.extend(
-                    self._sampler_1d, _U_START, u_hi, progress, checkpoint, prober, follow), int(missing.size))
+                self._build(lambda progress, checkpoint: self.store.table.extend(
+                    s.sample_1d, U_START, u_hi, progress, checkpoint, prober, follow), int(missing.size))
             finally:
-                self._orbits, self._other = {}, {}
+                s.reset()
 
     def _ensure_2d(self, u_hi: float, s_lo: float, s_hi: float, v_lo: float, v_hi: float) -> None:
         """Cover ln F - ln(M2 h) = u + 2 v in [s_lo, s_hi] for v = ln w in [v_lo, v_hi] (u = ln beta <= u_hi).
@@ -511,18 +304,18 @@ class DynamicBacklash(DescribingFunction):
         spans only the ln beta range its own frequencies need.
         """
         self._check_beta(math.exp(u_hi))
-        self._load_cached()
+        self.store.load_cached()
         pad = 1e-12
         sw = (s_lo - pad, max(s_hi, s_lo + self._settings.base_dx) + pad)
         yw = (v_lo - pad, max(v_hi, v_lo + _MIN_Y_WINDOW) + pad)
-        if self._table is not None and self._table.covers(sw, yw, shear=2.0):
+        if self.store.table is not None and self.store.table.covers(sw, yw, shear=2.0):
             return
-        if self._table is None:
-            self._table = Table2D(self._line_settings, self._y_settings, self._y_rate, self._u_min)
+        if self.store.table is None:
+            self.store.table = Table2D(self._line_settings, self._y_settings, self._y_rate, self._u_min)
         # progress in lines (saved after each): the lines on the base grid in y and a prior of twice as many
         # added by the refinement in y (the damped scene: 6 + 11); the time left is corrected as lines finish
         n_lines = 3 * (int(math.ceil((yw[1] - yw[0]) / self._y_settings.base_dx)) + 1)
-        self._build(lambda progress, checkpoint: self._table.extend(self._sampler_2d, sw, yw, progress, shear=2.0,
+        self._build(lambda progress, checkpoint: self.store.table.extend(self.sampler.sample_2d, sw, yw, progress, shear=2.0,
                                                                     checkpoint=checkpoint), n_lines)
 
     def prepare(self, F, omega) -> "DynamicBacklash":
@@ -560,9 +353,9 @@ class DynamicBacklash(DescribingFunction):
                 err[far] = (self.m2 / mass) * (2.0 * self.h / np.pi) / F[far]
                 valid[far] = False
             if np.any(need):
-                u = np.maximum(np.log(beta[need]), _U_START)
+                u = np.maximum(np.log(beta[need]), U_START)
                 self._ensure_1d(float(np.exp(u.max())))
-                tv = self._table.evaluate(u)
+                tv = self.store.table.evaluate(u)
         else:
             u_min = self._u_min
             need = ~nan & (beta > (BETA_NO_IMPACT if u_min > -math.inf else 0.0))     # N = 0 below u_min
@@ -570,7 +363,7 @@ class DynamicBacklash(DescribingFunction):
                 u, v = np.maximum(np.log(beta[need]), u_min), np.log(w[need])
                 s_ = u + 2.0 * v
                 self._ensure_2d(float(u.max()), float(s_.min()), float(s_.max()), float(v.min()), float(v.max()))
-                tv = self._table.evaluate(u, v)
+                tv = self.store.table.evaluate(u, v)
         if np.any(need):
             n[need] = tv.value / scale[need]
             err[need] = tv.error / scale[need]
@@ -626,32 +419,21 @@ class DynamicBacklash(DescribingFunction):
         return out
 
     # ------------------------------------------------------------------ persistence
-    def save(self, path) -> Path:
+    def save(self, path) -> Path | None:
         """Write the current table with its provenance (parameters, code version, date, build settings)."""
-        if self._table is None:
-            raise ValueError("nothing to save: the table has not been built yet (call prepare first)")
-        params = self.parameters()
-        params_full = dict(params, m1=self.m1, m2=self.m2, h=self.h)
-        return _cache.save_table(path, self._table.to_arrays(), _cache.cache_key(params), params_full,
-                                 {"settings": settings_dict(self._settings),
-                                  "y_settings": settings_dict(self._y_settings)})
+        return self.store.save(path)
 
     def load(self, path) -> bool:
         """Adopt a table saved by :meth:`save` if it was built for exactly these parameters and this code.
 
         Returns False (and keeps the current table) when the file is missing, corrupted or stale.
         """
-        f = _cache.load_table(path, _cache.cache_key(self.parameters()))
-        if f is None:
-            return False
-        self._table = (Table1D.from_arrays(f.arrays, self._settings) if self.similarity
-                       else Table2D.from_arrays(f.arrays, self._line_settings, self._y_settings))
-        return True
+        return self.store.load(path)
 
     def __repr__(self) -> str:
         eff = f", effects={list(self.effects)!r}" if self.effects else ""
         return (f"DynamicBacklash(m1={self.m1:g}, m2={self.m2:g}, h={self.h:g}, restitution={self.restitution:g}"
-                f"{eff}, table={self._table!r})")
+                f"{eff}, table={self.store.table!r})")
 
 
 def prepare_many(elements, F, omega, *, workers: int = 2) -> list:

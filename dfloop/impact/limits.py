@@ -1,4 +1,7 @@
-"""Limit frequencies of the paper's backlash models (eqs. 5, 10, 11, 12) and their measured counterparts.
+"""Limit frequencies of the paper's dynamic backlash (eqs. 10, 11, 12) and their measured counterparts.
+
+Eq. (5), the upper limit of the static (geometric) backlash model, belongs to that element:
+:meth:`dfloop.describing.composition.MassBacklash.limit_frequency`.
 
 With the similarity variable beta = F / (M2 h w^2) the dynamic-backlash limits are fixed values of beta:
 eq. (11) w_L is beta = 1/4 (exact no-impact limit from rest with a centred gap), eq. (12) w_J is
@@ -15,7 +18,7 @@ import numpy as np
 from .._checks import in_closed_interval, positive, real_array
 from ..errors import DfloopError
 
-__all__ = ["static_limit_frequency", "lower_limit_frequency", "no_impact_frequency", "jump_frequency",
+__all__ = ["lower_limit_frequency", "no_impact_frequency", "jump_frequency",
            "beta_of", "omega_of", "beta_lower_limit", "BETA_NO_IMPACT", "BETA_JUMP",
            "x2_peak_excursion", "MeasuredLimits", "measured_limits"]
 
@@ -41,12 +44,6 @@ def omega_of(beta, F, m2: float, h: float):
     """Frequency (rad/s) at which force amplitude F gives similarity variable beta."""
     m2, h = positive("m2", m2), positive("h", h)
     return np.sqrt(_arr("F", F) / (m2 * h * _arr("beta", beta)))
-
-
-def static_limit_frequency(F, m1: float, m2: float, h: float):
-    """Eq. (5): w_L = sqrt(2 F / (h (M1 + M2))), upper limit of the static (geometric) backlash model."""
-    m1, m2, h = positive("m1", m1), positive("m2", m2), positive("h", h)
-    return np.sqrt(_arr("F", F)) * math.sqrt(2.0 / (h * (m1 + m2)))
 
 
 def beta_lower_limit(restitution: float) -> float:
@@ -122,13 +119,13 @@ def measured_limits(backlash, beta_max: float = 100.0, rel_tol: float = 1e-9) ->
     beta_max = positive("beta_max", beta_max)
     rel_tol = positive("rel_tol", rel_tol)
     lo, hi = 0.05, 1.0
-    if backlash.collides(np.array([lo]))[0] or not backlash.collides(np.array([hi]))[0]:
+    if backlash.sampler.collides(np.array([lo]))[0] or not backlash.sampler.collides(np.array([hi]))[0]:
         raise RuntimeError("no-impact limit not bracketed in beta in [0.05, 1]")
     for _ in range(200):
         if hi - lo <= rel_tol * hi:
             break
         mid = 0.5 * (lo + hi)
-        if backlash.collides(np.array([mid]))[0]:
+        if backlash.sampler.collides(np.array([mid]))[0]:
             hi = mid
         else:
             lo = mid

@@ -1,6 +1,6 @@
 """Adaptive table of a complex function of two variables: adaptive 1-D tables (lines) stacked along y.
 
-See :mod:`dfloop.impact.table` for the 1-D tables, their blocks, jumps and error estimates.
+See :mod:`dfloop.tables.table1d` for the 1-D tables, their blocks, jumps and error estimates.
 """
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from typing import Callable
 
 import numpy as np
 
-from .table import Samples, Table1D, TableSettings, TableValues, regime_key
+from .table1d import Samples, Table1D, TableSettings, TableValues, regime_key
 
 __all__ = ["Table2D"]
 

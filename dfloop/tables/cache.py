@@ -36,8 +36,13 @@ __all__ = ["cache_dir", "code_version", "cache_key", "save_table", "load_table",
 
 _STALE_SECONDS = 3600.0  # temporaries older than this are left over from a killed writer
 _REPORTED: set[tuple] = set()  # write/read failures already reported (one warning per directory and kind)
-_SOURCES = ("table.py", "table2d.py", "dynamic_backlash.py", "kernel.py", "model.py", "_core.py", "_flight.py", "effects.py",
-            "_effects_core.py", "_engine.py", "extract.py", "limits.py", "loop.py", "cache.py")
+# the modules whose code decides a cached table's content, relative to the dfloop package: the generic tables
+# and the exact impact simulations behind DynamicBacklash (tests/test_cache.py checks that every module they
+# import is listed). A change in any of them changes code_version(), hence every key: old files become stale.
+SOURCES = ("tables/table1d.py", "tables/table2d.py", "tables/store.py", "tables/cache.py",
+           "impact/dynamic_backlash.py", "impact/sampling.py", "impact/kernel.py", "impact/model.py",
+           "impact/_core.py", "impact/_flight.py", "impact/effects.py", "impact/_effects_core.py", "impact/_engine.py",
+           "impact/extract.py", "impact/limits.py", "impact/loop.py")
 
 
 def cache_dir() -> Path:
@@ -51,9 +56,9 @@ def cache_dir() -> Path:
 
 def code_version() -> str:
     """dfloop's version plus a hash of the sources that determine a table's content."""
-    here = Path(__file__).parent
+    here = Path(__file__).parent.parent
     h = hashlib.sha256()
-    for name in _SOURCES:
+    for name in SOURCES:
         p = here / name
         if p.exists():
             h.update(name.encode())

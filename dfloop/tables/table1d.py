@@ -6,7 +6,7 @@ value is only an average, e.g. chaotic motion). :class:`Table1D` places samples 
 varies fast (midpoint-versus-interpolant check against a relative tolerance), brackets every jump
 between regimes (or in value) by bisection and never interpolates across one. Every interpolated
 value comes with an error estimate (the discrepancy measured by the check that accepted its interval)
-and a validity flag. :class:`dfloop.impact.table2d.Table2D` stacks these tables (lines) along a second
+and a validity flag. :class:`dfloop.tables.table2d.Table2D` stacks these tables (lines) along a second
 coordinate.
 
 Determinism: a 1-D table is a union of canonical *blocks* [origin + k block_dx, origin + (k+1) block_dx]
@@ -31,7 +31,7 @@ from typing import Callable
 import numpy as np
 from scipy.interpolate import PchipInterpolator, make_interp_spline
 
-__all__ = ["Samples", "TableSettings", "Table1D", "TableValues"]
+__all__ = ["Samples", "TableSettings", "Table1D", "TableValues", "regime_key", "settings_dict"]
 
 IRREGULAR = -1          # regime label used internally for every non-regular sample
 _METHODS = ("linear", "pchip", "cubic")
@@ -591,7 +591,7 @@ class Table1D:
 
     # ------------------------------------------------------------------ persistence
     def to_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
-        """The table's state as named arrays (for :mod:`dfloop.impact.cache`)."""
+        """The table's state as named arrays (for :mod:`dfloop.tables.cache`)."""
         arrays = {"x": self.x, "value": self.value, "regime": self.regime, "regular": self.regular,
                   "spread": self.spread, "uncertainty": self.uncertainty, "block": self.block,
                   "err": self.err, "checked": self.checked, "value_jump": self.value_jump}
