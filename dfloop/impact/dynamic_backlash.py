@@ -117,6 +117,13 @@ class DynamicBacklash(DescribingFunction):
         None (default): a progress bar with the time left (:func:`dfloop.progress.progress_bar`) for builds
         longer than a second; True: from the start; False: none; a callable gets ``(n_samples, stage)``.
 
+    Attributes
+    ----------
+    sampler : dfloop.impact.sampling.ImpactSampler
+        What one table sample runs (the exact simulations, regime labels, coexisting motions).
+    store : dfloop.tables.TableStore
+        The table, its lazy build with progress and its cache file (``store.table``, ``store.path``).
+
     Notes
     -----
     ``validity`` is False where the sampled motion was not periodic (irregular / chaotic, below the
