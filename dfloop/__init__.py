@@ -34,7 +34,6 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
                      "build", "find_scene", "shipped_scenes", "scene_reference"),
     "dfloop.cache_admin": ("CacheFile", "CacheInfo", "cache_info", "clear_cache"),
     "dfloop.errors": ("DfloopError", "CacheWarning"),
-    "dfloop.impact.loop": ("simulate_impact_loop", "impact_loop_orbit", "ImpactLoopOrbit"),
     "dfloop.exact": ("ExactCycle", "exact_cycle"),
     "dfloop.confidence": ("Confidence", "cycle_confidence"),
     "dfloop.continuation": ("sweep", "SweepResult", "Branch", "SweepEvent"),

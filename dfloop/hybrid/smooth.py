@@ -23,12 +23,16 @@ _MAX_STEPS_PER_SCALE = 64   # max_step = time scale / this
 class SmoothLoop:
     """Loop of plant (A, B, C) and a static element y = f(x), integrated with DOP853 (not exact)."""
 
+    exact = True           # flows carry a monodromy (variational equation): periodic orbits can be shot
+    settle_periods = 0.0
+
     def __init__(self, A, B, C, f: Callable, name: str, time_scale: float):
         self.n = A.shape[0]
         self.size = self.n + 1
         self.A, self.B, self.C, self.f, self.name = A, B, C, f, name
         self.x_row = np.append(-C, 0.0)
         self.max_step = time_scale / _MAX_STEPS_PER_SCALE
+        self.method = f"DOP853 (rtol {RTOL:g}; {name} is not piecewise linear, so not exact)"
 
     def x(self, z) -> np.ndarray:
         return np.asarray(z) @ self.x_row
@@ -81,11 +85,16 @@ class SmoothLoop:
         s = flow.dense(t)[:self.n].T
         return np.column_stack([s, np.ones(t.size)])
 
+    def signals(self, flow: Flow, t) -> tuple[np.ndarray, np.ndarray]:
+        """Element input x and output y at times t within the flow's span."""
+        z = self.states(flow, t)
+        return self.x(z), self.output(z)
+
     def fourier(self, flow: Flow, t_end: float, omega: float, harmonics: int) -> np.ndarray:
-        """(1/T) int z e^{-j k w t} dt, k = 1..harmonics, from 4096 samples of the dense output (periodic
+        """(1/T) int x e^{-j k w t} dt, k = 1..harmonics, from 4096 samples of the dense output (periodic
         trapezoid: spectral accuracy for the smooth periodic orbit)."""
         m = 4096
         t = np.arange(m) * (t_end / m)
-        z = self.states(flow, t)
+        x = self.x(self.states(flow, t))
         k = np.arange(1, harmonics + 1)[:, None]
-        return (np.exp(-1j * k * omega * t[None, :]) @ z) / m
+        return (np.exp(-1j * k * omega * t[None, :]) @ x) / m
