@@ -21,7 +21,7 @@ import numpy as np
 from .._checks import finite, frequency_array, in_closed_interval, nonnegative, positive, real_array
 from ..errors import DfloopError
 from .base import DescribingFunction
-from .time_model import play_model, relay_model, static_model
+from .time_model import Smooth, play_model, relay_model, static_model
 
 __all__ = [
     "StaticElement",
@@ -427,6 +427,11 @@ class CubicStiffness(StaticElement):
         x = real_array(x, "x")
         with np.errstate(over="ignore"):  # Horner form: the limits at x = +/-inf, not inf - inf
             return x * (self.k1 + self.k3 * (x * x))
+
+    def time_model(self, amplitude: float):
+        """Smooth, with its exact slope k1 + 3 k3 x^2 for the variational equation."""
+        k1, k3 = self.k1, self.k3
+        return Smooth(type(self).__name__, self.output, lambda x: k1 + 3.0 * k3 * (x * x))
 
     def _evaluate(self, A, omega):
         with np.errstate(over="ignore"):  # beyond ~1e154 m: +/-inf, the rounded value of the true N

@@ -25,12 +25,12 @@ from ..impact import _engine
 from ..impact._effects_core import D, IMPACT_A, IMPACT_B, SEPARATION, U, V1, X1
 from ..impact.effects import effect_terms
 from ..impact.kernel import EventLimitError
-from .loop import Flow, HybridError
+from .loop import Flow, HybridError, LoopModel
 
 __all__ = ["ImpactLoop"]
 
 
-class ImpactLoop:
+class ImpactLoop(LoopModel):
     """Exact model of the loop of plant (A, B, C, D) and an :class:`~dfloop.describing.time_model.Impact` element.
 
     Parameters

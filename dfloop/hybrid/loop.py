@@ -83,7 +83,27 @@ class Flow:
         return np.array([e[0] for e in self.events], dtype=float)
 
 
-class HybridLoop:
+class LoopModel:
+    """What every loop model shares: the flows of several nodes and the flow of a whole period from them.
+
+    Subclasses define ``flow``; a model whose nodes can run together (one integration) overrides
+    :meth:`flow_many` and sets ``batched``; one whose node flows compose into the period's flow overrides
+    :meth:`join`.
+    """
+
+    batched = False        # flow_many does more than one flow per node
+    switching = True       # flows switch modes (the shooting keeps its first node away from switches)
+
+    def flow_many(self, zs, modes, t_end: float, *, monodromy: bool = False, max_events: int = 10_000) -> list:
+        """The flows from every (zs[i], modes[i]) over [0, t_end]."""
+        return [self.flow(z, mo, t_end, monodromy=monodromy, max_events=max_events) for z, mo in zip(zs, modes)]
+
+    def join(self, flows: list, period: float, *, max_events: int = 10_000) -> "Flow":
+        """The flow (with its monodromy) over one period from the first node of converged node flows."""
+        return self.flow(flows[0].z0[0], flows[0].modes[0], period, monodromy=True, max_events=max_events)
+
+
+class HybridLoop(LoopModel):
     """Exact hybrid model of the loop of plant (A, B, C) and a piecewise-linear element model.
 
     Parameters

@@ -54,7 +54,7 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
         if isinstance(tm, PiecewiseAffine):
             plant = HybridLoop(A, B, C, tm, time_scale)
         elif isinstance(tm, Smooth):
-            plant = SmoothLoop(A, B, C, tm.f, tm.name, time_scale)
+            plant = SmoothLoop(A, B, C, tm.f, tm.name, time_scale, tm.slope)
         elif isinstance(tm, Sampled):
             plant = SampledLoop(A, B, C, tm, time_scale / steps_per_period, steps_per_period)
         else:

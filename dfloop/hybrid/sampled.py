@@ -13,12 +13,12 @@ import numpy as np
 from scipy.linalg import expm
 
 from ..describing.time_model import Sampled
-from .loop import Flow
+from .loop import Flow, LoopModel
 
 __all__ = ["SampledLoop"]
 
 
-class SampledLoop:
+class SampledLoop(LoopModel):
     """Fixed-step model of the loop of plant (A, B, C) and a :class:`~dfloop.describing.time_model.Sampled`
     element, with step ``dt`` (s)."""
 

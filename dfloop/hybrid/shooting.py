@@ -92,9 +92,10 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
         if settle_periods > 0:
             zs, modes, T = _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events)
         else:   # nodes on the predicted sinusoidal orbit itself (right for unstable cycles, which a flow leaves)
-            z, mode = start_on_prediction(loop, N, amplitude, frequency)
-            fl = loop.flow(z, mode, T, max_events=max_events)
-            _, _, t_first = _section_point(fl, T, T)
+            t_first = 0.0
+            if loop.switching:
+                z, mode = start_on_prediction(loop, N, amplitude, frequency)
+                _, _, t_first = _section_point(loop.flow(z, mode, T, max_events=max_events), T, T)
             zs, modes = [], []
             for i in range(m):
                 zi, mi = start_on_prediction(loop, N, amplitude, frequency, t_first + i * T / m)
@@ -106,9 +107,11 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
 
     nx = loop.size - 1
     residual, it = math.inf, 0
+    flows = None           # node flows with monodromy, when the line search already computed them
     for it in range(1, max_iterations + 1):
         try:
-            flows = [loop.flow(zs[i], modes[i], T / m, monodromy=True, max_events=max_events) for i in range(m)]
+            if flows is None:
+                flows = loop.flow_many(zs, modes, T / m, monodromy=True, max_events=max_events)
         except HybridError as exc:
             raise ShootingError(f"Newton iteration {it}: {exc}", residual, it) from None
         previous = residual
@@ -131,9 +134,9 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
         if found is None:
             raise ShootingError(f"Newton iteration {it}: no step reduces the residual {residual:.2e} (no periodic "
                                 "orbit near the prediction, or a chaotic / quasi-periodic response)", residual, it)
-        zs, modes, T = found
+        zs, modes, T, flows = found
     try:
-        fl = loop.flow(zs[0], modes[0], T, monodromy=True, max_events=max_events)
+        fl = loop.join(flows, T, max_events=max_events)
     except HybridError as exc:
         raise ShootingError(f"the converged orbit cannot be followed over one period: {exc}", residual, it) from None
     return Orbit(zs[0], modes[0], T, fl, residual, it)
@@ -204,25 +207,42 @@ def _shooting_system(loop, flows, zs, modes, m, nx):
 
 
 def _line_search(loop, zs, flows, T, delta, residual, m, nx, max_events):
-    """Damped Newton step (halvings bounded by LINE_SEARCH) on nodes and period; node modes follow the flows."""
+    """Damped Newton step (halvings bounded by LINE_SEARCH) on nodes and period; node modes follow the flows.
+
+    Returns (nodes, modes, period, flows): the flows are the trial's own, with monodromy, when the model runs
+    all nodes at once (reused by the next iteration), else None."""
     step = 1.0
     for _ in range(LINE_SEARCH + 1):
         T_new = T + step * delta[-1]
         if T_new > 0:
             try:
-                # node modes follow the trial flows in turn (a hysteretic element's mode is not a function of
-                # the state: a node moved across a switch takes the mode the flow reaching it ends in)
                 new_z, new_modes, trial = [], [], []
-                for i in range(m):
-                    zi = zs[i].copy()
-                    zi[:nx] += step * delta[i * nx:(i + 1) * nx]
-                    zi, mi = loop.admissible_mode(zi, trial[-1].mode if trial else flows[-1].mode)
-                    new_z.append(zi)
-                    new_modes.append(mi)
-                    trial.append(loop.flow(zi, mi, T_new / m, max_events=max_events))
+                if loop.batched:   # modes are functions of the state: all nodes at once, with monodromy
+                    for i in range(m):
+                        zi = zs[i].copy()
+                        zi[:nx] += step * delta[i * nx:(i + 1) * nx]
+                        zi, mi = loop.admissible_mode(zi, _mode_reaching(flows, i))
+                        new_z.append(zi)
+                        new_modes.append(mi)
+                    trial = loop.flow_many(new_z, new_modes, T_new / m, monodromy=True, max_events=max_events)
+                else:
+                    # node modes follow the trial flows in turn (a hysteretic element's mode is not a function of
+                    # the state: a node moved across a switch takes the mode the flow reaching it ends in)
+                    for i in range(m):
+                        zi = zs[i].copy()
+                        zi[:nx] += step * delta[i * nx:(i + 1) * nx]
+                        zi, mi = loop.admissible_mode(zi, trial[-1].mode if trial else flows[-1].mode)
+                        new_z.append(zi)
+                        new_modes.append(mi)
+                        trial.append(loop.flow(zi, mi, T_new / m, max_events=max_events))
                 if _defect(trial, new_z, nx) < residual or residual < FLOOR:
-                    return new_z, new_modes, T_new
+                    return new_z, new_modes, T_new, (trial if loop.batched else None)
             except HybridError:
                 pass
         step *= 0.5
     return None
+
+
+def _mode_reaching(flows, i: int):
+    """The mode the flow reaching node i ends in."""
+    return flows[i - 1].mode
