@@ -6,7 +6,9 @@ prediction, the confidence's estimated errors (:func:`dfloop.confidence.cycle_co
 true / estimate, whether the bracket (2x the estimate) holds, and the distortion at the element's input. A
 second table gives the cost of the confidence and of exact_cycle as ratios to the cost of
 predict_limit_cycles for the same loop (one run each, after a warm-up run of all three that compiles the JIT
-functions).
+functions). A third compares exact_cycle on the smooth (DOP853) path with a plain scipy shooting of the same loop
+(solve_ivp DOP853 + scipy.optimize.root on (s0, T) with the phase condition x(0) = 0, finite-difference
+Jacobian) at the same accuracy, best of 5 runs each.
 
 Run: python benchmarks/bench_exact.py [--write]   (--write also writes benchmarks/results/bench_exact.md)
 """
@@ -17,6 +19,9 @@ import sys
 import time
 
 import control as ct
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.optimize import root
 
 import dfloop as df
 from dfloop.confidence import BRACKET, cycle_confidence
@@ -41,6 +46,60 @@ def timed(fn):
     t0 = time.perf_counter()
     out = fn()
     return time.perf_counter() - t0, out
+
+
+def scipy_shooting(G, N, amplitude: float, frequency: float, rtol: float = 1e-12):
+    """Plain single shooting of the loop s' = A s + B f(-C s): unknowns (s0, T), equations phi_T(s0) = s0 and
+    x(0) = -C s0 = 0 (phase), solved by scipy.optimize.root (hybr, finite-difference Jacobian); the start is the
+    harmonic-balance state at x's upward zero crossing. Returns (amplitude of x's fundamental, frequency)."""
+    sys_ = ct.ss(G)
+    A, B, C = np.asarray(sys_.A, float), np.asarray(sys_.B, float)[:, 0], np.asarray(sys_.C, float)[0]
+    n = A.shape[0]
+    f = N.output
+
+    def rhs(t, s):
+        return A @ s + B * float(f(np.array(-C @ s)))
+
+    def flow(s0, T, dense=False):
+        return solve_ivp(rhs, (0.0, T), s0, method="DOP853", rtol=rtol, atol=rtol * np.max(np.abs(s0)),
+                         dense_output=dense)
+
+    def F(u):
+        s0, T = u[:n], u[n]
+        return np.append(flow(s0, T).y[:, -1] - s0, -C @ s0)
+
+    s0 = (np.linalg.solve(1j * frequency * np.eye(n) - A, B) * complex(N(amplitude)) * amplitude).imag
+    sol = root(F, np.append(s0, 2 * np.pi / frequency), method="hybr")
+    if not sol.success:
+        raise RuntimeError(f"scipy shooting failed: {sol.message}")
+    s0, T = sol.x[:n], sol.x[n]
+    t = np.arange(1024) * (T / 1024)
+    x = -C @ flow(s0, T, dense=True).sol(t)
+    return abs(2j * np.mean(x * np.exp(-2j * np.pi * t / T))), 2 * np.pi / T
+
+
+def smooth_versus_scipy() -> str:
+    """exact_cycle (DOP853 path) against the plain scipy shooting on the cubic loop, best of 5 each."""
+    name, G, N = LOOPS[-1]
+    c = df.predict_limit_cycles(G, N)[0]
+    exact_cycle(G, N, c)
+    scipy_shooting(G, N, c.amplitude, c.frequency)
+
+    def best(fn):
+        times = []
+        for _ in range(5):
+            dt, out = timed(fn)
+            times.append(dt)
+        return min(times), out
+
+    t_pred, _ = best(lambda: df.predict_limit_cycles(G, N))
+    t_ex, e = best(lambda: exact_cycle(G, N, c))
+    t_sp, (A_sp, w_sp) = best(lambda: scipy_shooting(G, N, c.amplitude, c.frequency))
+    return ("| loop | predict (ms) | exact_cycle / predict | scipy shooting / predict | exact_cycle / scipy "
+            "| exact A, w | scipy - exact (relative) A, w |\n|---|---|---|---|---|---|---|\n"
+            f"| {name} | {1e3 * t_pred:.1f} | {t_ex / t_pred:.1f} | {t_sp / t_pred:.1f} | {t_ex / t_sp:.2f} | "
+            f"{e.amplitude:.10g}, {e.frequency:.10g} | {(A_sp - e.amplitude) / e.amplitude:.1e}, "
+            f"{(w_sp - e.frequency) / e.frequency:.1e} |\n")
 
 
 def main() -> str:
@@ -81,7 +140,9 @@ def main() -> str:
             "step); within 2x: |true| <= 2 |estimated| for both amplitude and frequency (the bracket `Confidence.bracket` "
             "claims when the distortion is at most 5 %).\n\n" + "\n".join(acc)
             + "\n\nCost of all cycles of a loop, one run each, as ratios to `predict_limit_cycles` on the same loop "
-            "(timings on a shared machine vary ~2x between runs):\n\n" + "\n".join(cost) + "\n")
+            "(timings on a shared machine vary ~2x between runs):\n\n" + "\n".join(cost) + "\n"
+            + "\nSmooth element (DOP853 path): exact_cycle against a plain scipy shooting of the same loop (best of 5 "
+            "runs each; the last column says both reach the same orbit):\n\n" + smooth_versus_scipy())
 
 
 if __name__ == "__main__":

@@ -15,7 +15,6 @@ How well the estimates bracket the true errors from :func:`dfloop.exact_cycle` i
 """
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -81,36 +80,6 @@ class Confidence:
                 f"{100 * self.amplitude_error:+.3g} %, frequency {100 * self.frequency_error:+.3g} %{warn})")
 
 
-def _element_response(N):
-    """A function x_samples -> y_samples over one period (after one warm-up period), or None."""
-    from .describing.numeric import NumericDF
-    from .describing.static import StaticElement
-
-    if isinstance(N, StaticElement):
-        return lambda x: np.asarray(N.output(x), dtype=float)
-    if isinstance(N, NumericDF) and not N.hysteretic:
-        return lambda x: np.asarray(N.element(x), dtype=float)
-    try:
-        op0 = N.operator() if not isinstance(N, NumericDF) else N.element
-    except NotImplementedError:
-        return None
-    from .hybrid._operators_core import play_response, relay_response
-    from .describing.static import PlayOperator, RelayOperator
-
-    if type(op0) is RelayOperator:
-        return lambda x: relay_response(np.ascontiguousarray(x, dtype=float), op0.M, op0.on, op0.off)
-    if type(op0) is PlayOperator:
-        return lambda x: play_response(np.ascontiguousarray(x, dtype=float), op0.h, op0.k)
-
-    def run(x):   # any other operator: a Python loop (slower)
-        op = copy.deepcopy(op0)
-        for v in x:                          # warm-up period: the state of the periodic regime
-            op(float(v))
-        return np.array([op(float(v)) for v in x])
-
-    return run
-
-
 def _fundamentals(y: np.ndarray, K: int) -> np.ndarray:
     """Complex amplitudes Y_k, k = 1..K, of uniform samples of one period (y ~ sum Im(Y_k e^{jk theta}))."""
     return 2j * np.fft.rfft(y)[1:K + 1] / y.size
@@ -152,7 +121,10 @@ def cycle_confidence(G, N, amplitude: float, frequency: float, *, samples: int =
     K = int(in_closed_interval("harmonics", harmonics, 2, S // 4))
     if N.frequency_dependent:
         return unavailable(f"{type(N).__name__} depends on frequency (its harmonic response is not a static map)")
-    response = _element_response(N)
+    try:
+        response = N.time_model(A).response
+    except NotImplementedError:
+        response = None
     if response is None:
         return unavailable(f"{type(N).__name__} has no time-domain operator")
     plant = as_plant(G)

@@ -1,38 +1,28 @@
 """Closed-loop time simulation of a predicted limit cycle (loop of the paper's Fig. 1).
 
-Reference 0, element input x = -c, element output y, plant output c = G y. The loop runs on the exact flow of
-:mod:`dfloop.hybrid`: for piecewise-linear elements (relays, saturation, dead zone, backlash, quantizer, ...)
-the matrix exponential between switching instants located to rounding level; for other static elements DOP853
-at rtol 1e-12. No fixed step: ``steps_per_period`` only sets the sampling of the returned signals. An element
-with neither model but a stateful ``operator()`` (a user's hysteretic element) falls back to a fixed-step run:
-the plant is updated exactly over each step for a zero-order-held y, the operator called once per step with the
-input extrapolated to the middle of the step (second order in the step); the result's ``method`` says which.
+Reference 0, element input x = -c, element output y, plant output c = G y. The loop is the one loop model
+:func:`dfloop.hybrid.loop_model` builds from the element's time model, run by the one closed-loop driver
+(:func:`dfloop.hybrid.simulate`): for piecewise-affine elements (relays, saturation, dead zone, backlash,
+quantizer, ...) the matrix exponential between switching instants located to rounding level; for the dynamic
+backlash the exact impact engine; for smooth static elements DOP853 at rtol 1e-12. No fixed step:
+``steps_per_period`` only sets the sampling of the returned signals. An element known only through a stateful
+``operator()`` (a user's hysteretic element) runs with a fixed step: the plant is updated exactly over each step
+for a zero-order-held y, the operator called once per step with the input extrapolated to the middle of the step
+(second order in the step); the result's ``method`` says which.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm
 
 from ._blas import single_threaded_blas
 from .harmonics import SteadyState, steady_state
+from .hybrid import LoopSimulation, loop_model, simulate, start_on_prediction
 
 __all__ = ["LoopSimulation", "simulate_loop", "Verification", "verify_cycle"]
 
 _DIVERGED = 1e6  # |x| beyond this many times the start amplitude stops a run as divergent
-_MAX_SWITCHES_PER_PERIOD = 100_000  # bound on switches in one period of a run (sliding motion hits it)
-
-
-@dataclass
-class LoopSimulation:
-    """Samples of a closed-loop run: times t (s), element input x and output y."""
-
-    t: np.ndarray
-    x: np.ndarray
-    y: np.ndarray
-    diverged: bool
-    method: str = ""
 
 
 def _run_options(periods, steps_per_period) -> tuple[float, int]:
@@ -52,105 +42,33 @@ def simulate_loop(G, N, amplitude: float, frequency: float, *, periods: float = 
 
     The plant starts in the steady state it would have if the element's input were exactly
     ``amplitude`` sin(``frequency`` t); the element's state (play, relay branch) is the one that sinusoid
-    leaves after a period. Elements with internal dynamics provide their own
-    ``simulate_loop(G, amplitude, frequency, *, periods, steps_per_period)`` (the dynamic backlash:
-    :func:`dfloop.impact.loop.simulate_impact_loop`), which is used instead.
+    leaves after a period; the masses of a dynamic backlash start at rest with the gap centred.
 
     Parameters
     ----------
+    G : python-control tf or ss
+        The plant (strictly proper, except around a dynamic backlash).
+    N : DescribingFunction
+        The element (any element with a time model or an operator).
+    amplitude, frequency : float
+        The cycle to start from (element input units, rad/s), > 0.
     periods : float
         Length of the run in periods of ``frequency``, finite and > 0.
     steps_per_period : int
         Samples per period of the returned signals (>= 20); the step of the fixed-step fallback only.
+
+    Returns
+    -------
+    LoopSimulation
+        Uniform samples of x and y; ``diverged`` when |x| passed 1e6 times ``amplitude`` (the run stops there).
     """
     from ._checks import positive
 
     A0, w = positive("amplitude", amplitude), positive("frequency", frequency)
     periods, steps_per_period = _run_options(periods, steps_per_period)
-    if hasattr(N, "simulate_loop"):  # elements with internal dynamics (dynamic backlash) simulate themselves
-        return N.simulate_loop(G, A0, w, periods=periods, steps_per_period=steps_per_period)
-    from .hybrid import loop_model
-
-    loop, method = loop_model(G, N, A0, w)
-    if loop is None:
-        return _fixed_step(G, N, A0, w, periods, steps_per_period)
-    return _exact_run(loop, method, G, N, A0, w, periods, steps_per_period)
-
-
-def _exact_run(loop, method, G, N, A0, w, periods, steps_per_period) -> LoopSimulation:
-    """The loop on the exact (or DOP853) flow, one period at a time, sampled uniformly."""
-    from .exact import _harmonic_balance_state, _history
-    from .hybrid import HybridError, plant_matrices
-
-    T = 2 * np.pi / w
-    z, mode = loop.start(_harmonic_balance_state(plant_matrices(G), N, A0, w), _history(A0, w, 0.0))
-    n_periods = int(np.ceil(periods))
-    ts, xs, ys = [], [], []
-    limit = _DIVERGED * A0
-    diverged = False
-    for p in range(n_periods):
-        span = min(T, periods * T - p * T)
-        try:
-            fl = loop.flow(z, mode, span, max_events=_MAX_SWITCHES_PER_PERIOD)
-        except HybridError as exc:
-            raise RuntimeError(f"the loop cannot be simulated past t = {p * T:.6g} s: {exc}") from None
-        tk = np.arange(int(round(span / T * steps_per_period))) * (T / steps_per_period)
-        zk = loop.states(fl, tk)
-        seg = np.clip(np.searchsorted(fl.t0, tk, side="right") - 1, 0, fl.t0.size - 1)
-        ts.append(p * T + tk)
-        xs.append(loop.x(zk))
-        ys.append(loop.output(zk, fl.modes[seg]))
-        z, mode = fl.z, fl.mode
-        if not np.all(np.isfinite(z)) or np.max(np.abs(xs[-1]), initial=0.0) > limit:
-            diverged = True
-            break
-    x = np.concatenate(xs)
-    keep = np.isfinite(x) & (np.abs(x) <= limit) if diverged else slice(None)
-    return LoopSimulation(np.concatenate(ts)[keep], x[keep], np.concatenate(ys)[keep], diverged, method)
-
-
-def _fixed_step(G, N, A0, w, periods, steps_per_period) -> LoopSimulation:
-    """Fixed-step run with the element's operator (elements without a piecewise-linear or static model)."""
-    from .hybrid import plant_matrices
-
-    Am, B, C = plant_matrices(G, what="time-domain verification")
-    n = Am.shape[0]
-    dt = 2 * np.pi / w / steps_per_period
-    aug = np.zeros((n + 1, n + 1))
-    aug[:n, :n], aug[:n, n] = Am, B
-    E = expm(aug * dt)
-    Phi, Gam = E[:n, :n], E[:n, n]
-    Nw = N(A0, w) if N.frequency_dependent else N(A0)
-    X = np.linalg.solve(1j * w * np.eye(n) - Am, B) * complex(Nw) * A0
-    s = X.imag.copy()
-    try:
-        op = N.operator()
-    except NotImplementedError:
-        raise ValueError(f"N: {type(N).__name__} has no time-domain model (no piecewise-linear or static "
-                         "model, no operator)") from None
-    for tk in np.arange(-steps_per_period, 0) * dt:
-        op(A0 * np.sin(w * tk))
-    steps = int(round(periods * steps_per_period))
-    xs, ys = np.empty(steps), np.empty(steps)
-    limit = _DIVERGED * A0
-    diverged = False
-    k = 0
-    x_prev = -float(C @ np.linalg.solve(Phi, s))  # harmonic-balance state one step back (approx.)
-    for k in range(steps):
-        x = -float(C @ s)
-        # the held output acts over [t_k, t_k+1]: drive the element with x extrapolated to mid-step
-        # (midpoint rule, second order in dt, instead of the half-step delay of a plain sample-and-hold)
-        y = op(1.5 * x - 0.5 * x_prev)
-        x_prev = x
-        xs[k], ys[k] = x, y
-        if abs(x) > limit:
-            diverged = True
-            break
-        s = Phi @ s + Gam * y
-    m = k + 1
-    return LoopSimulation(np.arange(m) * dt, xs[:m], ys[:m], diverged,
-                          f"fixed step (zero-order hold, {steps_per_period} steps per period; "
-                          f"{type(N).__name__} has only an operator)")
+    loop = loop_model(G, N, A0, w, steps_per_period=steps_per_period)
+    z, mode = start_on_prediction(loop, N, A0, w)
+    return simulate(loop, z, mode, 2 * np.pi / w, periods, steps_per_period, limit=_DIVERGED * A0)
 
 
 @dataclass

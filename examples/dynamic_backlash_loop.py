@@ -7,7 +7,7 @@ eps = 0.5) is a tabulated DF N(F, w); the gains are chosen so that G(j w0) = -1/
 the regular (period-1) band, and the solver must find that cycle and its stability on its own.
 
 Verification: ``verify_cycle`` runs a closed-loop time simulation of the masses, impacts (eqs. 8a/8b) and
-controller (:func:`dfloop.impact.loop.simulate_impact_loop`: ``solve_ivp`` restarted at each impact) from 10 %
+controller (:func:`dfloop.verify.simulate_loop` on the exact impact engine, events located to rounding) from 10 %
 inside and outside the predicted force amplitude, and measures the steady frequency and force amplitude.
 
 Run:  python examples/dynamic_backlash_loop.py

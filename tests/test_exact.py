@@ -202,8 +202,8 @@ def test_backlash_servo_outer_cycle_matches_simulation_and_inner_one_has_no_orbi
     miss = exact_cycle(G, N, inner)
     assert not miss.success and miss.amplitude is None and "Newton" in miss.message
     A, B, C = _ss(G)
-    from dfloop.exact import _harmonic_balance_state
-    s_in = _harmonic_balance_state((A, B, C), N, inner.amplitude * 1.02, inner.frequency)
+    a_in, w_in = inner.amplitude * 1.02, inner.frequency     # plant state on the sinusoid x = a_in sin(w t), t = 0
+    s_in = (np.linalg.solve(1j * w_in * np.eye(2) - A, B) * complex(N(a_in)) * a_in).imag
     w_in, amp_in = _simulate(G, "play", 1.0, s_in, -(inner.amplitude * 1.02) + 0.5, 25, outer.period)
     assert amp_in == pytest.approx(e.amplitude, rel=1e-3)
 
@@ -227,7 +227,7 @@ def test_monodromy_matches_finite_differences(name):
     c = df.predict_limit_cycles(G, N)[pick]
     e = exact_cycle(G, N, c)
     assert e.success
-    loop, _ = loop_model(G, N, e.amplitude, e.frequency)
+    loop = loop_model(G, N, e.amplitude, e.frequency)
     z0, mode = e.extra["z0"], e.extra["mode0"]
     M = loop.flow(z0, mode, e.period, monodromy=True).monodromy
     nx = loop.size - 1
@@ -253,7 +253,7 @@ def test_unstable_cycle_has_a_multiplier_outside_the_unit_circle_and_repels_at_t
     assert mu > 1.2
     # independent run (DOP853, no events): an offset along the unstable eigenvector grows by mu per period
     from dfloop.hybrid import loop_model
-    loop, _ = loop_model(G, N, e.amplitude, e.frequency)
+    loop = loop_model(G, N, e.amplitude, e.frequency)
     z0 = e.extra["z0"][:3]
     lam, vecs = np.linalg.eig(loop.flow(e.extra["z0"], e.extra["mode0"], e.period, monodromy=True).monodromy[:3, :3])
     v = np.real(vecs[:, np.argmax(np.abs(lam))])
@@ -326,3 +326,44 @@ def test_discontinuous_static_elements_map_to_the_exact_engine():
     assert e.success and "exact" in e.method
     w, amp, _ = _relay_truth(ct.feedback(G, 1.0), 0.3, 0.0, 0.0, e.period)
     assert e.frequency == pytest.approx(w, rel=1e-9) and e.amplitude == pytest.approx(amp, rel=1e-9)
+
+
+# ---------------------------------------------------------------------------------- user-defined time model
+
+
+def test_a_user_element_with_its_own_time_model_runs_on_the_exact_engine():
+    """An element defined outside dfloop by its DF and a hand-built two-mode time model (an ideal relay M sign x)
+    gets the closed-form relay cycle from exact_cycle, and its confidence from the model's response."""
+    from dfloop.confidence import cycle_confidence
+    from dfloop.describing.base import DescribingFunction
+    from dfloop.describing.time_model import Guard, Mode, PiecewiseAffine
+
+    class UserRelay(DescribingFunction):
+        def __init__(self, M):
+            self.M = M
+
+        def _evaluate(self, A, omega):
+            with np.errstate(divide="ignore"):
+                return 4.0 * self.M / (np.pi * A) + 0j
+
+        def time_model(self, amplitude):
+            M = self.M
+            modes = [Mode(g1=-M, guards=(Guard(cx=-1.0, target=1),), label="-M"),   # x <= 0 until x crosses 0
+                     Mode(g1=M, guards=(Guard(cx=1.0, target=0),), label="+M")]
+
+            def initial(history, xdot):
+                return (1 if history[-1] > 0 or (history[-1] == 0 and xdot > 0) else 0), 0.0
+
+            return PiecewiseAffine("UserRelay", modes, 0, initial, lambda x: M * np.sign(x))
+
+    G = RELAYS["ideal"][0]
+    N = UserRelay(1.0)
+    c = df.predict_limit_cycles(G, N)[0]
+    e = exact_cycle(G, N, c)
+    assert e.success and "exact" in e.method
+    w, amp, _ = _relay_truth(G, 1.0, 0.0, 0.0, e.period)
+    assert e.frequency == pytest.approx(w, rel=1e-9) and e.amplitude == pytest.approx(amp, rel=1e-9)
+    mine = cycle_confidence(G, N, c.amplitude, c.frequency)
+    theirs = cycle_confidence(G, df.Relay(1.0), c.amplitude, c.frequency)
+    # sign(0) = 0 on the one sample at x = 0, where dfloop's relay holds its output: 1 of 2048 samples differs
+    assert mine.available and mine.distortion == pytest.approx(theirs.distortion, rel=1e-3)

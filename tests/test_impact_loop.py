@@ -1,6 +1,8 @@
-"""Closed loop around the dynamic backlash on the exact linear-mode engine: against an independent event-located
-solve_ivp reference (with chatter and sticking), momentum bookkeeping, divergence, the periodic orbit found by
-shooting against a long run, and its Floquet multipliers against a finite-difference monodromy."""
+"""Closed loop around the dynamic backlash on the exact linear-mode engine (dfloop.hybrid.ImpactLoop): against an
+independent event-located solve_ivp reference (with chatter and sticking), momentum bookkeeping, divergence, and
+the periodic orbit exact_cycle finds with the one shooting routine: its period and harmonics against an FFT of a
+long independent run, its Floquet multipliers against a finite-difference monodromy of the independent run, and
+every validated option (tol, nodes, max_deviation, max_events) in use."""
 import math
 
 import control as ct
@@ -8,46 +10,58 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from dfloop.errors import EventLimitError
-from dfloop.impact import DynamicBacklash, ViscousDamping
-from dfloop.impact import _engine
-from dfloop.impact.loop import _ImpactMap, _Loop, impact_loop_orbit, simulate_impact_loop
+from dfloop.describing.time_model import Impact
+from dfloop.exact import exact_cycle
+from dfloop.hybrid import loop_model
+from dfloop.impact import ViscousDamping
+from dfloop.verify import simulate_loop
 
 PD = ct.tf([33.028, 425.06], [1.11979e-4, 2.11640e-2, 1.0])   # models/dynamic_backlash_pd.toml
 F0, W0 = 31.75, 31.5                                            # its design point
+N_PD = -0.000848287 + 0.000507856j                              # the element's DF there (impact_describing_function)
 
 
 class _Fixed:
-    """A DynamicBacklash stand-in with a fixed N (the start state only needs N; no table is built)."""
+    """A dynamic-backlash stand-in with a fixed N (the start state only needs N; no table is built); its time model
+    is the impact element's."""
 
-    def __init__(self, eps, N, effects=()):
+    frequency_dependent = True
+
+    def __init__(self, eps, N, effects=(), chatter_tol=1e-9):
         self.m1, self.m2, self.h, self.restitution, self.effects, self._N = 1.0, 1.0, 0.1, eps, effects, N
+        self.chatter_tol = chatter_tol
 
     def __call__(self, A, w):
         return self._N
+
+    def time_model(self, amplitude):
+        return Impact("stand-in", self.m1, self.m2, self.h, self.restitution, tuple(self.effects), self.chatter_tol)
 
 
 def test_bad_input_is_named():
     element = _Fixed(0.5, 0.0)
     with pytest.raises(ValueError, match="amplitude"):
-        simulate_impact_loop(PD, element, -1.0, 20.0)
+        simulate_loop(PD, element, -1.0, 20.0)
     with pytest.raises(ValueError, match="tf or ss"):
-        simulate_impact_loop(lambda w: 1.0 / (1j * w + 1), element, 10.0, 20.0)
+        simulate_loop(lambda w: 1.0 / (1j * w + 1), element, 10.0, 20.0)
     with pytest.raises(ValueError, match="periods"):
-        simulate_impact_loop(PD, element, 10.0, 20.0, periods=math.inf)
-    with pytest.raises(ValueError, match="element"):
-        simulate_impact_loop(PD, object(), 10.0, 20.0)
-    with pytest.raises(ValueError, match="max_period_multiple"):
-        impact_loop_orbit(PD, element, 10.0, 20.0, max_period_multiple=0)
+        simulate_loop(PD, element, 10.0, 20.0, periods=math.inf)
+    with pytest.raises(ValueError, match="^N must be a DescribingFunction"):
+        simulate_loop(PD, object(), 10.0, 20.0)
+    with pytest.raises(ValueError, match="max_events"):
+        exact_cycle(PD, element, (10.0, 20.0), max_events=0)
 
 
 def test_loop_without_impacts_is_the_linear_loop_with_N_zero():
-    """Below the no-impact limit N = 0: x1 stays 0 and nothing drives the plant."""
-    sim = simulate_impact_loop(ct.tf([5.0], [1.0, 2.0]), _Fixed(0.5, 0.0), 5.0, 40.0, periods=5)
+    """Below the no-impact limit N = 0: x1 stays 0 and nothing drives the plant; exact_cycle says the loop rests."""
+    G = ct.tf([5.0], [1.0, 2.0])
+    sim = simulate_loop(G, _Fixed(0.5, 0.0), 5.0, 40.0, periods=5)
     assert np.all(sim.y == 0.0) and np.all(sim.x == 0.0) and not sim.diverged
+    e = exact_cycle(G, _Fixed(0.5, 0.0), (5.0, 40.0))
+    assert not e.success and "rest" in e.message
 
 
-def _reference(G, eps, z0, t_end, v_stick):
+def _reference(G, eps, z0, t_end, v_stick, full=False):
     """Independent reference: solve_ivp (DOP853, rtol 1e-12) on y = [x1, v1, gap, v2 - v1, s], restarted at every
     impact (law 8a/8b); chatter below v_stick settled plastically, stuck phases integrated as one body until the
     contact force changes sign."""
@@ -116,110 +130,148 @@ def _reference(G, eps, z0, t_end, v_stick):
                 out[m] = f(tt[m])[0]
         return out
 
+    def x(tt):                 # element input: the force on M2, -c
+        out = np.empty(tt.size)
+        for a, b, f in pieces:
+            m = (tt >= a) & (tt <= b)
+            if b > a and m.any():
+                out[m] = force(f(tt[m]))
+        return out
+
+    if full:
+        return np.array(events), x, y
     return np.array(events), x1
 
 
 @pytest.mark.parametrize("eps,F,w,chatter", [(0.8, F0, W0, False), (0.2, 60.0, 14.0, True)])
 def test_closed_loop_engine_matches_event_located_solve_ivp(eps, F, w, chatter):
     G = ct.ss(PD)
-    chatter_tol = 1e-4
-    loop = _Loop(G, _Fixed(eps, 0.0), chatter_tol, F, w)
-    z0 = np.zeros(loop.n)
+    loop = loop_model(G, _Fixed(eps, 0.0, chatter_tol=1e-4), F, w)
+    z0 = np.zeros(loop.size)
     z0[2], z0[-1] = 0.05, 1.0
     z0[4:-1] = [0.002, -0.004]               # the plant starts away from rest: the loop is driven by its state
     t_end = 0.8
-    run = _engine.run(loop.system, z0, t_end, loop.v_stick, 100_000)
+    fl = loop.flow(z0, 0, t_end, max_events=100_000)
     ref_events, ref_x1 = _reference(G, eps, z0[:-1], t_end, loop.v_stick)
-    ours = np.column_stack([run.t0[1:], run.cause[1:]])
+    ours = np.array(fl.events, dtype=float)
     assert ours.shape[0] == ref_events.shape[0] >= 8
     assert np.array_equal(ours[:, 1], ref_events[:, 1])
     assert np.max(np.abs(ours[:, 0] - ref_events[:, 0])) < 1e-8
     if chatter:
-        assert np.count_nonzero(run.contact != 0) >= 2   # chatter settled into stuck phases, then separated
+        assert np.count_nonzero(fl.run.contact != 0) >= 2   # chatter settled into stuck phases, then separated
     t = np.linspace(0, t_end, 801)
     ref = ref_x1(t)      # the reference's own error (rtol 1e-12 over dozens of restarts) sets the bound
-    assert np.max(np.abs(run.states(t)[:, 0] - ref)) < 1e-7 * np.max(np.abs(ref))
+    assert np.max(np.abs(loop.states(fl, t)[:, 0] - ref)) < 1e-7 * np.max(np.abs(ref))
 
 
 def test_momentum_changes_only_by_the_impulse_of_the_control_force():
     """d/dt (M1 v1 + M2 v2) = -c; impacts and sticking conserve momentum: p(t) - p(0) = -int c dt exactly."""
-    G = ct.ss(PD)
-    loop = _Loop(G, _Fixed(0.3, 0.0), 1e-6, F0, W0)
-    z0 = np.zeros(loop.n)
+    loop = loop_model(ct.ss(PD), _Fixed(0.3, 0.0, chatter_tol=1e-6), F0, W0)
+    z0 = np.zeros(loop.size)
     z0[2], z0[-1], z0[4:-1] = 0.05, 1.0, [0.002, -0.004]
-    run = _engine.run(loop.system, z0, 0.6, loop.v_stick, 100_000)
-    assert run.t0.size > 20
+    fl = loop.flow(z0, 0, 0.6, max_events=100_000)
+    assert fl.t0.size > 20
     nodes, weights = np.polynomial.legendre.leggauss(20)
     impulse = 0.0
-    ends = np.append(run.t0[1:], run.t_end)
-    for a, b in zip(run.t0, ends):
+    ends = np.append(fl.t0[1:], 0.6)
+    for a, b in zip(fl.t0, ends):
         if b > a:
             tt = 0.5 * (b - a) * nodes + 0.5 * (a + b)
-            impulse += 0.5 * (b - a) * weights @ (run.states(tt) @ loop.x_row)
-    zt = run.states(np.array([run.t_end]))[0]
+            impulse += 0.5 * (b - a) * weights @ loop.signals(fl, tt)[0]
+    zt = loop.states(fl, 0.6)[0]
     momentum = zt[1] + (zt[1] + zt[3])
     assert abs(momentum - impulse) < 1e-10 * max(1.0, abs(impulse))
 
 
 def test_diverging_loop_is_flagged_and_stops():
-    sim = simulate_impact_loop(ct.tf([300.0], [1.0, -5.0]), _Fixed(0.5, 0.001 + 0.0j), 30.0, 30.0, periods=200)
+    G = ct.tf([300.0], [1.0, -5.0])
+    sim = simulate_loop(G, _Fixed(0.5, 0.001 + 0.0j), 30.0, 30.0, periods=200)
     assert sim.diverged and sim.t[-1] < 200 * 2 * math.pi / 30.0
-    orbit = impact_loop_orbit(ct.tf([300.0], [1.0, -5.0]), _Fixed(0.5, 0.001 + 0.0j), 30.0, 30.0)
-    assert not orbit.success and "diverges" in orbit.message and "failed" in repr(orbit)
+    e = exact_cycle(G, _Fixed(0.5, 0.001 + 0.0j), (30.0, 30.0))
+    assert not e.success and "diverged" in e.message and "no orbit" in repr(e)
 
 
 def test_event_bound_names_how_to_raise_it():
-    with pytest.raises(EventLimitError, match="max_events"):
-        simulate_impact_loop(PD, _Fixed(0.5, 0.003), F0, W0, periods=20, max_events=5)
+    e = exact_cycle(PD, _Fixed(0.5, N_PD), (F0, W0), max_events=1)   # two impacts per period
+    assert not e.success and "max_events = 1" in e.message
 
 
 def test_zero_damping_effect_is_the_undamped_loop():
-    a = simulate_impact_loop(PD, _Fixed(0.5, 0.003), F0, W0, periods=10)
-    b = simulate_impact_loop(PD, _Fixed(0.5, 0.003, (ViscousDamping(0.0),)), F0, W0, periods=10)
+    a = simulate_loop(PD, _Fixed(0.5, 0.003), F0, W0, periods=10)
+    b = simulate_loop(PD, _Fixed(0.5, 0.003, (ViscousDamping(0.0),)), F0, W0, periods=10)
     assert np.array_equal(a.x, b.x) and np.max(np.abs(a.x)) > 10.0
+
+
+# ------------------------------------------------------------------------------ the orbit exact_cycle finds
 
 
 @pytest.fixture(scope="module")
 def pd_orbit():
-    element = DynamicBacklash(1.0, 1.0, 0.1, 0.5, cache=False)
-    return element, impact_loop_orbit(PD, element, F0, W0)
+    return exact_cycle(PD, _Fixed(0.5, N_PD), (F0, W0))
 
 
-def test_pd_loop_orbit_agrees_with_a_long_run(pd_orbit):
-    element, orbit = pd_orbit
-    assert orbit.success and orbit.period_multiple == 1 and orbit.stable, orbit
-    assert abs(orbit.frequency / W0 - 1) < 0.05          # near the prediction, not on it (the DF's error)
-    # a long run of the engine from the prediction's start settles on the orbit
-    loop = _Loop(PD, element, 1e-9, F0, W0)
-    z = loop.start_state(F0, W0)
-    t_end = 400 * 2 * math.pi / W0
-    run = _engine.run(loop.system, z, t_end, loop.v_stick, 10 ** 6, record_from=0.9 * t_end)
-    pm = _ImpactMap(loop, orbit.section_side, orbit.period, 10 ** 6, np.inf)
-    idx = pm.section_indices(run)
-    assert abs(np.diff(run.t0[idx])[-1] - orbit.period) < 1e-9 * orbit.period
-    t_sec = run.t0[idx[-2]]
-    x_run = run.states(t_sec + orbit.t) @ loop.x_row
-    assert np.max(np.abs(x_run - orbit.x)) < 1e-7 * np.max(np.abs(orbit.x))
+def _period_map(z, T, t_end=None):
+    """The independent reference from state z over t_end (default T): (events, x1 function, state at the end)."""
+    return _reference(ct.ss(PD), 0.5, z[:-1], T if t_end is None else t_end, 0.0, full=True)
 
 
-def test_orbit_multipliers_match_finite_difference_monodromy(pd_orbit):
-    element, orbit = pd_orbit
-    loop = _Loop(PD, element, 1e-9, F0, W0)
-    pm = _ImpactMap(loop, orbit.section_side, orbit.period, 10 ** 6, np.inf)
-    xi = orbit.section_state
-    p0, J, *_ = pm.map_and_jacobian(xi, 1)
-    fd = np.empty_like(J)
-    for j in range(xi.size):
-        d = 1e-6 * max(abs(xi[j]), 1e-3)
-        e = np.zeros(xi.size)
-        e[j] = d
-        fd[:, j] = (pm.map_and_jacobian(xi + e, 1)[0] - pm.map_and_jacobian(xi - e, 1)[0]) / (2 * d)
-    scale = np.max(np.abs(fd))
-    assert np.max(np.abs(fd - J)) < 1e-5 * scale
+def test_pd_orbit_fields_are_real(pd_orbit):
+    e = pd_orbit
+    assert e.success and e.stable, e
+    assert abs(e.frequency / W0 - 1) < 0.05          # near the prediction, not on it (the DF's error)
+    assert 1 <= e.iterations <= 40 and 0 <= e.residual <= 1e-11
+    assert e.harmonics.size == 15 and e.distortion > 0.05           # an impact orbit is far from a sinusoid
+    assert e.distortion == pytest.approx(np.sqrt(np.sum(np.abs(e.harmonics[1:]) ** 2)) / e.amplitude, rel=1e-14)
+    assert e.switching_times.size >= 2 and np.all(np.diff(e.switching_times) > 0)
+    assert np.min(np.abs(e.multipliers - 1)) < 1e-6      # the trivial multiplier of the autonomous loop
+
+
+def test_pd_orbit_harmonics_match_an_fft_of_a_long_independent_run(pd_orbit):
+    """The reference (event-located DOP853) starts 1 % off the orbit and runs 30 periods (multipliers ~0.31 shrink
+    the offset below 1e-14); its period (impact to impact on one wall) and the FFT of x over its last period give
+    the period and the harmonics."""
+    e = pd_orbit
+    z = e.extra["z0"].copy()
+    z[:-1] *= 1.01
+    z[2] = min(max(z[2], 0.0), 0.1)
+    events, x_of, _ = _period_map(z, e.period, 30 * e.period)
+    side = events[-1, 1]
+    same = events[events[:, 1] == side, 0]
+    assert same[-1] - same[-2] == pytest.approx(e.period, rel=1e-9)
+    t = same[-2] + np.arange(4096) * (e.period / 4096)
+    X = 2j * np.fft.fft(x_of(t))[1:16] / t.size                       # x ~ Im(X_k e^{jk w (t - t_start)})
+    X = X * np.exp(-1j * np.arange(1, 16) * np.angle(X[0]))          # time origin where x's fundamental is A sin
+    assert abs(X[0]) == pytest.approx(e.amplitude, rel=1e-7)
+    np.testing.assert_allclose(X, e.harmonics, atol=1e-6 * e.amplitude)
+    distortion = np.sqrt(np.sum(np.abs(X[1:]) ** 2)) / abs(X[0])
+    assert distortion == pytest.approx(e.distortion, rel=1e-5)
+
+
+def test_pd_orbit_multipliers_match_a_finite_difference_monodromy_of_the_independent_run(pd_orbit):
+    e = pd_orbit
+    z0 = e.extra["z0"]
+    nx = z0.size - 1
+    fd = np.empty((nx, nx))
+    for j in range(nx):
+        h = 1e-6 * max(abs(z0[j]), 1e-3)
+        zp, zm = z0.copy(), z0.copy()
+        zp[j] += h
+        zm[j] -= h
+        fd[:, j] = (_period_map(zp, e.period)[2] - _period_map(zm, e.period)[2]) / (2 * h)
     mu_fd = np.sort(np.abs(np.linalg.eigvals(fd)))[::-1]
-    assert np.allclose(np.sort(np.abs(orbit.multipliers))[::-1][:2], mu_fd[:2], rtol=1e-4)
+    mu = np.sort(np.abs(e.multipliers))[::-1]
+    np.testing.assert_allclose(mu[:3], mu_fd[:3], rtol=1e-4)
+    assert mu_fd[0] == pytest.approx(1.0, abs=1e-5) and e.largest_multiplier < 1
 
 
-def test_orbit_reports_failure_without_impacts():
-    orbit = impact_loop_orbit(ct.tf([5.0], [1.0, 2.0]), _Fixed(0.5, 0.0), 5.0, 40.0)
-    assert not orbit.success and "impacts" in orbit.message and np.isnan(orbit.period)
+def test_every_option_is_used_on_the_impact_loop(pd_orbit):
+    e = pd_orbit
+    single = exact_cycle(PD, _Fixed(0.5, N_PD), (F0, W0), nodes=1)
+    assert single.success and single.frequency == pytest.approx(e.frequency, rel=1e-10)
+    assert single.amplitude == pytest.approx(e.amplitude, rel=1e-9)
+    loose = exact_cycle(PD, _Fixed(0.5, N_PD), (F0, W0), tol=1e-4)
+    assert loose.success and loose.residual <= 1e-4 and loose.iterations <= e.iterations
+    short = exact_cycle(PD, _Fixed(0.5, N_PD), (F0, W0), harmonics=3, samples=64)
+    assert short.harmonics.size == 3 and short.x.size == 64
+    far = exact_cycle(PD, _Fixed(0.5, N_PD), (F0, W0), max_deviation=0.001)   # the orbit is 2 % away
+    assert not far.success and "max_deviation" in far.message

@@ -33,7 +33,6 @@ KNOWN_UPWARD = {
     ("dfloop.solve.result", "dfloop.plot.nyquist"),
     ("dfloop.solve.predict", "dfloop.exact"),
     ("dfloop.solve.predict", "dfloop.confidence"),
-    ("dfloop.impact.dynamic_backlash", "dfloop.impact.loop"),
 }
 KNOWN_PRIVATE = {
     ("dfloop.plot.loci", "dfloop.plot.nyquist", "_control_plot"),

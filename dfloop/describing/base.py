@@ -116,6 +116,31 @@ class DescribingFunction(ABC):
         """
         raise NotImplementedError(f"{type(self).__name__} has no time-domain operator")
 
+    def time_model(self, amplitude: float):
+        """How this element behaves in time, for the exact engines (:mod:`dfloop.hybrid`).
+
+        Parameters
+        ----------
+        amplitude : float
+            Amplitude scale of the motion (element input units), > 0: sizes numerical checks and ranges.
+
+        Returns
+        -------
+        PiecewiseAffine, Smooth, Impact or Sampled
+            One of the models of :mod:`dfloop.describing.time_model`. The default is :class:`Sampled` built
+            on :meth:`operator` (a fixed-step simulation, not exact); elements override it with an exact model,
+            and a user-defined element may too.
+
+        Raises
+        ------
+        NotImplementedError
+            The element has neither a time model nor an operator.
+        """
+        from .time_model import Sampled
+
+        self.operator()   # raises NotImplementedError when there is none
+        return Sampled(type(self).__name__, self.operator)
+
     def describing_function(self, A):
         """N(A) through python-control's describing-function protocol (amplitude-only elements).
 

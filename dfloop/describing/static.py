@@ -21,6 +21,7 @@ import numpy as np
 from .._checks import finite, frequency_array, in_closed_interval, nonnegative, positive, real_array
 from ..errors import DfloopError
 from .base import DescribingFunction
+from .time_model import Smooth, play_model, relay_model, static_model
 
 __all__ = [
     "StaticElement",
@@ -113,6 +114,11 @@ class StaticElement(DescribingFunction):
 
         return op
 
+    def time_model(self, amplitude: float):
+        """Piecewise affine when f is affine between its breakpoints, smooth otherwise
+        (:func:`dfloop.describing.time_model.static_model`)."""
+        return static_model(self.output, self.breakpoints, type(self).__name__, amplitude)
+
 
 # ---------------------------------------------------------------------------------------------- backlash
 
@@ -197,6 +203,10 @@ class Backlash(DescribingFunction):
     def operator(self) -> PlayOperator:
         """A fresh :class:`PlayOperator` (play centred, output 0)."""
         return PlayOperator(self.h, self.k)
+
+    def time_model(self, amplitude: float):
+        """The play operator as three modes (free, engaged rising, engaged falling)."""
+        return play_model(self.h, self.k, type(self).__name__, self.operator)
 
 
 # ------------------------------------------------------------------------------------ saturation, dead zone
@@ -382,6 +392,10 @@ class Relay(DescribingFunction):
         """A fresh :class:`RelayOperator` at rest (output 0 until |x| exceeds the on-level d + a)."""
         return RelayOperator(self.M, self.on_level, self.off_level)
 
+    def time_model(self, amplitude: float):
+        """The relay as three modes (-M, 0, +M) switched by its levels."""
+        return relay_model(self.M, self.on_level, self.off_level, type(self).__name__, self.operator)
+
 
 # ------------------------------------------------------------------------------------- further elements
 
@@ -413,6 +427,11 @@ class CubicStiffness(StaticElement):
         x = real_array(x, "x")
         with np.errstate(over="ignore"):  # Horner form: the limits at x = +/-inf, not inf - inf
             return x * (self.k1 + self.k3 * (x * x))
+
+    def time_model(self, amplitude: float):
+        """Smooth, with its exact slope k1 + 3 k3 x^2 for the variational equation."""
+        k1, k3 = self.k1, self.k3
+        return Smooth(type(self).__name__, self.output, lambda x: k1 + 3.0 * k3 * (x * x))
 
     def _evaluate(self, A, omega):
         with np.errstate(over="ignore"):  # beyond ~1e154 m: +/-inf, the rounded value of the true N
@@ -450,6 +469,10 @@ class Quantizer(StaticElement):
         with np.errstate(over="ignore", invalid="ignore"):
             q = self.step * np.sign(x) * np.floor(np.abs(x) / self.step + 0.5)
         return np.where(np.abs(x) > self.step * 2.0**52, x, q)  # beyond: x is a multiple of step to rounding
+
+    def time_model(self, amplitude: float):
+        """One mode per level, levels modelled up to 64 ``amplitude`` (a motion leaving them stops the flow)."""
+        return static_model(self.output, self.breakpoints, type(self).__name__, amplitude, unbounded_levels=True)
 
     def breakpoints(self, A_max: float | None = None) -> np.ndarray:
         """Thresholds (i - 1/2) step below ``A_max`` (required: there are infinitely many)."""

@@ -1,38 +1,29 @@
-"""dfloop.hybrid: the exact linear-mode event engine for loops with piecewise-linear elements.
+"""dfloop.hybrid: the exact engines of closed loops, behind one interface.
 
-Between switching instants the loop of a strictly proper plant and a piecewise-linear element (relays,
-saturation, dead zone, backlash, quantizer, ...) is a linear ODE z' = A_m z of the augmented state
-z = [plant state, element state, 1], solved with the matrix exponential; switches are roots of linear guard
-functions located to rounding level. Elements that are not piecewise linear run on DOP853 instead.
+An element says how it behaves in time (:meth:`~dfloop.describing.base.DescribingFunction.time_model`, with the
+vocabulary of :mod:`dfloop.describing.time_model`); :func:`loop_model` is the one place that turns a plant and
+that time model into a loop model:
+
+- piecewise affine -> :class:`HybridLoop`: z' = A_m z per mode, matrix exponentials, switches located to
+  rounding level (relays, saturation, dead zone, backlash, quantizer, ...);
+- smooth -> :class:`SmoothLoop`: DOP853 with the variational equation (cubic stiffness, a user's f);
+- impact -> :class:`ImpactLoop`: the compiled linear-mode impact engine (dynamic backlash);
+- sampled -> :class:`SampledLoop`: fixed step (an element with only an operator; not exact).
+
+Every loop model has ``size``, ``x_row``, ``method``, ``exact`` (flows carry a monodromy), ``settle_periods``
+(periods to run before shooting), ``plant`` (A, B), ``start(s0, x_history)``, ``admissible_mode(z, mode)``,
+``flow(z, mode, t_end, monodromy=, max_events=)`` -> :class:`Flow`, ``signals(flow, t)`` -> (x, y),
+``fourier(flow, T, w, K)`` and (when ``exact``) ``field(z, mode)`` and ``states(flow, t)``.
+:mod:`dfloop.hybrid.shooting` finds periodic orbits of any exact loop model and :func:`simulate` runs any of them.
 """
-from .elements import ElementModel, Guard, Mode, element_model
+from .impact import ImpactLoop
 from .loop import Flow, HybridError, HybridLoop, plant_matrices
+from .model import harmonic_balance_state, input_history, loop_model, start_on_prediction
+from .run import LoopSimulation, simulate
+from .sampled import SampledLoop
+from .shooting import Orbit, ShootingError, periodic_orbit
 from .smooth import SmoothLoop
 
-__all__ = ["ElementModel", "Guard", "Mode", "element_model", "Flow", "HybridError", "HybridLoop",
-           "plant_matrices", "SmoothLoop", "loop_model"]
-
-
-def loop_model(G, N, amplitude: float, frequency: float):
-    """The loop of plant G and element N as a simulation model, and a description of its method.
-
-    Returns ``(model, method)``: a :class:`HybridLoop` (exact) when N is piecewise linear, a
-    :class:`SmoothLoop` (DOP853) when N is another static element, ``(None, reason)`` when N has no
-    time-domain model here. ``amplitude`` and ``frequency`` (rad/s) size the steps and ranges.
-    """
-    import math
-
-    from ..describing.numeric import NumericDF
-    from ..describing.static import StaticElement
-
-    A, B, C = plant_matrices(G)
-    time_scale = 2.0 * math.pi / frequency
-    model = element_model(N, amplitude)
-    if model is not None:
-        return (HybridLoop(A, B, C, model, time_scale),
-                "exact (matrix exponential between switches, switches located to rounding level)")
-    if isinstance(N, StaticElement) or (isinstance(N, NumericDF) and not N.hysteretic):
-        f = N.output if isinstance(N, StaticElement) else N.element
-        return (SmoothLoop(A, B, C, f, type(N).__name__, time_scale),
-                f"DOP853 (rtol {1e-12:g}; {type(N).__name__} is not piecewise linear, so not exact)")
-    return None, f"{type(N).__name__} has no piecewise-linear or static time-domain model"
+__all__ = ["Flow", "HybridError", "HybridLoop", "SmoothLoop", "ImpactLoop", "SampledLoop", "plant_matrices",
+           "loop_model", "harmonic_balance_state", "input_history", "start_on_prediction", "LoopSimulation", "simulate",
+           "Orbit", "ShootingError", "periodic_orbit"]

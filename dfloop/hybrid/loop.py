@@ -2,7 +2,7 @@
 
 Loop of the paper's Fig. 1: plant state s (s' = A s + B y, c = C s), element input x = -c, element output y
 and element state e (the driven side of a backlash; none for static elements and relays). With the augmented
-state z = [s, e, 1] every mode of the element (:mod:`dfloop.hybrid.elements`) is a linear ODE z' = A_m z,
+state z = [s, e, 1] every mode of the element (a :class:`~dfloop.describing.time_model.PiecewiseAffine`) is a linear ODE z' = A_m z,
 solved exactly by the matrix exponential. Guards are linear rows r (r.z >= 0 in the mode). Events are
 bracketed on steps of 1/32 of the fastest time scale of the mode (turning points inside a step found from
 r.A z) and refined to rounding level on the Taylor series of exp(A s) z, with the compiled scan and refine
@@ -19,10 +19,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm
 
+from ..describing.time_model import OUT_OF_RANGE, PiecewiseAffine
 from ..impact._effects_core import admissible, propagate, rows_on_zero, scan_steps
-from .elements import OUT_OF_RANGE, ElementModel
 
-__all__ = ["HybridLoop", "Flow", "HybridError", "plant_matrices"]
+__all__ = ["HybridLoop", "Flow", "HybridError", "plant_matrices", "plant_system"]
 
 STEPS_PER_SCALE = 32
 _NEVER = -2                   # target of the dummy guard of a mode without guards (1 >= 0 always holds)
@@ -33,20 +33,29 @@ class HybridError(RuntimeError):
     """The hybrid flow cannot continue: sliding on a switching surface, grazing, range or event bound."""
 
 
-def plant_matrices(G, *, what: str = "the exact flow"):
-    """(A, B, C) of a strictly proper SISO tf/ss plant G (``ValueError`` naming G otherwise)."""
+def plant_system(G, *, what: str = "the exact flow"):
+    """(A, B, C, D) of a SISO continuous-time python-control tf/ss plant G (``ValueError`` naming G otherwise)."""
     import control as ct
 
-    from ..solve.plant import as_plant
-
-    lti = as_plant(G).lti
-    if lti is None or isinstance(lti, ct.FrequencyResponseData):
+    G = getattr(G, "lti", G)     # a dfloop Plant carries its python-control system (or None)
+    if not isinstance(G, (ct.TransferFunction, ct.StateSpace)):
         raise ValueError(f"G must be a python-control tf or ss system for {what}, got {type(G).__name__}")
-    sys = ct.ss(lti)
-    if np.any(np.asarray(sys.D) != 0):
+    sys = ct.ss(G)
+    if sys.ninputs != 1 or sys.noutputs != 1:
+        raise ValueError(f"G must be SISO for {what}, got {sys.ninputs} inputs and {sys.noutputs} outputs")
+    if not sys.isctime():
+        raise ValueError(f"G must be a continuous-time system for {what}, got dt = {sys.dt!r}")
+    return (np.asarray(sys.A, float), np.asarray(sys.B, float)[:, 0], np.asarray(sys.C, float)[0],
+            float(np.asarray(sys.D, float)[0, 0]))
+
+
+def plant_matrices(G, *, what: str = "the exact flow"):
+    """(A, B, C) of a strictly proper SISO tf/ss plant G (``ValueError`` naming G otherwise)."""
+    A, B, C, D = plant_system(G, what=what)
+    if D != 0:
         raise ValueError(f"G must be strictly proper (D = 0) for {what} (a direct feedthrough closes an "
-                         f"algebraic loop through the element); got D = {float(np.asarray(sys.D).ravel()[0])!r}")
-    return np.asarray(sys.A, float), np.asarray(sys.B, float)[:, 0], np.asarray(sys.C, float)[0]
+                         f"algebraic loop through the element); got D = {D!r}")
+    return A, B, C
 
 
 @dataclass
@@ -66,23 +75,53 @@ class Flow:
     modes: np.ndarray
     events: list
     dense: object = None     # dense output of an integrator (smooth loops only)
+    run: object = None       # the impact engine's run (impact loops only)
+
+    @property
+    def event_times(self) -> np.ndarray:
+        """Times (s) of the switches / impacts of the flow."""
+        return np.array([e[0] for e in self.events], dtype=float)
 
 
-class HybridLoop:
+class LoopModel:
+    """What every loop model shares: the flows of several nodes and the flow of a whole period from them.
+
+    Subclasses define ``flow``; a model whose nodes can run together (one integration) overrides
+    :meth:`flow_many` and sets ``batched``; one whose node flows compose into the period's flow overrides
+    :meth:`join`.
+    """
+
+    batched = False        # flow_many does more than one flow per node
+    switching = True       # flows switch modes (the shooting keeps its first node away from switches)
+
+    def flow_many(self, zs, modes, t_end: float, *, monodromy: bool = False, max_events: int = 10_000) -> list:
+        """The flows from every (zs[i], modes[i]) over [0, t_end]."""
+        return [self.flow(z, mo, t_end, monodromy=monodromy, max_events=max_events) for z, mo in zip(zs, modes)]
+
+    def join(self, flows: list, period: float, *, max_events: int = 10_000) -> "Flow":
+        """The flow (with its monodromy) over one period from the first node of converged node flows."""
+        return self.flow(flows[0].z0[0], flows[0].modes[0], period, monodromy=True, max_events=max_events)
+
+
+class HybridLoop(LoopModel):
     """Exact hybrid model of the loop of plant (A, B, C) and a piecewise-linear element model.
 
     Parameters
     ----------
     A, B, C : ndarray
         Strictly proper plant (see :func:`plant_matrices`).
-    element : ElementModel
-        From :func:`dfloop.hybrid.elements.element_model`.
+    element : PiecewiseAffine
+        The element's time model (:meth:`dfloop.describing.base.DescribingFunction.time_model`).
     time_scale : float
         Longest step allowed (s) times 32, e.g. the expected period; steps are also bounded by the fastest
         time constant of every mode.
     """
 
-    def __init__(self, A, B, C, element: ElementModel, time_scale: float):
+    method = "exact (matrix exponential between switches, switches located to rounding level)"
+    exact = True           # flows carry a monodromy: periodic orbits can be shot
+    settle_periods = 0.0   # the predicted sinusoid sets the element's state: no transient needed before shooting
+
+    def __init__(self, A, B, C, element: PiecewiseAffine, time_scale: float):
         n = A.shape[0]
         self.n, self.element = n, element
         self.size = n + element.n_states + 1
@@ -137,6 +176,13 @@ class HybridLoop:
         z = np.atleast_2d(z)
         return np.einsum("ij,ij->i", z, np.array(self.y_rows)[np.broadcast_to(mode, z.shape[:1])])
 
+    def signals(self, flow: Flow, t) -> tuple[np.ndarray, np.ndarray]:
+        """Element input x and output y at times t within the flow's span."""
+        t = np.atleast_1d(np.asarray(t, float))
+        z = self.states(flow, t)
+        seg = np.clip(np.searchsorted(flow.t0, t, side="right") - 1, 0, flow.t0.size - 1)
+        return self.x(z), self.output(z, flow.modes[seg])
+
     def field(self, z, mode: int) -> np.ndarray:
         """Vector field z' = A_mode z."""
         return self.matrices[mode] @ z
@@ -182,7 +228,7 @@ class HybridLoop:
         return out
 
     def fourier(self, flow: Flow, t_end: float, omega: float, harmonics: int) -> np.ndarray:
-        """Exact (1/T) int_0^T z(t) e^{-j k w t} dt for k = 1..harmonics, T = t_end, as a (K, size) array.
+        """Exact (1/T) int_0^T x(t) e^{-j k w t} dt for k = 1..harmonics, T = t_end (complex, (K,)).
 
         Each segment's integral comes from one block exponential (Van Loan) per harmonic.
         """
@@ -198,7 +244,7 @@ class HybridLoop:
                 big[:N, :N] = self.matrices[mode] - 1j * k * omega * np.eye(N)
                 y = expm(big * (t1 - t0)) @ np.concatenate([z0, np.zeros(N)])
                 out[k - 1] += np.exp(-1j * k * omega * t0) * y[N:]
-        return out / t_end
+        return (out / t_end) @ self.x_row
 
     # -------------------------------------------------------------------------------------------- flow
 

@@ -29,8 +29,10 @@ import numpy as np
 
 from .. import _checks
 from ..describing.base import DescribingFunction
+from ..describing.time_model import Impact
 from ..tables import Table1D, Table2D, TableSettings, TableStore, TableValues, settings_dict
 from .limits import BETA_NO_IMPACT
+from .model import DEFAULT_CHATTER_TOL
 from .sampling import STARTS, ImpactSampler
 
 __all__ = ["DynamicBacklash", "prepare_many"]
@@ -409,13 +411,10 @@ class DynamicBacklash(DescribingFunction):
         hi = np.full(np.shape(base), np.inf) if self.similarity else self.beta_max * base
         return BETA_NO_IMPACT * base, hi
 
-    def simulate_loop(self, G, amplitude: float, frequency: float, *, periods: float = 80,
-                      steps_per_period: int = 400):
-        """Closed-loop time simulation of this element around G (see :func:`dfloop.impact.loop.simulate_impact_loop`)."""
-        from .loop import simulate_impact_loop
-
-        return simulate_impact_loop(G, self, amplitude, frequency, periods=periods,
-                                    steps_per_period=steps_per_period)
+    def time_model(self, amplitude: float):
+        """The masses, clearance, restitution and effects for the exact impact engine (:mod:`dfloop.hybrid`)."""
+        return Impact(type(self).__name__, self.m1, self.m2, self.h, self.restitution, tuple(self.effects),
+                      DEFAULT_CHATTER_TOL)
 
     def negative_inverse(self, F, omega) -> np.ndarray:
         """-1/N(F, w) (N/m) computed from the table as -M2 w^2 / D; complex infinity where N = 0."""

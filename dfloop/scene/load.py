@@ -213,9 +213,9 @@ def load_scene(path: str | Path, *, progress: bool = False) -> Scene:
     except SceneError as err:
         raise err.in_file(path) from None
     analysis = model.analysis
-    if analysis.verify and not hasattr(element, "simulate_loop"):
+    if analysis.verify:
         try:
-            element.operator()
+            element.time_model(1.0)
         except NotImplementedError:
             raise SceneError(path, Problem("analysis.verify", f"{type(element).__name__} has no time-domain "
                                            "operator, so the closed-loop verification cannot run")) from None

@@ -1,0 +1,85 @@
+"""The one dispatcher from (G, N) to a loop model, and the start of a loop on a predicted cycle."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..describing.time_model import Impact, PiecewiseAffine, Sampled, Smooth
+from .impact import ImpactLoop
+from .loop import HybridLoop, plant_matrices, plant_system
+from .sampled import SampledLoop
+from .smooth import SmoothLoop
+
+__all__ = ["loop_model", "harmonic_balance_state", "input_history", "start_on_prediction"]
+
+HISTORY_SAMPLES = 256    # samples of the predicted sinusoid that set the element's state (relay branch, play)
+
+
+def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: int = 400,
+               what: str = "the exact flow"):
+    """The loop of plant G and element N as a loop model (the one dispatcher on the element's time model).
+
+    Parameters
+    ----------
+    G : python-control tf or ss
+        The plant (strictly proper, except around an impact element whose output x1 is a state).
+    N : DescribingFunction
+        The element; its ``time_model(amplitude)`` says how it behaves in time.
+    amplitude, frequency : float
+        Scale of the motion (element input units, rad/s): sizes the steps and ranges.
+    steps_per_period : int
+        The step of a sampled (fixed-step) loop, per period of ``frequency``.
+    what : str
+        The caller's name for error messages.
+
+    Raises
+    ------
+    ValueError
+        N has no time model (naming N), or G is not a suitable plant (naming G).
+    """
+    if not callable(getattr(N, "time_model", None)):
+        raise ValueError(f"N must be a DescribingFunction (with time_model()), got {type(N).__name__}")
+    try:
+        tm = N.time_model(amplitude)
+    except NotImplementedError as exc:
+        raise ValueError(f"N: {type(N).__name__} has no time-domain model ({exc}); implement its "
+                         "time_model() (dfloop.describing.time_model) or operator()") from None
+    time_scale = 2.0 * math.pi / frequency
+    if isinstance(tm, Impact):
+        A, B, C, D = plant_system(G, what=what)
+        plant = ImpactLoop(A, B, C, D, tm, amplitude, frequency)
+    else:
+        A, B, C = plant_matrices(G, what=what)
+        if isinstance(tm, PiecewiseAffine):
+            plant = HybridLoop(A, B, C, tm, time_scale)
+        elif isinstance(tm, Smooth):
+            plant = SmoothLoop(A, B, C, tm.f, tm.name, time_scale, tm.slope)
+        elif isinstance(tm, Sampled):
+            plant = SampledLoop(A, B, C, tm, time_scale / steps_per_period, steps_per_period)
+        else:
+            raise ValueError(f"N: {type(N).__name__}.time_model() returned {type(tm).__name__}, not one of "
+                             "PiecewiseAffine, Smooth, Impact, Sampled (dfloop.describing.time_model)")
+    plant.plant = (A, B)
+    return plant
+
+
+def harmonic_balance_state(loop, N, amplitude: float, frequency: float, t: float = 0.0) -> np.ndarray:
+    """Plant state at time t of the sinusoidal orbit x = amplitude sin(frequency t) that the DF assumes."""
+    A, B = loop.plant
+    n_val = complex(N(amplitude, frequency) if N.frequency_dependent else N(amplitude))
+    X = np.linalg.solve(1j * frequency * np.eye(A.shape[0]) - A, B) * n_val * amplitude
+    return (X * np.exp(1j * frequency * t)).imag.copy()
+
+
+def input_history(amplitude: float, frequency: float, t: float) -> np.ndarray:
+    """Samples of the predicted input amplitude sin(frequency t') over the period before time t."""
+    T = 2.0 * math.pi / frequency
+    return amplitude * np.sin(frequency * (t + T * (np.arange(HISTORY_SAMPLES) / HISTORY_SAMPLES - 1.0)))
+
+
+def start_on_prediction(loop, N, amplitude: float, frequency: float, t: float = 0.0):
+    """(z, mode) at time t of the predicted orbit: the plant in its harmonic-balance state, the element in the
+    state the predicted sinusoid leaves (the masses of an impact element at rest, gap centred)."""
+    return loop.start(harmonic_balance_state(loop, N, amplitude, frequency, t), input_history(amplitude, frequency, t))
+

@@ -1,0 +1,248 @@
+"""The one periodic-orbit finder: multiple shooting with the monodromy (saltation matrices included) as Jacobian.
+
+For any exact loop model of :mod:`dfloop.hybrid` (piecewise affine, smooth, impact), Newton's method solves
+
+    phi_{T/m}(z_i) - z_{i+1} = 0  (i = 0..m-1, z_m = z_0),      f(z_0) . (z_0 - z_0^k) = 0,
+
+in the nodes z_i and the period T (the last row keeps the correction orthogonal to the flow). Nodes start on
+the predicted sinusoidal orbit (``settle_periods`` = 0: right for unstable cycles, which a flow leaves) or on a
+flow settled for some periods from it (then the period is detected on the settled motion). The first node lies
+in the middle of the longest segment between switches, so small corrections never move a switch across a node.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .loop import Flow, HybridError
+from .model import start_on_prediction
+
+__all__ = ["Orbit", "ShootingError", "periodic_orbit", "detect_period"]
+
+LINE_SEARCH = 8    # step halvings per Newton iteration
+FLOOR = 1e-9       # a residual below this that stops decreasing is the rounding floor: accepted
+_DETECT_PERIODS = 8   # settled periods over which the period is detected
+DIVERGED = 1e6        # |x| beyond this many predicted amplitudes while settling: the motion diverges
+
+
+class ShootingError(RuntimeError):
+    """No periodic orbit was found; ``residual`` and ``iterations`` say how far Newton got."""
+
+    def __init__(self, message: str, residual: float = math.inf, iterations: int = 0):
+        super().__init__(message)
+        self.residual, self.iterations = residual, iterations
+
+
+@dataclass
+class Orbit:
+    """A converged periodic orbit: start state ``z`` and ``mode``, ``period`` (s), the ``flow`` over one period
+    from there (with its monodromy), the final relative ``residual`` and the Newton ``iterations``."""
+
+    z: np.ndarray
+    mode: object
+    period: float
+    flow: Flow
+    residual: float
+    iterations: int
+
+
+def detect_period(t: np.ndarray, x: np.ndarray) -> float | None:
+    """Mean spacing (s) of the upward crossings of x through its mean level; None with fewer than 2 crossings."""
+    d = np.asarray(x, float) - float(np.mean(x))
+    k = np.flatnonzero((d[:-1] < 0) & (d[1:] >= 0))
+    if k.size < 2:
+        return None
+    tc = t[k] - d[k] * (t[k + 1] - t[k]) / (d[k + 1] - d[k])
+    return float((tc[-1] - tc[0]) / (tc.size - 1))
+
+
+def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, max_iterations: int,
+                   settle_periods: float, nodes: int, max_events: int) -> Orbit:
+    """Periodic orbit of ``loop`` near the predicted cycle (amplitude, frequency) by multiple shooting.
+
+    Parameters
+    ----------
+    loop : exact loop model
+        From :func:`dfloop.hybrid.loop_model` (``loop.exact`` True).
+    N : DescribingFunction
+        The element (its DF sets the harmonic-balance start).
+    amplitude, frequency : float
+        The prediction (element input units, rad/s).
+    tol : float
+        Newton stops when the relative defect is <= tol.
+    max_iterations : int
+        Bound on Newton iterations (each: one flow per node, at most 8 line-search flows).
+    settle_periods : float
+        Periods flowed from the prediction before shooting (0: nodes on the predicted sinusoid).
+    nodes : int
+        Shooting nodes per period.
+    max_events : int
+        Bound on the events of one flow.
+
+    Raises
+    ------
+    ShootingError
+        With the reason (flow failure, no convergence, singular Jacobian, no decreasing step).
+    """
+    T = 2.0 * math.pi / frequency
+    m = nodes
+    try:
+        if settle_periods > 0:
+            zs, modes, T = _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events)
+        else:   # nodes on the predicted sinusoidal orbit itself (right for unstable cycles, which a flow leaves)
+            t_first = 0.0
+            if loop.switching:
+                z, mode = start_on_prediction(loop, N, amplitude, frequency)
+                _, _, t_first = _section_point(loop.flow(z, mode, T, max_events=max_events), T, T)
+            zs, modes = [], []
+            for i in range(m):
+                zi, mi = start_on_prediction(loop, N, amplitude, frequency, t_first + i * T / m)
+                zi, mi = loop.admissible_mode(zi, mi)
+                zs.append(zi)
+                modes.append(mi)
+    except HybridError as exc:
+        raise ShootingError(f"the flow from the predicted orbit failed: {exc}") from None
+
+    nx = loop.size - 1
+    residual, it = math.inf, 0
+    flows = None           # node flows with monodromy, when the line search already computed them
+    for it in range(1, max_iterations + 1):
+        try:
+            if flows is None:
+                flows = loop.flow_many(zs, modes, T / m, monodromy=True, max_events=max_events)
+        except HybridError as exc:
+            raise ShootingError(f"Newton iteration {it}: {exc}", residual, it) from None
+        previous = residual
+        residual = _defect(flows, zs, nx)
+        consistent = all(flows[i].mode == modes[(i + 1) % m] for i in range(m))
+        if consistent and (residual <= tol or (residual <= FLOOR and residual > 0.5 * previous)):
+            break   # converged, or stalled at the rounding floor of the switch times (quadratic convergence ended)
+        if it == max_iterations:
+            raise ShootingError(f"Newton did not converge in max_iterations = {max_iterations} (residual "
+                                f"{residual:.2e} > tol = {tol:g}): no periodic orbit near the prediction, or a "
+                                "chaotic / quasi-periodic response; raise max_iterations or start elsewhere",
+                                residual, it)
+        J, F = _shooting_system(loop, flows, zs, modes, m, nx)
+        try:
+            delta = np.linalg.solve(J, -F)
+        except np.linalg.LinAlgError:
+            raise ShootingError(f"singular shooting Jacobian at iteration {it} (a multiplier equal to 1 besides "
+                                "the trivial one: a marginal or non-isolated orbit)", residual, it) from None
+        found = _line_search(loop, zs, flows, T, delta, residual, m, nx, max_events)
+        if found is None:
+            raise ShootingError(f"Newton iteration {it}: no step reduces the residual {residual:.2e} (no periodic "
+                                "orbit near the prediction, or a chaotic / quasi-periodic response)", residual, it)
+        zs, modes, T, flows = found
+    try:
+        fl = loop.join(flows, T, max_events=max_events)
+    except HybridError as exc:
+        raise ShootingError(f"the converged orbit cannot be followed over one period: {exc}", residual, it) from None
+    return Orbit(zs[0], modes[0], T, fl, residual, it)
+
+
+def _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events):
+    """Flow ``settle_periods`` predicted periods (one flow per period), detect the period on the last ones, and
+    put the nodes on one period of the settled motion from the middle of its longest segment."""
+    T = 2.0 * math.pi / frequency
+    z, mode = start_on_prediction(loop, N, amplitude, frequency)
+    whole = int(math.floor(settle_periods))
+    spans = [T] * whole + ([(settle_periods - whole) * T] if settle_periods > whole else [])
+    tail_t, tail_x = [], []
+    for p, span in enumerate(spans):
+        fl = loop.flow(z, mode, span, max_events=max_events)
+        tk = np.arange(64) * (span / 64)
+        x = loop.signals(fl, tk)[0]
+        if p >= len(spans) - _DETECT_PERIODS:
+            tail_t.append(p * T + tk)
+            tail_x.append(x)
+        z, mode = fl.z, fl.mode
+        if not np.all(np.isfinite(z)) or np.max(np.abs(x)) > DIVERGED * amplitude:
+            raise HybridError(f"the motion diverged while settling: |x| passed {DIVERGED:g} times the predicted "
+                              f"amplitude in period {p + 1} of {settle_periods:g}")
+    detected = detect_period(np.concatenate(tail_t), np.concatenate(tail_x))
+    if detected is not None and abs(math.log(detected / T)) < 0.7:
+        T = detected
+    fl = loop.flow(z, mode, T, max_events=max_events)
+    _, mode, t_mid = _section_point(fl, T, T)
+    fl = loop.flow(loop.states(fl, t_mid)[0], mode, T, max_events=max_events)
+    t = np.arange(m) * (T / m)
+    seg = np.clip(np.searchsorted(fl.t0, t, side="right") - 1, 0, fl.t0.size - 1)
+    return list(loop.states(fl, t)), [int(fl.modes[k]) for k in seg], T
+
+
+def _section_point(fl, t_end: float, T: float):
+    """Segment index, mode and time of the middle of the longest segment between switches in the last period
+    of a flow (segments that wrap around t_end - T count whole)."""
+    starts = np.clip(fl.t0, t_end - T, t_end)
+    ends = np.clip(np.append(fl.t0[1:], t_end), t_end - T, t_end)
+    k = int(np.argmax(ends - starts))
+    return k, int(fl.modes[k]), 0.5 * (starts[k] + ends[k])
+
+
+def _defect(flows, zs, nx) -> float:
+    """Relative size of the shooting defects phi(z_i) - z_{i+1}."""
+    m = len(zs)
+    d = np.concatenate([flows[i].z[:nx] - zs[(i + 1) % m][:nx] for i in range(m)])
+    scale = max(float(np.linalg.norm(np.concatenate([z[:nx] for z in zs]))), 1e-300)
+    return float(np.linalg.norm(d)) / scale
+
+
+def _shooting_system(loop, flows, zs, modes, m, nx):
+    """Jacobian and defects of multiple shooting in (z_0..z_{m-1}, T); last row: correction orthogonal to
+    the flow at z_0."""
+    n = m * nx + 1
+    J = np.zeros((n, n))
+    F = np.zeros(n)
+    for i in range(m):
+        r = slice(i * nx, (i + 1) * nx)
+        j = (i + 1) % m
+        J[r, r] += flows[i].monodromy[:nx, :nx]
+        J[r, j * nx:(j + 1) * nx] -= np.eye(nx)
+        J[r, -1] = loop.field(flows[i].z, flows[i].mode)[:nx] / m
+        F[r] = flows[i].z[:nx] - zs[j][:nx]
+    J[-1, :nx] = loop.field(zs[0], modes[0])[:nx]
+    return J, F
+
+
+def _line_search(loop, zs, flows, T, delta, residual, m, nx, max_events):
+    """Damped Newton step (halvings bounded by LINE_SEARCH) on nodes and period; node modes follow the flows.
+
+    Returns (nodes, modes, period, flows): the flows are the trial's own, with monodromy, when the model runs
+    all nodes at once (reused by the next iteration), else None."""
+    step = 1.0
+    for _ in range(LINE_SEARCH + 1):
+        T_new = T + step * delta[-1]
+        if T_new > 0:
+            try:
+                new_z, new_modes, trial = [], [], []
+                if loop.batched:   # modes are functions of the state: all nodes at once, with monodromy
+                    for i in range(m):
+                        zi = zs[i].copy()
+                        zi[:nx] += step * delta[i * nx:(i + 1) * nx]
+                        zi, mi = loop.admissible_mode(zi, _mode_reaching(flows, i))
+                        new_z.append(zi)
+                        new_modes.append(mi)
+                    trial = loop.flow_many(new_z, new_modes, T_new / m, monodromy=True, max_events=max_events)
+                else:
+                    # node modes follow the trial flows in turn (a hysteretic element's mode is not a function of
+                    # the state: a node moved across a switch takes the mode the flow reaching it ends in)
+                    for i in range(m):
+                        zi = zs[i].copy()
+                        zi[:nx] += step * delta[i * nx:(i + 1) * nx]
+                        zi, mi = loop.admissible_mode(zi, trial[-1].mode if trial else flows[-1].mode)
+                        new_z.append(zi)
+                        new_modes.append(mi)
+                        trial.append(loop.flow(zi, mi, T_new / m, max_events=max_events))
+                if _defect(trial, new_z, nx) < residual or residual < FLOOR:
+                    return new_z, new_modes, T_new, (trial if loop.batched else None)
+            except HybridError:
+                pass
+        step *= 0.5
+    return None
+
+
+def _mode_reaching(flows, i: int):
+    """The mode the flow reaching node i ends in."""
+    return flows[i - 1].mode
