@@ -25,6 +25,20 @@ def amplitude_label(N) -> str:
     return quantity(f"Amplitude {N.input_name}", N.input_unit)
 
 
+def plane_unit(N) -> str:
+    """Unit of the Nyquist plane of G(jw) and -1/N (both in element input per element output, since G N is
+    dimensionless): N/m for an element driven by a force whose output is a position (``input_unit`` "N": the
+    masses with backlash), "-" for elements whose input and output share a unit."""
+    return "N/m" if getattr(N, "input_unit", "") == "N" else "-"
+
+
+def plane_labels(ax, N) -> None:
+    """python-control's "Real axis" / "Imaginary axis", with the plane's unit (:func:`plane_unit`)."""
+    unit = plane_unit(N)
+    ax.set_xlabel(quantity(REAL, unit))
+    ax.set_ylabel(quantity(IMAG, unit))
+
+
 def axes_or_new(ax, name: str = "ax"):
     """The given matplotlib Axes, or a new figure's axes when ``ax`` is None; ``ValueError`` naming ``name``
     for anything else (a figure, an array of axes, a python-control ControlPlot)."""

@@ -70,7 +70,8 @@ def plot_time_response(traj, quantity: str = "v1", ax=None, t_range=None, sample
     return control_plot([line], ax)
 
 
-def plot_collision_map(omega, runs, regular=None, labels=None, *, side: str = "A", ax=None, title: str = ""):
+def plot_collision_map(omega, runs, regular=None, labels=None, *, side: str = "A", ax=None, title: str = "",
+                       legend_title: str | None = None):
     """Longest run of consecutive collisions on one side vs frequency, one curve per case (the paper's Fig. 9).
 
     Draws what it is given (compute the runs with
@@ -92,6 +93,8 @@ def plot_collision_map(omega, runs, regular=None, labels=None, *, side: str = "A
     ax : matplotlib Axes, optional
     title : str
         Axes title.
+    legend_title : str, optional
+        Title of the legend (e.g. the name of the quantity whose values ``labels`` are).
 
     Returns
     -------
@@ -123,6 +126,6 @@ def plot_collision_map(omega, runs, regular=None, labels=None, *, side: str = "A
     if title:
         ax.set_title(title, fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    leg = legend(ax, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0) \
-        if labels is not None else None
+    leg = legend(ax, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
+                 title=legend_title, title_fontsize=8) if labels is not None else None
     return control_plot([curves, open_marks], ax, leg)

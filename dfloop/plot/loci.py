@@ -5,7 +5,7 @@ import numpy as np
 
 from ..describing.base import DescribingFunction, negative_inverse
 from ._curves import add_direction_arrow, curve_with_gaps
-from ._labels import IMAG, REAL, axes_or_new, legend
+from ._labels import axes_or_new, legend, plane_labels
 from .controlplot import control_plot
 
 __all__ = ["plot_loci", "default_amplitudes"]
@@ -72,8 +72,7 @@ def plot_loci(N: DescribingFunction, amplitudes=None, omega=None, ax=None, **kw)
         _, z = curve_with_gaps(lambda a: negative_inverse(N, a), A)
         curves += ax.plot(z.real, z.imag, label=f"-1/N({N.input_name})", **kw)
     critical = ax.plot([-1.0], [0.0], "r+", ms=10, mew=1.5, label="-1 (critical point)")
-    ax.set_xlabel(REAL)
-    ax.set_ylabel(IMAG)
+    plane_labels(ax, N)
     ax.axhline(0.0, color="0.8", lw=0.5)
     ax.axvline(0.0, color="0.8", lw=0.5)
     for line in curves:

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..describing.base import negative_inverse
 from ._curves import add_direction_arrow, curve_with_gaps
-from ._labels import FREQUENCY, IMAG, REAL, amplitude_label, legend, place_labels
+from ._labels import FREQUENCY, amplitude_label, legend, place_labels, plane_labels
 from .controlplot import control_plot
 
 __all__ = ["plot_nyquist", "plot_residual_map", "EXACT_LABEL"]
@@ -120,7 +120,7 @@ def _inset_corner(ax, curves, size: float, keep):
     y0, y1 = ax.get_ylim()
     best, where = None, None
     # margins keep the inset's own tick labels (left of and below its box) inside the main axes
-    lo_x, lo_y, hi = 0.11, 0.09, 0.02
+    lo_x, lo_y, hi = 0.13, 0.12, 0.02
     for fx, fy in ((1 - size - hi, lo_y), (lo_x, lo_y), (1 - size - hi, 1 - size - 0.06), (lo_x, 1 - size - 0.06)):
         n = 0
         for z in curves:
@@ -203,9 +203,12 @@ def plot_nyquist(cycles, ax=None, *, omega=None, amplitude=None, n_loci: int = 5
     xlim, ylim = _view(np.concatenate([g] + [z for z, _, _ in loci]), marks)
     ax.set_xlim(*xlim)
     ax.set_ylim(*ylim)
-    ax.set_xlabel(REAL)
-    ax.set_ylabel(IMAG)
+    plane_labels(ax, N)
     curves = [g] + [z for z, _, _ in loci]
+    for line in groups[1]:  # a locus of the family that runs outside the view gets no legend entry
+        z = line.get_xdata() + 1j * line.get_ydata()
+        if not np.any((z.real >= xlim[0]) & (z.real <= xlim[1]) & (z.imag >= ylim[0]) & (z.imag <= ylim[1])):
+            line.set_label("_outside the view")
     add_direction_arrow(ax, g, "C0")
     for line in groups[1]:
         add_direction_arrow(ax, line.get_xdata() + 1j * line.get_ydata(), line.get_color())

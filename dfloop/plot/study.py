@@ -20,11 +20,13 @@ from .impact import plot_collision_map
 __all__ = ["plot_element_study", "study_labels"]
 
 
-def study_labels(data) -> tuple[list[str], str]:
-    """Legend entry per curve (only the parameters that vary) and the part every curve shares (for the title).
+def study_labels(data) -> tuple[list[str], str, str | None]:
+    """Legend entry per curve (only the parameters that vary), the part every curve shares (for the title),
+    and a legend title.
 
     The parameter is named by its last component (``element.restitution`` -> ``restitution``) and the
-    amplitude by the element's input name and unit (``F=50 N``).
+    amplitude by the element's input name and unit (``F=50 N``). When only one quantity varies, the entries
+    are its values and its name is the legend title (``restitution``: ``0.1``, ``0.2``, ...).
     """
     unit = f" {data.input_unit}" if data.input_unit else ""
     cases = []
@@ -34,12 +36,18 @@ def study_labels(data) -> tuple[list[str], str]:
         cases.append(case)
     labels, common = case_labels(cases)
     if len(data.curves) == 1 and not labels[0]:
-        labels = [common]
-    return labels, common
+        return [common], common, None
+    varying = [k for k in cases[0] if len({c.get(k) for c in cases}) > 1]
+    if len(varying) == 1:
+        return [c[varying[0]] for c in cases], common, varying[0]
+    return labels, common, None
 
 
 def _title(data, common: str, extra: str = "") -> str:
-    shared = f"every curve: {common}" if common and len(data.curves) > 1 else ""
+    # what every curve shares, once (unless the scene's title already says it)
+    said = all(part.split("=", 1)[-1] in data.title.replace(" = ", "=") for part in common.split(", ")) \
+        if common else True
+    shared = f"every curve: {common}" if common and len(data.curves) > 1 and not said else ""
     return "\n".join(s for s in (data.title, "; ".join(p for p in (shared, extra) if p)) if s)
 
 
@@ -51,7 +59,7 @@ def _nyquist(data, ax):
     from ._labels import IMAG, REAL, axes_or_new
 
     ax = axes_or_new(ax)
-    labels, common = study_labels(data)
+    labels, common, legend_title = study_labels(data)
     lines, dots = [], []
     for curve, color, label in zip(data.curves, ordered_colors(len(data.curves)), labels):
         z = curve.y
@@ -63,7 +71,7 @@ def _nyquist(data, ax):
     ax.set_title(_title(data, common, "dots: irregular motion (N is an average)"), fontsize=9)
     ax.grid(True, alpha=0.3)
     leg = legend(ax, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
-                 title=data.parameter.rsplit(".", 1)[-1] if data.parameter and len(data.curves) > 1 else None)
+                 title=legend_title, title_fontsize=8)
     return control_plot([lines, dots], ax, leg)
 
 
@@ -72,7 +80,7 @@ def _loglog(data, ax):
 
     if ax is None:
         _, ax = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
-    labels, common = study_labels(data)
+    labels, common, legend_title = study_labels(data)
     lines, dots = [], []
     for curve, color, label in zip(data.curves, ordered_colors(len(data.curves)), labels):
         for a, part in zip(ax, (curve.y.real, curve.y.imag)):
@@ -83,7 +91,8 @@ def _loglog(data, ax):
         a.set_ylabel(name + _z_unit(data))
         plain_log_ticks(a.xaxis)
         a.grid(True, which="both", alpha=0.3)
-    leg = legend(ax[1], fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
+    leg = legend(ax[1], fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
+                 title=legend_title, title_fontsize=8)
     ax[0].figure.suptitle(_title(data, common, "dots: irregular motion"), fontsize=10)
     return control_plot([lines, dots], list(ax), leg)
 
@@ -97,7 +106,7 @@ def _time(data, ax):
         _, ax = plt.subplots(len(frequencies), len(values), squeeze=False, sharex="row",
                              figsize=(4.4 * len(values), 2.8 * len(frequencies) + 0.7), constrained_layout=True)
     ax = np.asarray(ax, dtype=object).reshape(len(frequencies), len(values))
-    labels, common = study_labels(data)
+    labels, common, legend_title = study_labels(data)
     lines = []
     name = data.parameter.rsplit(".", 1)[-1] if data.parameter else ""
     for curve, label in zip(data.curves, labels):
@@ -115,12 +124,13 @@ def _time(data, ax):
 
 
 def _collisions(data, ax):
-    labels, common = study_labels(data)
+    labels, common, legend_title = study_labels(data)
     w = data.curves[0].x
     if any(c.x.shape != w.shape or np.any(c.x != w) for c in data.curves):
         raise ValueError("collisions curves must share one frequency grid")
     return plot_collision_map(w, [c.y for c in data.curves], [c.ok for c in data.curves], labels, ax=ax,
-                              title=_title(data, common, "open circles: irregular motion"))
+                              title=_title(data, common, "open circles: irregular motion"),
+                              legend_title=legend_title)
 
 
 _KINDS = {"nyquist": _nyquist, "loglog": _loglog, "time_response": _time, "collisions": _collisions}
