@@ -68,7 +68,8 @@ def _nyquist(data, ax):
         dots += ax.plot(z.real[~curve.ok], z.imag[~curve.ok], ".", color=color, ms=1.5, alpha=0.35)
     ax.set_xlabel(f"{REAL}: Re{{-1/N}}{_z_unit(data)}")
     ax.set_ylabel(f"{IMAG}: Im{{-1/N}}{_z_unit(data)}")
-    ax.set_title(_title(data, common, "dots: irregular motion (N is an average)"), fontsize=9)
+    irregular = any(not np.all(c.ok) for c in data.curves)
+    ax.set_title(_title(data, common, "dots: irregular motion (N is an average)" if irregular else ""), fontsize=9)
     ax.grid(True, alpha=0.3)
     leg = legend(ax, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
                  title=legend_title, title_fontsize=8)
@@ -93,7 +94,8 @@ def _loglog(data, ax):
         a.grid(True, which="both", alpha=0.3)
     leg = legend(ax[1], fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
                  title=legend_title, title_fontsize=8)
-    ax[0].figure.suptitle(_title(data, common, "dots: irregular motion"), fontsize=10)
+    irregular = any(not np.all(c.ok) for c in data.curves)
+    ax[0].figure.suptitle(_title(data, common, "dots: irregular motion" if irregular else ""), fontsize=10)
     return control_plot([lines, dots], list(ax), leg)
 
 
