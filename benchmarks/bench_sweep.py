@@ -73,7 +73,7 @@ def main(write: bool, figure: bool) -> str:
         import matplotlib
 
         matplotlib.use("Agg")
-        ax_a, _ = res.plot()
+        ax_a, _ = res.plot().axes[:, 0]
         ax_a.set_title("K/(s(s+1)(s+2)) with backlash h = 0.2: cycles against the gain")
         out = pathlib.Path(__file__).parents[1] / "docs" / "figures" / "sweep_backlash_gain.png"
         ax_a.figure.savefig(out, dpi=110)

@@ -218,58 +218,14 @@ class SweepResult:
                                 repr(float(b.frequency[i])), b.stability[i], what])
 
     def plot(self, ax=None):
-        """Amplitude and frequency of every branch against the parameter.
+        """Amplitude and frequency of every branch against the parameter: :func:`dfloop.plot.sweep.plot_sweep`.
 
-        Stable branches solid, unstable dashed, marginal dotted; folds as black dots, window entries and
-        exits as crosses. ``ax``: a pair of matplotlib Axes (amplitude, frequency); new ones by default.
-
-        Returns
-        -------
-        (Axes, Axes)
-            The amplitude and frequency axes (the figure is ``axes[0].figure``).
+        ``ax``: a pair of matplotlib Axes (amplitude, frequency); new ones by default. Returns a
+        :class:`control.ControlPlot` (``axes[0, 0]`` amplitude, ``axes[1, 0]`` frequency).
         """
-        import matplotlib.pyplot as plt
+        from .plot.sweep import plot_sweep
 
-        if ax is None:
-            _, ax = plt.subplots(2, 1, sharex=True, figsize=(6.4, 6.0), constrained_layout=True)
-        try:
-            ax_a, ax_w = ax
-        except (TypeError, ValueError):
-            raise ValueError("ax must be a pair of Axes (amplitude, frequency)") from None
-        style = {"stable": dict(color="C0", ls="-"), "unstable": dict(color="C3", ls="--"),
-                 "marginal": dict(color="C1", ls=":")}
-        seen = set()
-        for b in sorted(self.branches, key=lambda b: ("stable", "unstable", "marginal").index(b.kind)):
-            k = b.kind
-            label = None if k in seen else f"{k} cycles"
-            seen.add(k)
-            ax_a.plot(b.parameter, b.amplitude, label=label, **style[k])
-            ax_w.plot(b.parameter, b.frequency, **style[k])
-        marks = {"fold": dict(marker="o", color="k", ls="none", ms=5),
-                 "entry": dict(marker="x", color="0.3", ls="none"), "exit": dict(marker="x", color="0.3", ls="none"),
-                 "stability change": dict(marker="s", color="C2", ls="none", ms=5),
-                 "lost": dict(marker="*", color="C1", ls="none", ms=8)}
-        for kind, st in marks.items():
-            ev = [e for e in self.events if e.kind == kind]
-            if ev:
-                label = "window edge" if kind in ("entry", "exit") else kind
-                label = None if label in seen else label
-                seen.add(label)
-                ax_a.plot([e.parameter for e in ev], [e.amplitude for e in ev], label=label, **st)
-                ax_w.plot([e.parameter for e in ev], [e.frequency for e in ev], **st)
-        a_unit = f" [{self.amplitude_unit}]" if self.amplitude_unit else ""
-        ax_a.set_ylabel(f"amplitude {self.amplitude_name}{a_unit}")
-        ax_w.set_ylabel("frequency \u03c9 [rad/s]")
-        ax_w.set_xlabel(self.parameter + (f" [{self.unit}]" if self.unit else ""))
-        for a, attr in ((ax_a, "amplitude"), (ax_w, "frequency")):
-            vals = np.concatenate([getattr(b, attr) for b in self.branches]) if self.branches else np.empty(0)
-            if vals.size and vals.max() > 20 * vals.min():
-                a.set_yscale("log")
-        lo, hi = sorted((float(self.values[0]), float(self.values[-1])))
-        ax_w.set_xlim(lo, hi)
-        if seen:
-            ax_a.legend(loc="best", fontsize="small")
-        return ax_a, ax_w
+        return plot_sweep(self, ax)
 
 
 def _end_word(end: str, default: str) -> str:

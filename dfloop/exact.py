@@ -106,44 +106,12 @@ class ExactCycle:
         return float(np.max(np.abs(_nontrivial(self.multipliers)), initial=0.0))
 
     def plot(self, ax=None, *, unit: str = ""):
-        """Draw the element input x over one period with the exact switching (or impact) instants marked.
+        """Draw x over one period with the switching (or impact) instants:
+        :func:`dfloop.plot.orbit.plot_exact_cycle` (``unit``: x's unit for the axis label). Returns a
+        :class:`control.ControlPlot`; ``ValueError`` without an orbit or for an ``ax`` that is not an Axes."""
+        from .plot.orbit import plot_exact_cycle
 
-        Parameters
-        ----------
-        ax : matplotlib Axes, optional
-            Where to draw (a new figure's axes by default).
-        unit : str
-            The unit of x (the element's ``input_unit``, e.g. ``"m"``) for the axis label.
-
-        Returns
-        -------
-        matplotlib Axes
-            ``ax.lines[0]`` is the waveform (``t``, ``x``), ``ax.lines[1]`` the switching instants
-            (``switching_times`` and x there, interpolated on the periodic waveform).
-
-        Raises
-        ------
-        ValueError
-            For an ExactCycle without an orbit (``success`` False; the message says why), or an ``ax`` that is
-            not a matplotlib Axes.
-        """
-        from .plot._labels import TIME, axes_or_new, legend, quantity
-
-        if not self.success:
-            raise ValueError(f"this ExactCycle has no orbit to plot ({self.message})")
-        ax = axes_or_new(ax)
-        ax.plot(self.t, self.x, color="C0", label="x(t), exact orbit")
-        ts = self.switching_times
-        ax.plot(ts, np.interp(ts, self.t, self.x, period=self.period), ls="none", marker="o", ms=5, mfc="none",
-                mec="C3", label="switching / impact instants")
-        ax.axhline(0.0, color="0.8", lw=0.5)
-        ax.set_xlim(0.0, self.period)
-        ax.set_xlabel(TIME)
-        ax.set_ylabel(quantity("Element input x", unit))
-        ax.set_title(f"Exact orbit: A={self.amplitude:.4g}, ω={self.frequency:.4g} rad/s, "
-                     f"{'stable' if self.stable else 'unstable'}", fontsize=9)
-        legend(ax, fontsize=8)
-        return ax
+        return plot_exact_cycle(self, ax, unit=unit)
 
     def __repr__(self) -> str:
         A0, w0 = self.predicted

@@ -91,6 +91,11 @@ class Verification:
         diverged or decayed to rest.
     method : str
         How the loop was simulated (exact flow, DOP853, fixed step, impact engine).
+    runs : (LoopSimulation, LoopSimulation) or None
+        The two runs' time series (from inside, from outside): what :meth:`plot` draws.
+    exact_amplitude : float or None
+        Amplitude of the exact orbit the verified cycle carried (``predict_limit_cycles(..., exact=True)``),
+        None without one.
     """
 
     amplitude: float
@@ -101,48 +106,19 @@ class Verification:
     verdict: str
     message: str = ""
     method: str = ""
+    runs: tuple | None = None
+    exact_amplitude: float | None = None
 
     @property
     def stable(self) -> bool:
         return self.verdict == "stable"
 
-    def plot(self, ax=None, *, unit: str = ""):
-        """Draw where each run started and where it settled, against the predicted amplitude.
+    def plot(self, ax=None, *, unit: str = "", periods: float | None = 20):
+        """The two runs x(t) over the band of the predicted (and exact) amplitude:
+        :func:`dfloop.plot.orbit.plot_verification`. Returns a :class:`control.ControlPlot`."""
+        from .plot.orbit import plot_verification
 
-        A verification keeps the steady states of its two runs, not their signals: each run is drawn as a line
-        from its start amplitude (1 -/+ ``perturbation``) A (at "start") to the amplitude it settled at (at
-        "steady state"; the largest |x| reached for a diverged run, the residual |x| for one that decayed),
-        the prediction as a dashed horizontal line. Both runs ending on the line: a stable cycle.
-
-        Parameters
-        ----------
-        ax : matplotlib Axes, optional
-        unit : str
-            The unit of x (the element's ``input_unit``) for the axis label.
-
-        Returns
-        -------
-        matplotlib Axes
-            ``ax.lines`` [run from inside, run from outside, predicted amplitude] (as for
-            :meth:`dfloop.ExactCycle.plot`); each run's ``get_ydata()`` is (start amplitude, settled amplitude).
-        """
-        from .plot._labels import axes_or_new, legend, quantity
-
-        ax = axes_or_new(ax)
-        for name, run, factor, color in (("inside", self.inside, 1 - self.perturbation, "C0"),
-                                         ("outside", self.outside, 1 + self.perturbation, "C1")):
-            end = (f"A={run.amplitude:.4g}, ω={run.frequency:.4g} rad/s" if run.oscillating
-                   else f"no oscillation (|x| {run.amplitude:.3g})")
-            ax.plot([0.0, 1.0], [factor * self.amplitude, run.amplitude], marker="o", color=color,
-                             label=f"from {name}: {end}")
-        ax.axhline(self.amplitude, color="C3", ls="--", lw=1,
-                   label=f"predicted A={self.amplitude:.4g}, ω={self.frequency:.4g} rad/s")
-        ax.set_xticks([0.0, 1.0], ["start", "steady state"])
-        ax.set_xlim(-0.15, 1.15)
-        ax.set_ylabel(quantity("Amplitude of x", unit))
-        ax.set_title(f"Verification: {self.verdict}", fontsize=9)
-        legend(ax, fontsize=8)
-        return ax
+        return plot_verification(self, ax, unit=unit, periods=periods)
 
     def __repr__(self) -> str:
         return (f"Verification({self.verdict}: predicted A={self.amplitude:.4g}, w={self.frequency:.4g}; "
@@ -186,9 +162,10 @@ def verify_cycle(G, N, cycle, *, perturbation: float = 0.3, periods: float = 80,
     d = in_closed_interval("perturbation", perturbation, 1e-3, 0.95)
     periods, steps_per_period = _run_options(periods, steps_per_period)
     measure_periods = int(in_closed_interval("measure_periods", measure_periods, 1, 10**6))
-    runs, words, method = [], [], ""
+    runs, words, method, sims = [], [], "", []
     for factor in (1 - d, 1 + d):
         sim = simulate_loop(G, N, A0 * factor, w, periods=periods, steps_per_period=steps_per_period)
+        sims.append(sim)
         method = sim.method
         if sim.diverged:
             runs.append(SteadyState(float(np.max(np.abs(sim.x))), 0.0, 0.0, 0, False))
@@ -204,4 +181,6 @@ def verify_cycle(G, N, cycle, *, perturbation: float = 0.3, periods: float = 80,
     else:
         verdict = "inconclusive"
     message = f"from inside: {words[0]}; from outside: {words[1]}"
-    return Verification(A0, w, runs[0], runs[1], d, verdict, message, method)
+    ex = getattr(cycle, "exact", None)
+    exact_amplitude = float(ex.amplitude) if ex is not None and ex.success else None
+    return Verification(A0, w, runs[0], runs[1], d, verdict, message, method, tuple(sims), exact_amplitude)

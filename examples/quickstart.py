@@ -26,9 +26,9 @@ for c in cycles:  # closed-loop time simulation from inside and outside each pre
     print(df.verify_cycle(G, N, c, perturbation=0.5, steps_per_period=200))
 
 out = pathlib.Path(tempfile.gettempdir())
-cplt = cycles.plot(G, N)  # a control.ControlPlot: .lines, .axes, .figure (same as df.plot_nyquist(G, N, cycles))
+cplt = cycles.plot()  # a control.ControlPlot: .lines, .axes, .figure (same as df.plot_nyquist(cycles))
 cplt.figure.savefig(out / "dfloop_quickstart_nyquist.png", dpi=120)
-cplt = plot_residual_map(G, N, cycles)
+cplt = plot_residual_map(cycles)
 cplt.figure.savefig(out / "dfloop_quickstart_residual.png", dpi=120)
 plt.close("all")
 print("figures written to", out)

@@ -317,13 +317,14 @@ PROBES: list[Probe] = [
     # ------------------------------------------------------------------ plots
     Probe("plot_loci(N, amplitudes, omega, ax)", "frequency-dependent N without omega", lambda: plot_loci(MB), ValueError,
           ("amplitudes and omega are required",)),
-    Probe("plot_nyquist(G, N, cycles, ...)", "omega = (0, 1)", lambda: plot_nyquist(G3, SAT, omega=(0.0, 1.0)), ValueError,
+    Probe("plot_nyquist(cycles, ax, omega, ...)", "omega = (0, 1)",
+          lambda: plot_nyquist(df.predict_limit_cycles(G3, SAT), omega=(0.0, 1.0)), ValueError,
           ("omega window must be positive", "(0.0, 1.0)")),
     Probe("plot_time_response(traj, quantity, ...)", 'quantity = "v9"',
           lambda: plot_time_response(simulate(1.0, 1.0, 0.1, 0.5, 50.0, 30.0, 1.0), "v9"), ValueError,
           ("quantity must be one of", "'v9'")),
-    Probe("plot_collision_map(m1, m2, h, force, omega, restitutions, side)", 'side = "C"',
-          lambda: plot_collision_map(1.0, 1.0, 0.1, 50.0, [30.0], [0.5], side="C"), ValueError, ("side must be 'A' or 'B'", "'C'")),
+    Probe("plot_collision_map(omega, runs, regular, labels, side)", 'side = "C"',
+          lambda: plot_collision_map([30.0], [[2.0]], side="C"), ValueError, ("side must be 'A' or 'B'", "'C'")),
     # ------------------------------------------------------------------ scene loader
     Probe("load_scene(path)", "missing file", lambda: load_scene(_SCRATCH / "missing.toml"), ValueError,
           ("scene file not found", "missing.toml")),

@@ -111,7 +111,7 @@ def test_report_without_exact_leaves_the_exact_columns_empty(tmp_path):
 
 
 def test_nyquist_marks_each_exact_cycle_on_g_at_the_exact_frequency(cycles):
-    cplt = plot_nyquist(G, N, cycles)
+    cplt = plot_nyquist(cycles)
     ax = cplt.axes[0, 0]
     exact_markers = cplt.lines[4]
     assert len(exact_markers) == len(cycles) == 2
@@ -131,7 +131,7 @@ def test_nyquist_draws_no_exact_marker_without_a_converged_orbit():
     G2 = ct.tf([5.0], [1.0, 1.0, 0.0])  # backlash servo: the inner (unstable) cycle's shooting does not converge
     found = df.predict_limit_cycles(G2, df.Backlash(1.0), exact=True)
     converged = [c for c in found if c.exact.success]
-    cplt = plot_nyquist(G2, df.Backlash(1.0), found)
+    cplt = plot_nyquist(found)
     assert len(cplt.lines[4]) == len(converged)
     labels = [t.get_text() for t in cplt.axes[0, 0].get_legend().get_texts()]
     assert labels.count(EXACT_LABEL) == (1 if converged else 0)
@@ -140,7 +140,7 @@ def test_nyquist_draws_no_exact_marker_without_a_converged_orbit():
 def test_exact_cycle_plot_draws_its_waveform_and_the_switches_at_the_thresholds(cycles):
     for c in cycles:
         ex = c.exact
-        ax = ex.plot(unit="rad")
+        ax = ex.plot(unit="rad").axes[0, 0]
         wave, switches = ax.lines[0], ax.lines[1]
         assert np.array_equal(wave.get_xdata(), ex.t) and np.array_equal(wave.get_ydata(), ex.x)
         assert np.array_equal(switches.get_xdata(), ex.switching_times)
@@ -164,19 +164,31 @@ def test_exact_cycle_plot_rejects_bad_ax_and_a_failed_orbit(cycles):
         failed.plot()
 
 
-def test_verification_plot_shows_starts_and_settled_amplitudes(cycles):
+def test_verification_plot_draws_both_runs_over_the_predicted_and_exact_bands(cycles):
     stable = next(c for c in cycles if c.stability == "stable")
     v = verify_cycle(G, N, stable, periods=30, steps_per_period=100, measure_periods=5)
     fig, ax = plt.subplots()
-    assert v.plot(ax, unit="rad") is ax
-    inside, outside, predicted = ax.lines
+    cplt = v.plot(ax, unit="rad", periods=None)
+    assert cplt.axes[0, 0] is ax
+    inside, outside = cplt.lines[0]
+    for line, run in zip((inside, outside), v.runs):
+        assert np.array_equal(line.get_xdata(), run.t) and np.array_equal(line.get_ydata(), run.x)
+    T = 2 * math.pi / v.frequency
     d = v.perturbation
-    assert inside.get_ydata().tolist() == [(1 - d) * v.amplitude, v.inside.amplitude]
-    assert outside.get_ydata().tolist() == [(1 + d) * v.amplitude, v.outside.amplitude]
-    assert list(predicted.get_ydata()) == [v.amplitude, v.amplitude]
-    assert ax.get_ylabel() == "Amplitude of x [rad]"
-    # a stable verdict: both runs settle within half the start offset of the prediction
-    assert v.verdict == "stable"
-    assert abs(inside.get_ydata()[1] - v.amplitude) < d * v.amplitude / 2
+    # both runs end on the exact orbit found by shooting (an independent algorithm): the peak of |x| over the
+    # last period equals the orbit's peak to 1 %
+    peak = np.max(np.abs(stable.exact.x))
+    for r in v.runs:
+        assert abs(np.max(np.abs(r.x[r.t > r.t[-1] - T])) - peak) < 0.01 * peak
+    edges = [float(line.get_ydata()[0]) for line in cplt.lines[1]]
+    assert edges == pytest.approx([v.amplitude, -v.amplitude, stable.exact.amplitude, -stable.exact.amplitude])
+    assert v.exact_amplitude == stable.exact.amplitude
+    assert ax.get_ylabel() == "Element input x [rad]" and ax.get_xlabel() == "Time [s]"
+    labels = [t.get_text() for t in cplt.legend.get_texts()]
+    assert len(labels) == len(set(labels)) == 4 and all("settled at A=" in t for t in labels[:2])
+    assert v.verdict == "stable" and d == 0.3
+    # the default view: the first 20 predicted periods, where the runs converge
+    ax2 = v.plot().axes[0, 0]
+    assert ax2.get_xlim()[1] == pytest.approx(min(20 * T, v.runs[0].t[-1]))
     with pytest.raises(ValueError, match="ax must be a matplotlib Axes"):
         v.plot(ax=fig)

@@ -14,7 +14,7 @@ from dfloop.plot.impact import plot_collision_map, plot_time_response  # noqa: E
 def test_time_response_draws_the_trajectory_with_jumps_unbridged():
     tr = simulate(1.0, 1.0, 0.1, 0.5, 50.0, 25.0, 1.0)
     fig, ax = plt.subplots()
-    assert plot_time_response(tr, "v1", ax=ax, samples=500) is ax
+    assert plot_time_response(tr, "v1", ax=ax, samples=500).axes[0, 0] is ax
     t, y = ax.lines[0].get_data()
     ok = np.isfinite(t)
     assert np.array_equal(y[ok], tr.evaluate(t[ok])["v1"])
@@ -32,11 +32,19 @@ def test_time_response_rejects_bad_quantity_and_window():
 
 def test_collision_map_plots_the_run_lengths():
     w = np.array([15.0, 35.0])
-    ax = plot_collision_map(1.0, 1.0, 0.1, 50.0, w, [0.2, 0.8], transient_periods=60, periods=12)
-    ref = impact_describing_function_batch(1.0, 1.0, 0.1, 0.8, 50.0, w, transient_periods=60, periods=12)
-    lines = [ln for ln in ax.lines if ln.get_linestyle() == "-"]
+    batches = [impact_describing_function_batch(1.0, 1.0, 0.1, eps, 50.0, w, transient_periods=60, periods=12)
+               for eps in (0.2, 0.8)]
+    cplt = plot_collision_map(w, [b.max_run_A for b in batches], [b.regular for b in batches],
+                              ["eps=0.2", "eps=0.8"])
+    lines = cplt.lines[0]
     assert len(lines) == 2
-    assert np.array_equal(lines[1].get_ydata(), ref.max_run_A)
+    assert np.array_equal(lines[1].get_ydata(), batches[1].max_run_A)
+    # irregular points, and only those, carry an open marker
+    assert sum(m.get_xdata().size for m in cplt.lines[1]) == sum(int(np.count_nonzero(~b.regular)) for b in batches)
+    assert [t.get_text() for t in cplt.legend.get_texts()] == ["eps=0.2", "eps=0.8"]
+    assert lines[0].get_color() != lines[1].get_color() and lines[0].get_marker() != lines[1].get_marker()
     with pytest.raises(ValueError, match="side"):
-        plot_collision_map(1.0, 1.0, 0.1, 50.0, w, [0.5], side="C")
+        plot_collision_map(w, [b.max_run_A for b in batches], side="C")
+    with pytest.raises(ValueError, match="runs must have shape"):
+        plot_collision_map(w, [[1.0, 2.0, 3.0]])
     plt.close("all")

@@ -46,16 +46,18 @@ def _segments(line):
 
 
 def _text_boxes(ax):
+    """(text, screen box) of every label drawn in ``ax`` and in its insets (child axes)."""
     ax.figure.canvas.draw()
     renderer = ax.figure.canvas.get_renderer()
-    return [(t.get_text(), Text.get_window_extent(t, renderer)) for t in ax.texts if t.get_text()]
+    return [(t.get_text(), Text.get_window_extent(t, renderer)) for a in [ax, *ax.child_axes] for t in a.texts
+            if t.get_text()]
 
 
 def test_close_cycles_get_labels_that_do_not_overlap():
     N = df.Relay(1.0)
     cycles = df.predict_limit_cycles(RELAY_DELAY, N, omega=(0.1, 60.0))
     assert len(cycles) >= 5  # several cycles crowd the origin
-    ax = plot_nyquist(RELAY_DELAY, N, cycles).axes[0, 0]
+    ax = plot_nyquist(cycles).axes[0, 0]
     boxes = _text_boxes(ax)
     for i, (ti, bi) in enumerate(boxes):
         for tj, bj in boxes[:i]:
@@ -67,7 +69,7 @@ def test_close_cycles_get_labels_that_do_not_overlap():
 
 def test_minus_one_marked_and_legend_without_repeats():
     G = ct.tf([1.5], [1, 2, 1, 0])
-    for cplt in (plot_nyquist(G, df.Backlash(0.2)), plot_loci(df.Backlash(0.2))):
+    for cplt in (plot_nyquist(df.predict_limit_cycles(G, df.Backlash(0.2))), plot_loci(df.Backlash(0.2))):
         (critical,) = cplt.lines[-1]
         assert np.ravel(critical.get_data()).tolist() == [-1.0, 0.0]
         assert critical.get_marker() == "+" and critical.get_color() == "r"
@@ -90,7 +92,7 @@ def test_case_labels_show_only_what_varies():
 
 def test_arrows_point_along_increasing_frequency_and_amplitude():
     G = ct.tf([1.5], [1, 2, 1, 0])
-    cplt = plot_nyquist(G, df.Backlash(0.2))
+    cplt = plot_nyquist(df.predict_limit_cycles(G, df.Backlash(0.2)))
     ax = cplt.axes[0, 0]
     arrows = [t for t in ax.texts if t.get_gid() == "dfloop-direction"]
     curves = [cplt.lines[0][0], *cplt.lines[1]]  # drawn in order of increasing w (G) and A (-1/N)
@@ -121,7 +123,7 @@ def test_nyquist_locus_leaves_a_gap_at_the_reported_jump():
     (j,) = cycles.jump_crossings
     ends = sorted((-1 / n).real for n in j.N_sides)
     assert ends == pytest.approx([-np.pi, -np.pi / 2], rel=1e-6)
-    (line,) = plot_nyquist(G, StepRelay(), cycles).lines[1]
+    (line,) = plot_nyquist(cycles).lines[1]
     a, b = _segments(line)
     lo, hi = np.minimum(a.real, b.real), np.maximum(a.real, b.real)
     assert not np.any((lo < ends[1] - 1e-6) & (hi > ends[0] + 1e-6)), "a segment spans the reported jump"
@@ -144,8 +146,8 @@ def test_frequency_step_breaks_the_loci_family():
 def test_one_unit_style_on_every_axis():
     G, N = ct.tf([1.5], [1, 2, 1, 0]), df.Backlash(0.2)
     cycles = df.predict_limit_cycles(G, N)
-    axes = [plot_nyquist(G, N, cycles).axes[0, 0], plot_residual_map(G, N, cycles, shape=(10, 10)).axes[0, 0],
-            plot_loci(N).axes[0, 0], plot_time_response(simulate(1.0, 1.0, 0.1, 0.5, 50.0, 25.0, 0.3), "v1")]
+    axes = [plot_nyquist(cycles).axes[0, 0], plot_residual_map(cycles, shape=(10, 10)).axes[0, 0],
+            plot_loci(N).axes[0, 0], plot_time_response(simulate(1.0, 1.0, 0.1, 0.5, 50.0, 25.0, 0.3), "v1").axes[0, 0]]
     labels = [lab for ax in axes for lab in (ax.get_xlabel(), ax.get_ylabel())]
     assert all(lab for lab in labels)
     assert not any(re.search(r"\((m|s|N|rad/s|m/s|N/m)\)", lab) for lab in labels)  # units in [brackets]
@@ -156,8 +158,8 @@ def test_one_unit_style_on_every_axis():
 def test_limit_cycles_plot_returns_the_nyquist_picture():
     G, N = ct.tf([1.5], [1, 2, 1, 0]), df.Backlash(0.2)
     cycles = df.predict_limit_cycles(G, N)
-    cplt = cycles.plot(G, N)
+    cplt = cycles.plot()
     assert isinstance(cplt, ct.ControlPlot) and len(cplt.lines[2]) == len(cycles)
     bare = LimitCycles([], (0.1, 1.0), (0.1, 1.0), {"amplitude": "given", "omega": "given"}, (2, 2), 0)
-    with pytest.raises(ValueError, match="G and N are required"):
+    with pytest.raises(ValueError, match="records the plant and element"):
         bare.plot()

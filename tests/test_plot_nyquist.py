@@ -25,7 +25,7 @@ def _close():
 
 def test_nyquist_draws_plant_locus_and_cycles_by_stability():
     cycles = df.predict_limit_cycles(G, N)
-    cplt = plot_nyquist(G, N, cycles)
+    cplt = plot_nyquist(cycles)
     assert isinstance(cplt, ct.ControlPlot)
     ax = cplt.axes[0, 0]
     (g_line,), (n_line,) = cplt.lines[0], cplt.lines[1]
@@ -58,11 +58,11 @@ class _DelayedSaturation(DescribingFunction):
 def test_frequency_dependent_locus_family_and_marginal_marker():
     Nf = _DelayedSaturation()
     cycles = df.predict_limit_cycles(ct.tf([2], [1, 2, 2, 1]), Nf, omega=(0.1, 10), amplitude=(1, 50))
-    cplt = plot_nyquist(ct.tf([2], [1, 2, 2, 1]), Nf, cycles, n_loci=4)
+    cplt = plot_nyquist(cycles, n_loci=4)
     assert len(cplt.lines[1]) == 4 + len(cycles)  # one locus per frequency of the window and per cycle
     fig, ax2 = plt.subplots()
     touching = df.predict_limit_cycles(lambda w: -2 + 1j * (w - 1) ** 2, df.Relay(M=1.0), omega=(0.5, 2))
-    cplt2 = plot_nyquist(lambda w: -2 + 1j * (w - 1) ** 2, df.Relay(M=1.0), touching, ax=ax2)
+    cplt2 = plot_nyquist(touching, ax=ax2)
     assert cplt2.axes[0, 0] is ax2
     (marker,) = cplt2.lines[2]
     assert touching[0].marginal and marker.get_marker() == "D"
@@ -71,7 +71,7 @@ def test_frequency_dependent_locus_family_and_marginal_marker():
 
 def test_residual_map_shows_the_relative_residual_and_zero_lines():
     cycles = df.predict_limit_cycles(G, N)
-    cplt = plot_residual_map(G, N, cycles, shape=(40, 50), amplitude=(0.15, 3.0), omega=(0.05, 5.0))
+    cplt = plot_residual_map(cycles, shape=(40, 50), amplitude=(0.15, 3.0), omega=(0.05, 5.0))
     ax = cplt.axes[0, 0]
     mesh = ax.collections[0]
     A = np.geomspace(0.15, 3.0, 40)
@@ -83,7 +83,7 @@ def test_residual_map_shows_the_relative_residual_and_zero_lines():
     pts = np.array([np.ravel(m.get_data()) for m in cplt.lines[0]])
     np.testing.assert_allclose(sorted(pts[:, 0]), sorted(c.frequency for c in cycles))
     # default view: a decade around the cycles, inside the search windows
-    ax = plot_residual_map(G, N, cycles, shape=(10, 10)).axes[0, 0]
+    ax = plot_residual_map(cycles, shape=(10, 10)).axes[0, 0]
     edges = ax.collections[0].get_coordinates()[:, 0, 1]  # cell edges midway between the sampled A
     centres = (edges[:-1] + edges[1:]) / 2
     lo, hi = centres[0], centres[-1]
@@ -92,9 +92,11 @@ def test_residual_map_shows_the_relative_residual_and_zero_lines():
     assert hi == pytest.approx(min(max(amps) * 10, cycles.amplitude_window[1]))
 
 
-def test_plot_needs_windows_without_cycles_result():
-    with pytest.raises(ValueError, match="windows"):
-        plot_nyquist(G, N, cycles=[])
+def test_plot_needs_a_limit_cycles_result():
+    with pytest.raises(ValueError, match="LimitCycles returned by predict_limit_cycles"):
+        plot_nyquist([])
+    with pytest.raises(ValueError, match="n_loci must be >= 1"):
+        plot_nyquist(df.predict_limit_cycles(G, N), n_loci=0)
 
 
 def test_nyquist_marks_jump_crossings_apart_from_cycles():
@@ -108,7 +110,7 @@ def test_nyquist_marks_jump_crossings_apart_from_cycles():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         cycles = df.predict_limit_cycles(G_SYN, N, omega=(0.9, 1.1), amplitude=(1.0, 3.0))
-    cplt = plot_nyquist(G_SYN, N, cycles)
+    cplt = plot_nyquist(cycles)
     (j,) = cycles.jump_crossings
     assert cplt.lines[2] == []
     (marker,) = cplt.lines[3]

@@ -1,9 +1,13 @@
-"""Plots of the impact system: time responses (paper's Figs. 10-14) and collision maps (paper's Fig. 9)."""
+"""Plots of the impact system: time responses (paper's Figs. 10-14) and collision maps (paper's Fig. 9).
+
+Both draw what they are given (a trajectory, computed run lengths) and return a :class:`control.ControlPlot`.
+"""
 from __future__ import annotations
 
 import numpy as np
 
-from ._labels import FREQUENCY, TIME, legend
+from ._labels import FREQUENCY, TIME, axes_or_new, distinct_styles, legend, plain_log_ticks
+from .controlplot import control_plot
 
 __all__ = ["plot_time_response", "plot_collision_map"]
 
@@ -11,7 +15,8 @@ _LABELS = {"x1": "Position x1 [m]", "x2": "Position x2 [m]", "v1": "Velocity dx1
            "v2": "Velocity dx2/dt [m/s]", "gap": "Gap x2 - x1 [m]"}
 
 
-def plot_time_response(traj, quantity: str = "v1", ax=None, t_range=None, samples: int = 4000):
+def plot_time_response(traj, quantity: str = "v1", ax=None, t_range=None, samples: int = 4000, *, label=None,
+                       color=None):
     """Plot ``quantity`` ("x1", "x2", "v1", "v2" or "gap") of a trajectory against time.
 
     Velocities jump at impacts: every segment is drawn separately, so jumps are not bridged by lines.
@@ -27,20 +32,22 @@ def plot_time_response(traj, quantity: str = "v1", ax=None, t_range=None, sample
         Time window (s); default the whole run.
     samples : int
         Uniform samples in the window (segment ends are added).
+    label : str, optional
+        Legend entry (default: the restitution and forcing frequency).
+    color : matplotlib colour, optional
 
     Returns
     -------
-    matplotlib.axes.Axes
+    control.ControlPlot
+        ``lines[0]``: the response (one Line2D, NaN-separated at the impacts).
     """
-    import matplotlib.pyplot as plt
 
     if quantity not in _LABELS:
         raise ValueError(f"quantity must be one of {sorted(_LABELS)}, got {quantity!r}")
     lo, hi = (0.0, traj.t_end) if t_range is None else (float(t_range[0]), float(t_range[1]))
     if not 0.0 <= lo < hi <= traj.t_end:
         raise ValueError(f"t_range must satisfy 0 <= start < end <= t_end = {traj.t_end}")
-    if ax is None:
-        _, ax = plt.subplots()
+    ax = axes_or_new(ax)
     starts = traj.t0[(traj.t0 > lo) & (traj.t0 < hi)]
     t = np.union1d(np.linspace(lo, hi, int(samples)), starts)
     before = np.nextafter(starts, -np.inf)
@@ -56,52 +63,69 @@ def plot_time_response(traj, quantity: str = "v1", ax=None, t_range=None, sample
     t_plot = np.insert(t_plot, idx, np.nan)
     y_plot = np.insert(y_plot, idx, np.nan)
     p = traj.params
-    ax.plot(t_plot, y_plot, lw=0.8, label=f"eps = {p.restitution:g}, w = {p.omega:g} rad/s")
+    line = ax.plot(t_plot, y_plot, lw=0.8, color=color,
+                   label=f"eps = {p.restitution:g}, ω = {p.omega:g} rad/s" if label is None else label)
     ax.set_xlabel(TIME)
     ax.set_ylabel(_LABELS[quantity])
-    return ax
+    return control_plot([line], ax)
 
 
-def plot_collision_map(m1: float, m2: float, h: float, force: float, omega, restitutions, *, side: str = "A",
-                       ax=None, **df_options):
-    """Longest run of consecutive collisions on one side vs frequency, one line per restitution (Fig. 9).
+def plot_collision_map(omega, runs, regular=None, labels=None, *, side: str = "A", ax=None, title: str = "",
+                       legend_title: str | None = None):
+    """Longest run of consecutive collisions on one side vs frequency, one curve per case (the paper's Fig. 9).
 
-    Irregular (non-periodic) points are drawn as open markers.
+    Draws what it is given (compute the runs with
+    :func:`dfloop.impact.extract.impact_describing_function_batch`: its ``max_run_A`` / ``max_run_B`` and
+    ``regular``). Each case has its own colour and marker; irregular (non-periodic) points are open markers.
+    The frequency axis is logarithmic with plain tick labels (5, 10, 20, ... rad/s).
 
     Parameters
     ----------
-    m1, m2, h, force : float
-        Masses (kg), clearance (m), force amplitude (N).
     omega : array_like
-        Frequencies (rad/s).
-    restitutions : sequence of float
-        Coefficients of restitution, one line each.
+        Frequencies (rad/s), shared by every case.
+    runs : array_like, shape (cases, len(omega)) or (len(omega),)
+        Longest run of consecutive collisions on ``side`` at each frequency.
+    regular : array_like of bool, same shape as ``runs``, optional
+        True where the motion is periodic (default: everywhere).
+    labels : sequence of str, optional
+        Legend entry per case (e.g. from :func:`case_labels`); no legend without.
     side : {"A", "B"}
     ax : matplotlib Axes, optional
-    **df_options
-        Passed to :func:`dfloop.impact.extract.impact_describing_function_batch`.
+    title : str
+        Axes title.
+    legend_title : str, optional
+        Title of the legend (e.g. the name of the quantity whose values ``labels`` are).
 
     Returns
     -------
-    matplotlib.axes.Axes
+    control.ControlPlot
+        ``lines[0]``: the curves (one Line2D per case), ``lines[1]``: the irregular-point markers.
     """
     import matplotlib.pyplot as plt
 
-    from ..impact.extract import impact_describing_function_batch
-
     if side not in ("A", "B"):
         raise ValueError(f"side must be 'A' or 'B', got {side!r}")
-    w = np.asarray(omega, dtype=float)
-    if ax is None:
-        _, ax = plt.subplots()
-    for eps in restitutions:
-        res = impact_describing_function_batch(m1, m2, h, eps, force, w, **df_options)
-        runs = res.max_run_A if side == "A" else res.max_run_B
-        line, = ax.plot(w, runs, "-", lw=0.8, label=f"eps = {eps:g}")
-        irregular = ~res.regular
-        ax.plot(w[~irregular], runs[~irregular], "o", ms=3, color=line.get_color())
-        ax.plot(w[irregular], runs[irregular], "o", ms=4, mfc="none", color=line.get_color())
+    w = np.asarray(omega, dtype=float).ravel()
+    y = np.atleast_2d(np.asarray(runs, dtype=float))
+    ok = np.ones(y.shape, bool) if regular is None else np.atleast_2d(np.asarray(regular, dtype=bool))
+    if y.shape[1] != w.size or ok.shape != y.shape:
+        raise ValueError(f"runs must have shape (cases, {w.size}) like omega, and regular the shape of runs; "
+                         f"got runs {y.shape}, regular {ok.shape}")
+    if labels is not None and len(labels) != y.shape[0]:
+        raise ValueError(f"labels must give one entry per case ({y.shape[0]}), got {len(labels)}")
+    ax = axes_or_new(ax)
+    curves, open_marks = [], []
+    for k, (yk, okk, color, marker) in enumerate(zip(y, ok, *distinct_styles(y.shape[0]))):
+        curves += ax.plot(w, yk, "-", color=color, marker=marker, ms=3.5, markevery=max(w.size // 12, 1), lw=1.0,
+                          label=None if labels is None else labels[k])
+        open_marks += ax.plot(w[~okk], yk[~okk], ls="none", marker="o", ms=4, mfc="none", mec=color, mew=0.7)
+    ax.set_xscale("log")
+    plain_log_ticks(ax.xaxis)
     ax.set_xlabel(FREQUENCY)
-    ax.set_ylabel(f"Consecutive collisions on side {side}, n_{side}")
-    legend(ax)
-    return ax
+    ax.set_ylabel(f"Consecutive collisions on side {side}, n_{side} [-]")
+    if title:
+        ax.set_title(title, fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    leg = legend(ax, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
+                 title=legend_title, title_fontsize=8) if labels is not None else None
+    return control_plot([curves, open_marks], ax, leg)

@@ -5,7 +5,8 @@ import numpy as np
 
 from ..describing.base import DescribingFunction, negative_inverse
 from ._curves import add_direction_arrow, curve_with_gaps
-from ._labels import IMAG, REAL, legend
+from ._labels import axes_or_new, legend, plane_labels
+from .controlplot import control_plot
 
 __all__ = ["plot_loci", "default_amplitudes"]
 
@@ -54,28 +55,26 @@ def plot_loci(N: DescribingFunction, amplitudes=None, omega=None, ax=None, **kw)
     """
     import matplotlib.pyplot as plt
 
-    from .nyquist import _control_plot
-
-    if ax is None:
-        _, ax = plt.subplots()
+    ax = axes_or_new(ax)
     curves = []
     if N.frequency_dependent:
         if amplitudes is None or omega is None:
             raise ValueError("amplitudes and omega are required for a frequency-dependent N")
         w = np.sort(np.asarray(omega, dtype=float).ravel())
-        for A in np.atleast_1d(np.asarray(amplitudes, dtype=float)):
+        amps = np.atleast_1d(np.asarray(amplitudes, dtype=float))
+        colors = plt.cm.viridis(np.linspace(0.0, 0.85, amps.size)) if amps.size > 1 else ["C0"]
+        for A, color in zip(amps, colors):
             _, z = curve_with_gaps(lambda x, A=A: negative_inverse(N, A, x), w)
             label = f"{N.input_name} = {A:g} {N.input_unit}".rstrip()
-            curves += ax.plot(z.real, z.imag, label=label, **kw)
+            curves += ax.plot(z.real, z.imag, label=label, **{"color": color, **kw})
     else:
         A = default_amplitudes(N) if amplitudes is None else np.sort(np.asarray(amplitudes, dtype=float).ravel())
         _, z = curve_with_gaps(lambda a: negative_inverse(N, a), A)
         curves += ax.plot(z.real, z.imag, label=f"-1/N({N.input_name})", **kw)
-    critical = ax.plot([-1.0], [0.0], "r+", ms=10, mew=1.5, label="-1")
-    ax.set_xlabel(REAL)
-    ax.set_ylabel(IMAG)
+    critical = ax.plot([-1.0], [0.0], "r+", ms=10, mew=1.5, label="-1 (critical point)")
+    plane_labels(ax, N)
     ax.axhline(0.0, color="0.8", lw=0.5)
     ax.axvline(0.0, color="0.8", lw=0.5)
     for line in curves:
         add_direction_arrow(ax, line.get_xdata() + 1j * line.get_ydata(), line.get_color())
-    return _control_plot([curves, critical], ax, legend(ax))
+    return control_plot([curves, critical], ax, legend(ax))

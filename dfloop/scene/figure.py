@@ -75,24 +75,13 @@ class FigureData:
     input_unit: str = ""
     simulations: int = 0
 
-    @property
-    def z_unit(self) -> str:
-        """Unit of -1/N: the input's unit per metre for backlash with masses (N/m), else empty."""
-        return " (N/m)" if self.input_unit == "N" else ""
-
-    def label(self, curve: Curve) -> str:
-        """Legend entry of a curve: the parameter's value and the amplitude with its name and unit."""
-        parts = [] if self.parameter is None else [f"{self.parameter.rsplit('.', 1)[-1]}={curve.value:g}"]
-        parts.append(f"{self.input_name}={curve.amplitude:g}{' ' + self.input_unit if self.input_unit else ''}")
-        return ", ".join(parts)
-
     def plot(self, ax=None) -> Any:
-        """Draw the figure; ``ax`` is an axes (nyquist, collisions), two axes (loglog) or a 2-D array of axes
-        (time_response: rows = frequencies, columns = parameter values). Returns the axes drawn."""
-        import matplotlib.pyplot as plt
+        """Draw the figure with :func:`dfloop.plot.study.plot_element_study`; ``ax`` is an axes (nyquist,
+        collisions), two axes (loglog) or a 2-D array of axes (time_response: rows = frequencies, columns =
+        parameter values). Returns a :class:`control.ControlPlot`."""
+        from dfloop.plot.study import plot_element_study
 
-        return {"nyquist": _plot_nyquist, "loglog": _plot_loglog, "time_response": _plot_time,
-                "collisions": _plot_collisions}[self.kind](self, ax, plt)
+        return plot_element_study(self, ax)
 
     def __repr__(self) -> str:
         body = "\n".join("  " + repr(c) for c in self.curves)
@@ -219,77 +208,3 @@ def figure_data(scene) -> FigureData:
     simulations = sum(getattr(el, "n_simulations", 0) for _, el in elements)  # tables built for this figure
     return FigureData(spec.kind, scene.title, spec.parameter, curves, getattr(scene.element, "input_name", "A"),
                       getattr(scene.element, "input_unit", ""), simulations)
-
-
-# --------------------------------------------------------------------------------------------- drawing
-def _colors(plt, n: int):
-    return plt.cm.viridis(np.linspace(0.0, 0.9, max(n, 1)))
-
-
-def _plot_nyquist(data: FigureData, ax, plt):
-    if ax is None:
-        _, ax = plt.subplots(figsize=(7, 6))
-    for curve, color in zip(data.curves, _colors(plt, len(data.curves))):
-        z = curve.y
-        ax.plot(np.where(curve.ok, z.real, np.nan), np.where(curve.ok, z.imag, np.nan), color=color, lw=1.0,
-                label=data.label(curve))
-        ax.plot(z.real[~curve.ok], z.imag[~curve.ok], ".", color=color, ms=1.5, alpha=0.35)
-    ax.set_xlabel("Re{-1/N}" + data.z_unit)
-    ax.set_ylabel("Im{-1/N}" + data.z_unit)
-    ax.set_title(data.title + "\n(dots: irregular motion, N is an average)", fontsize=9)
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=6, ncol=2 if len(data.curves) > 8 else 1)
-    return ax
-
-
-def _plot_loglog(data: FigureData, ax, plt):
-    if ax is None:
-        _, ax = plt.subplots(1, 2, figsize=(12, 5))
-    for curve, color in zip(data.curves, _colors(plt, len(data.curves))):
-        for a, part in zip(ax, (curve.y.real, curve.y.imag)):
-            a.loglog(curve.x, np.where(curve.ok, np.abs(part), np.nan), color=color, lw=1.0,
-                     label=data.label(curve))
-            a.loglog(curve.x[~curve.ok], np.abs(part[~curve.ok]), ".", color=color, ms=1.5, alpha=0.35)
-    for a, name in zip(ax, ("|Re{-1/N}|", "|Im{-1/N}|")):
-        a.set_xlabel("omega (rad/s)")
-        a.set_ylabel(name + data.z_unit)
-        a.grid(True, which="both", alpha=0.3)
-        a.legend(fontsize=6)
-    ax[0].figure.suptitle(data.title, fontsize=10)
-    return ax
-
-
-def _plot_time(data: FigureData, ax, plt):
-    frequencies = list(dict.fromkeys(c.omega for c in data.curves))
-    values = list(dict.fromkeys(c.value for c in data.curves))
-    if ax is None:
-        _, ax = plt.subplots(len(frequencies), len(values), squeeze=False, sharex="row",
-                             figsize=(4.2 * len(values), 2.6 * len(frequencies) + 0.6))
-    for curve in data.curves:
-        a = ax[frequencies.index(curve.omega), values.index(curve.value)]
-        a.plot(curve.x, curve.y, lw=0.8, label=data.label(curve))
-        head = f"w={curve.omega:g} rad/s" + ("" if data.parameter is None else
-                                             f", {data.parameter.rsplit('.', 1)[-1]}={curve.value:g}")
-        a.set_title(head + "\n" + curve.note, fontsize=7, color="firebrick" if "not applicable" in curve.note
-                    else "black")
-        a.set_xlabel("t (s)", fontsize=8)
-        a.set_ylabel("dx1/dt (m/s)", fontsize=8)
-        a.tick_params(labelsize=7)
-        a.grid(True, alpha=0.3)
-    ax.flat[0].figure.suptitle(data.title, fontsize=10)
-    ax.flat[0].figure.tight_layout()
-    return ax
-
-
-def _plot_collisions(data: FigureData, ax, plt):
-    if ax is None:
-        _, ax = plt.subplots(figsize=(8, 5))
-    for curve, color in zip(data.curves, _colors(plt, len(data.curves))):
-        ax.semilogx(curve.x, curve.y, "-", color=color, lw=0.8, label=data.label(curve))
-        ax.semilogx(curve.x[~curve.ok], curve.y[~curve.ok], "x", color=color, ms=3)
-    ax.set_xlabel("omega (rad/s)")
-    ax.set_ylabel("n_A: longest run of consecutive impacts on side A")
-    ax.set_title(data.title + "\n(x: irregular motion)", fontsize=9)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=6)
-    return ax

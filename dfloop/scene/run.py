@@ -6,7 +6,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-import numpy as np
 
 from .load import Scene
 
@@ -178,20 +177,17 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
             if scene.sweep.csv:
                 report.sweep.to_csv(out / f"{scene.name}_sweep.csv")
                 report.files.append(out / f"{scene.name}_sweep.csv")
-            drawn = report.sweep.plot()  # axes, a tuple of axes, or a plot object with .figure
-            first = drawn[0] if isinstance(drawn, (tuple, list)) else drawn
-            report.files.append(_save(getattr(first, "figure", None) or plt.gcf(), out / f"{scene.name}_sweep.png"))
+            report.files.append(_save(report.sweep.plot().figure, out / f"{scene.name}_sweep.png"))
         if figure is not None:
             report.figure = stage(f"figure ({figure.kind})", lambda: figure_data(scene))
             log(repr(report.figure))
-            drawn = np.atleast_1d(report.figure.plot())
-            report.files.append(_save(drawn.flat[0].figure, out / f"{scene.name}_figure.png"))
+            report.files.append(_save(report.figure.plot().figure, out / f"{scene.name}_figure.png"))
         if "nyquist" in plots:
             from dfloop.plot.nyquist import plot_nyquist
 
             def nyquist() -> Path:
                 fig, ax = plt.subplots(figsize=(6.5, 5.5))
-                plot_nyquist(scene.plant, scene.element, cycles=report.cycles, ax=ax)
+                plot_nyquist(report.cycles, ax)
                 ax.set_title(scene.title)
                 return _save(fig, out / f"{scene.name}_nyquist.png")
 
@@ -201,7 +197,7 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
 
             def residual() -> Path:
                 fig, ax = plt.subplots(figsize=(6.5, 5.0))
-                plot_residual_map(scene.plant, scene.element, cycles=report.cycles, ax=ax)
+                plot_residual_map(report.cycles, ax)
                 return _save(fig, out / f"{scene.name}_residual.png")
 
             report.files.append(stage("plot residual map", residual))

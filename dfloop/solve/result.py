@@ -238,15 +238,24 @@ class LimitCycles(list):
 
     __str__ = __repr__
 
-    def plot(self, G=None, N=None, **kwargs):
-        """Nyquist picture of these cycles (python-control conventions): see :func:`dfloop.plot_nyquist`.
+    @property
+    def plant_response(self):
+        """G(jw) of the plant these cycles were predicted for: a :class:`~dfloop.solve.plant.Plant` (callable
+        on frequencies in rad/s, with ``feature_frequencies``), or None when the result records no plant."""
+        from .plant import as_plant
+
+        G = getattr(self, "plant", None)
+        return None if G is None else as_plant(G)
+
+    def plot(self, ax=None, **kwargs):
+        """Nyquist picture of these cycles: :func:`dfloop.plot.nyquist.plot_nyquist` (python-control
+        conventions).
 
         Parameters
         ----------
-        G, N : plant and describing function, optional
-            Default: the ones ``predict_limit_cycles`` was called with (its ``plant`` and ``element``).
+        ax : matplotlib Axes, optional
         **kwargs
-            Passed to :func:`dfloop.plot_nyquist` (``ax``, ``n_loci``, windows).
+            Passed to ``plot_nyquist`` (``n_loci``, ``omega`` and ``amplitude`` windows, ``inset``).
 
         Returns
         -------
@@ -254,8 +263,4 @@ class LimitCycles(list):
         """
         from ..plot.nyquist import plot_nyquist
 
-        G = getattr(self, "plant", None) if G is None else G
-        N = getattr(self, "element", None) if N is None else N
-        if G is None or N is None:
-            raise ValueError("G and N are required: these cycles do not record the plant and element they came from")
-        return plot_nyquist(G, N, self, **kwargs)
+        return plot_nyquist(self, ax, **kwargs)
