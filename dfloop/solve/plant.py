@@ -11,6 +11,8 @@ from typing import Callable
 
 import numpy as np
 
+from ..errors import DfloopError
+
 __all__ = ["Plant", "as_plant"]
 
 _DECADES_BEYOND_FEATURES = 2.0  # default window: two decades beyond the slowest / fastest pole or zero
@@ -50,7 +52,7 @@ class Plant:
         try:
             g = np.asarray(self.response(w), dtype=complex)
         except (TypeError, ValueError) as exc:
-            if "omega outside" in str(exc):
+            if isinstance(exc, DfloopError):  # dfloop's own message (frd range, overflow): unchanged
                 raise
             raise ValueError(f"G(omega) must return complex numbers for an array omega; it raised {exc!r}") from None
         if g.shape != w.shape:
@@ -61,7 +63,8 @@ class Plant:
         bad = ~np.isfinite(g)
         if bad.any():
             w_bad = w[bad].flat[0]
-            raise ValueError(f"G(jw) is not finite (NaN or pole on the imaginary axis) at omega={w_bad:g} rad/s")
+            raise ValueError(f"G(jw) is not finite (NaN, overflow or a pole on the imaginary axis) at "
+                             f"omega={w_bad:g} rad/s")
         return g
 
     @property
@@ -129,11 +132,24 @@ def _feature_grid(roots: np.ndarray) -> tuple[np.ndarray, tuple[float, float] | 
     return np.unique(pts[pts > 0]), (float(lo), float(hi))
 
 
+def _show_matrix(m: np.ndarray) -> str:
+    text = np.array2string(m, threshold=6, edgeitems=2)
+    return " ".join(text.split())
+
+
 def _from_tf(sys) -> Plant:
     import control as ct
 
+    if isinstance(sys, ct.StateSpace):  # a NaN in A would surface as a LinAlgError of the conversion
+        for name in ("A", "B", "C", "D"):
+            m = np.asarray(getattr(sys, name))
+            if not np.all(np.isfinite(m)):
+                raise ValueError(f"G (ss) must have finite matrices; got {name} = {_show_matrix(m)}")
     tf = sys if isinstance(sys, ct.TransferFunction) else ct.tf(sys)
     num, den = (np.asarray(x, dtype=float) for x in (tf.num[0][0], tf.den[0][0]))
+    for name, coef in (("num", num), ("den", den)):  # np.roots would raise LinAlgError
+        if not np.all(np.isfinite(coef)):
+            raise ValueError(f"G (tf) must have finite coefficients; got {name} = {coef.tolist()!r}")
     num, den = (x[np.argmax(x != 0):] if np.any(x) else x[:0] for x in (num, den))  # leading zeros off
     if num.size == 0:
         raise ValueError("G is zero (its numerator is 0): no loop, no limit cycle")
@@ -143,7 +159,14 @@ def _from_tf(sys) -> Plant:
 
     def response(w):
         s = 1j * w
-        return np.polyval(num, s) / np.polyval(den, s)
+        with np.errstate(over="ignore", invalid="ignore"):
+            top, bottom = np.polyval(num, s), np.polyval(den, s)
+        over = ~(np.isfinite(top) & np.isfinite(bottom)) & np.isfinite(w)
+        if np.any(over):  # the polynomials, not G, leave the float range: say so (not "NaN or pole")
+            raise DfloopError(f"G(jw) overflows: at omega={float(w[over].flat[0]):g} rad/s the degree-"
+                             f"{den.size - 1} polynomials of G exceed the float range (about 1.8e308); "
+                             "narrow the omega window (or scale time so that the frequencies are near 1)")
+        return top / bottom
 
     zeros, poles = np.roots(num), np.roots(den)
     features, window = _feature_grid(np.concatenate([poles, zeros]))
@@ -165,7 +188,7 @@ def _from_frd(sys) -> Plant:
 
     def response(omega):
         if np.any(omega < lo * (1 - 1e-12)) or np.any(omega > hi * (1 + 1e-12)):
-            raise ValueError(f"omega outside the frd's frequency grid [{lo:g}, {hi:g}] rad/s")
+            raise DfloopError(f"omega outside the frd's frequency grid [{lo:g}, {hi:g}] rad/s")
         x = np.log(omega)
         return re(x) + 1j * im(x)
 

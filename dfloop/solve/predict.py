@@ -8,7 +8,7 @@ import warnings
 
 import numpy as np
 
-from .._checks import finite, window as checked_window
+from .._checks import finite, integer_at_least, window as checked_window
 from ..describing.base import DescribingFunction
 from ..describing.interop import as_element
 from ._kernels import candidate_cells
@@ -30,10 +30,14 @@ _NEAR_UNIT = math.log(20.0)  # "near 1": 1/20 <= |G N| <= 20
 
 def _grid_size(grid) -> tuple[int, int]:
     try:
-        na, nw = (int(x) for x in grid)
-    except (TypeError, ValueError):
-        raise ValueError(f"grid must be a pair (n_amplitudes, n_frequencies); got {grid!r}") from None
-    if na < 2 or nw < 2 or na > _MAX_GRID or nw > _MAX_GRID:
+        pair = tuple(grid)
+    except TypeError:
+        pair = ()
+    if len(pair) != 2 or any(isinstance(x, (str, bytes)) for x in pair):
+        raise ValueError(f"grid must be a pair (n_amplitudes, n_frequencies); got {grid!r}")
+    na, nw = (integer_at_least(f"grid[{i}] ({what})", x, 2) for i, (x, what) in
+              enumerate(zip(pair, ("amplitudes", "frequencies"))))  # 2.5, inf, NaN, True: a ValueError
+    if na > _MAX_GRID or nw > _MAX_GRID:
         raise ValueError(f"grid sizes must lie in [2, {_MAX_GRID}]; got {grid!r}")
     check_memory(na, nw)
     return na, nw
@@ -200,6 +204,7 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
         w_src = "given"
     if w_lo < plant.domain[0] * (1 - 1e-12) or w_hi > plant.domain[1] * (1 + 1e-12):
         raise ValueError(f"omega window ({w_lo:g}, {w_hi:g}) leaves the plant's frequency range {plant.domain}")
+    plant(np.array([w_lo, w_hi]))  # input check before any work: NaN, a pole on the axis or overflow at the ends
     v_lo, v_hi = math.log(w_lo), math.log(w_hi)
     v = np.linspace(v_lo, v_hi, nw)
     if not plant.exact:  # rational plants need no hints: their grid is placed from the poles and zeros
