@@ -402,7 +402,58 @@ PROBES: list[Probe] = [
           lambda: cli.main(["run", str(scene_file(_PLANT + '[element]\ntype = "Backlash"\nh = -1.0\n', "bad.toml"))]), "exit 1",
           ("h must be > 0", "-1.0")),
     Probe("dfloop", "unknown option --fast", lambda: cli.main(["--fast"]), "exit 2", ("unrecognized arguments: --fast",)),
+    Probe("dfloop run SCENE...", "--out is a regular file", lambda: cli.main(["run", "relay_hysteresis", "--out", str(_a_file())]),
+          "exit 2", ("--out <dir>/a_file: exists and is not a directory",)),
+    Probe("dfloop run SCENE...", "--out cannot be created",
+          lambda: cli.main(["run", "relay_hysteresis", "--out", str(_a_file() / "out")]), "exit 2",
+          ("--out <dir>/a_file/out: cannot write there (Not a directory)",)),
+    Probe("dfloop run SCENE...", 'DFLOOP_CACHE_DIR=""', lambda: _with_cache_dir("", ["run", "relay_hysteresis"]), "exit 2",
+          ("DFLOOP_CACHE_DIR is set but empty",)),
+    Probe("dfloop cache info|clear", 'DFLOOP_CACHE_DIR=""', lambda: _with_cache_dir("", ["cache", "info"]), "exit 2",
+          ("DFLOOP_CACHE_DIR is set but empty", "unset it for the default")),
+    Probe("dfloop cache info|clear", "clear without --yes, stdin not a terminal",
+          lambda: _with_cache_dir(_full_cache(), ["cache", "clear"]), "exit 2",
+          ("cache clear: refused to remove this file without confirmation", "pass --yes")),
+    Probe("dfloop cache info|clear", "clear --yes on a read-only cache",
+          lambda: _with_cache_dir(_full_cache(), ["cache", "clear", "--yes"], read_only=True), "exit 2",
+          ("could not remove 1 of 1 files; first: <dir>/cache/t.npz: Permission denied",)),
+    Probe("dfloop cache info|clear", "cache directory not listable",
+          lambda: _with_cache_dir(_full_cache(), ["cache", "info"], unlistable=True), "exit 2",
+          ("cache info: [Errno 13] Permission denied",)),
 ]
+
+
+def _a_file() -> Path:
+    path = _SCRATCH / "a_file"
+    path.write_text("")
+    return path
+
+
+def _full_cache() -> str:
+    """A cache directory holding one table (of the current code version)."""
+    from dfloop.impact.cache import save_table
+
+    directory = _SCRATCH / "cache"
+    save_table(directory / "t.npz", {"x": np.arange(3.0)}, "k", {}, {})
+    return str(directory)
+
+
+def _with_cache_dir(value: str, argv: list[str], read_only: bool = False, unlistable: bool = False):
+    """cli.main(argv) with DFLOOP_CACHE_DIR = value, stdin not a terminal, and optionally a cache whose files
+    cannot be removed (PermissionError, as from a read-only directory; the suite may run as root) or listed."""
+    from unittest import mock
+
+    def refuse(path, *args, **kwargs):
+        raise PermissionError(13, "Permission denied", str(path))
+
+    with contextlib.ExitStack() as stack:
+        stack.enter_context(mock.patch.dict("os.environ", {"DFLOOP_CACHE_DIR": value}))
+        stack.enter_context(mock.patch("sys.stdin", io.StringIO("")))
+        if read_only:
+            stack.enter_context(mock.patch.object(Path, "unlink", refuse))
+        if unlistable:
+            stack.enter_context(mock.patch.object(Path, "glob", refuse))
+        return cli.main(argv + (["--out", str(_SCRATCH / "out")] if argv[0] == "run" else []))
 
 
 def _normalise(message: str) -> str:
@@ -454,7 +505,12 @@ def render(probes: list[Probe] = PROBES) -> str:
         "- Frequencies are real, finite and > 0 (rad/s); amplitude-only elements validate and ignore them.",
         "- The disk cache never raises: an unreadable, unwritable, corrupted or stale cache file gives one",
         "  `dfloop.errors.CacheWarning` naming what failed and where, and the table is computed in memory.",
-        "- The command line prints the message on stderr and exits with status 1 (a bad scene) or 2 (bad usage).",
+        "- The command line prints one line `dfloop: <message>` on stderr, without a traceback, and exits with",
+        "  status 1 when a scene failed (the others still run) or 2 for bad usage or environment: an `--out` that",
+        "  is a file or cannot be written, a cache that cannot be listed or cleared, `DFLOOP_CACHE_DIR` set but",
+        "  empty (refused rather than taken to mean the default directory: unset it for the default).",
+        "  `dfloop cache clear` lists the files it would remove and asks first; `--yes` skips the question, and",
+        "  without it a non-interactive stdin refuses.",
         "",
         "| Entry point | Bad input | Raises | Message |",
         "|---|---|---|---|",
