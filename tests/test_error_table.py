@@ -226,6 +226,14 @@ PROBES: list[Probe] = [
           ("G is zero",)),
     Probe("predict_limit_cycles(G, N, ...)", "grid = (20000, 20000)", lambda: df.predict_limit_cycles(G3, SAT, grid=(20000, 20000)),
           ValueError, ("20000 x 20000", "17.9 GiB")),
+    Probe("predict_limit_cycles(G, N, ...)", "grid = (6000, 7000), frequency-dependent N",
+          lambda: df.predict_limit_cycles(G3, MB, grid=(6000, 7000)), ValueError,
+          ("6000 x 7000 points would need 6.3 GiB", "160 bytes per point", "DFLOOP_MEMORY_LIMIT")),
+    Probe("predict_limit_cycles(G, N, ...)", "G of order 5000",
+          lambda: df.predict_limit_cycles(ct.tf([1.0], np.poly(-np.ones(5000))), SAT), ValueError,
+          ("G has order 5000, above the bound of 1000", "reduce the model")),
+    Probe("predict_limit_cycles(G, N, ...)", 'DFLOOP_MEMORY_LIMIT = "lots"', lambda: _with_env("DFLOOP_MEMORY_LIMIT", "lots",
+          lambda: df.predict_limit_cycles(G3, SAT)), ValueError, ("DFLOOP_MEMORY_LIMIT must be a positive number of GiB", "'lots'")),
     Probe("predict_limit_cycles(G, N, ...)", "callable G of wrong shape",
           lambda: df.predict_limit_cycles(lambda w: np.ones(3), SAT, omega=(0.1, 10.0)), ValueError,
           ("G(omega) must return an array of the same shape as omega", "(3,)")),
@@ -421,6 +429,13 @@ PROBES: list[Probe] = [
           lambda: _with_cache_dir(_full_cache(), ["cache", "info"], unlistable=True), "exit 2",
           ("cache info: [Errno 13] Permission denied",)),
 ]
+
+
+def _with_env(name: str, value: str, call: Callable[[], object]):
+    from unittest import mock
+
+    with mock.patch.dict("os.environ", {name: value}):
+        return call()
 
 
 def _a_file() -> Path:

@@ -13,10 +13,14 @@ import numpy as np
 
 from ..errors import DfloopError
 
-__all__ = ["Plant", "as_plant"]
+__all__ = ["Plant", "as_plant", "MAX_ORDER"]
 
 _DECADES_BEYOND_FEATURES = 2.0  # default window: two decades beyond the slowest / fastest pole or zero
 _LIGHT_DAMPING = 0.2  # poles/zeros with damping ratio below this get a dense cluster of grid frequencies
+_CHUNK_VALUES = 2**18  # entries of one chunk of log_variation's work arrays (intervals x roots)
+MAX_ORDER = 1000
+"""Largest plant order accepted: beyond it the poles (O(n^3) work: an ss conversion takes ~3 s at n = 500, ~25 s at n = 1000) and
+the polynomial form (which overflows at |s| ~ 10^(308 / n)) are useless; reduce the model first."""
 
 
 @dataclass
@@ -86,8 +90,18 @@ class Plant:
         minimum (at w = y). So the change of arg G over the interval lies between the sums of the
         negative and of the positive turns (zeros count +, poles -), the change of ln|G| likewise between
         the sums of the decreases and increases; the bound is the hypotenuse of the two extremes.
-        Infinite when a zero lies on the interval of the imaginary axis.
+        Infinite when a zero lies on the interval of the imaginary axis. Evaluated in chunks of intervals, so
+        the work arrays (intervals x poles and zeros) stay below ~``_CHUNK_VALUES`` entries.
         """
+        w0, w1 = np.broadcast_arrays(np.asarray(w0, float), np.asarray(w1, float))
+        n_roots = max(1, sum(r.size for r in self.roots))
+        size = max(1, _CHUNK_VALUES // n_roots)
+        if w0.ndim != 1 or w0.size <= size:
+            return self._log_variation(w0, w1)
+        return np.concatenate([self._log_variation(w0[i:i + size], w1[i:i + size])
+                               for i in range(0, w0.size, size)])
+
+    def _log_variation(self, w0, w1) -> np.ndarray:
         zeros, poles = self.roots
         r = np.concatenate([zeros, poles])
         sign = np.concatenate([np.ones(zeros.size), -np.ones(poles.size)])
@@ -140,6 +154,11 @@ def _show_matrix(m: np.ndarray) -> str:
 def _from_tf(sys) -> Plant:
     import control as ct
 
+    order = sys.nstates if isinstance(sys, ct.StateSpace) else max(len(sys.den[0][0]) - 1, len(sys.num[0][0]) - 1)
+    if order > MAX_ORDER:  # refused before the O(n^3) conversion and root finding (order 5000: 10 GB, minutes)
+        raise DfloopError(f"G has order {order}, above the bound of {MAX_ORDER}: its poles cost O(n^3) and its "
+                          f"polynomials overflow for |s| > about 10^{308 / order:.2g}; reduce the model first "
+                          "(e.g. control.balred or control.minreal)")
     if isinstance(sys, ct.StateSpace):  # a NaN in A would surface as a LinAlgError of the conversion
         for name in ("A", "B", "C", "D"):
             m = np.asarray(getattr(sys, name))
