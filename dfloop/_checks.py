@@ -10,20 +10,22 @@ import numpy as np
 from .errors import DfloopError
 
 __all__ = ["positive", "nonnegative", "finite", "in_closed_interval", "amplitude_array", "frequency_array",
-           "real_array", "integer_at_least"]
+           "real_array", "integer_at_least", "window", "show"]
 
 
-def _real(name: str, value) -> float:
+def _real(name: str, value, nan: bool = False) -> float:
     if isinstance(value, (complex, np.complexfloating)):
-        raise DfloopError(f"{name} must be a real number, got the complex value {value!r}")
+        raise DfloopError(f"{name} must be a real number, got the complex value {show(value)}")
     if isinstance(value, (str, bytes, bool, np.bool_)):
-        raise DfloopError(f"{name} must be a real number, got {value!r} ({type(value).__name__})")
+        raise DfloopError(f"{name} must be a real number, got {show(value)} ({type(value).__name__})")
     try:
         x = float(value)
-    except (TypeError, ValueError, OverflowError):
-        raise DfloopError(f"{name} must be a real number, got {value!r}") from None
-    if math.isnan(x):
-        raise DfloopError(f"{name} must not be NaN, got {value!r}")
+    except OverflowError:  # a Python integer beyond the float range
+        raise DfloopError(f"{name} must be representable as a float, got {show(value)}") from None
+    except (TypeError, ValueError):
+        raise DfloopError(f"{name} must be a real number, got {show(value)}") from None
+    if math.isnan(x) and not nan:
+        raise DfloopError(f"{name} must not be NaN, got {show(value)}")
     return x
 
 
@@ -59,7 +61,7 @@ def in_closed_interval(name: str, value, lo: float, hi: float) -> float:
     return x
 
 
-def _show(value) -> str:
+def show(value) -> str:
     """A short repr of a user value for error messages."""
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
@@ -73,21 +75,21 @@ def real_array(value, name: str) -> np.ndarray:
     try:
         a = np.asarray(value)
     except (ValueError, TypeError):  # ragged nested sequences
-        raise DfloopError(f"{name} must be a real number or a rectangular array of them, got {_show(value)}") from None
+        raise DfloopError(f"{name} must be a real number or a rectangular array of them, got {show(value)}") from None
     if a.dtype.kind == "c":
-        raise DfloopError(f"{name} must be real, got the complex value(s) {_show(value)}")
+        raise DfloopError(f"{name} must be real, got the complex value(s) {show(value)}")
     if a.dtype.kind == "O":
         flat = a.ravel()
         if not all(isinstance(v, numbers.Real) for v in flat):
             bad = next(v for v in flat if not isinstance(v, numbers.Real))
-            where = "" if a.ndim == 0 else f" in {_show(value)}"
-            raise DfloopError(f"{name} must hold real numbers only, got {_show(bad)}{where}")
+            where = "" if a.ndim == 0 else f" in {show(value)}"
+            raise DfloopError(f"{name} must hold real numbers only, got {show(bad)}{where}")
     elif a.dtype.kind not in "biuf":
-        raise DfloopError(f"{name} must be a real number or an array of them, got {_show(value)}")
+        raise DfloopError(f"{name} must be a real number or an array of them, got {show(value)}")
     try:
         return a.astype(float, copy=False)  # float input passes without a copy, as np.asarray(A, float) did
     except OverflowError:  # Python integers beyond the float range
-        raise DfloopError(f"{name} must be representable as a float, got {_show(value)}") from None
+        raise DfloopError(f"{name} must be representable as a float, got {show(value)}") from None
 
 
 def amplitude_array(A, name: str = "A") -> np.ndarray:
@@ -124,16 +126,19 @@ def integer_at_least(name: str, value, minimum: int) -> int:
     """``value`` as an int >= ``minimum`` (integral floats such as 4.0 pass; 2.5, NaN, inf, True do not)."""
     x = finite(name, value)
     if x != int(x) or x < minimum:
-        raise DfloopError(f"{name} must be an integer >= {minimum}, got {value!r}")
+        raise DfloopError(f"{name} must be an integer >= {minimum}, got {show(value)}")
     return int(x)
 
 
 def window(name: str, value) -> tuple[float, float]:
     """A window (lo, hi) of positive finite floats with lo < hi (frequencies in rad/s, amplitudes)."""
     try:
-        lo, hi = (float(x) for x in value)
-    except (TypeError, ValueError, OverflowError):
-        raise DfloopError(f"{name} window must be a pair (lo, hi) of real numbers; got {value!r}") from None
+        pair = tuple(value)
+    except TypeError:
+        pair = ()
+    if len(pair) != 2 or isinstance(value, (str, bytes)):
+        raise DfloopError(f"{name} window must be a pair (lo, hi) of real numbers; got {show(value)}")
+    lo, hi = (_real(f"{name} window", x, nan=True) for x in pair)  # booleans, strings, complex, huge integers
     if not (math.isfinite(lo) and math.isfinite(hi)):
         raise DfloopError(f"{name} window must be finite; got ({lo}, {hi})")
     if lo <= 0 or hi <= 0:

@@ -4,10 +4,14 @@ Every cache file records the code version that wrote it (:func:`dfloop.tables.ca
 another version is never read again (its key differs), so it only takes space: ``clear_cache(stale=True)``
 removes exactly those, and files that no longer parse. Only dfloop's own files are touched: ``*.npz`` tables and
 ``*.tmp`` leftovers of interrupted writes, directly in :func:`dfloop.tables.cache.cache_dir`.
+
+``DFLOOP_CACHE_DIR`` set to an empty string is refused here (``ValueError``): it would otherwise mean the default
+directory, and clearing the wrong directory is not a mistake to make silently. Unset it for the default.
 """
 from __future__ import annotations
 
 import json
+import os
 import time
 import zipfile
 from dataclasses import dataclass, field
@@ -97,22 +101,78 @@ def _size(n: int) -> str:
     return f"{n:.1f} GiB"
 
 
+def _directory() -> Path:
+    """The cache directory; ``DFLOOP_CACHE_DIR=""`` (set but empty) raises ValueError naming it."""
+    env = os.environ.get("DFLOOP_CACHE_DIR")
+    if env is not None and not env.strip():
+        raise ValueError(f"DFLOOP_CACHE_DIR is set but empty ({env!r}); set it to a directory, or unset it for the "
+                         "default (~/.cache/dfloop, or $XDG_CACHE_HOME/dfloop)")
+    return cache_dir()
+
+
 def cache_info() -> CacheInfo:
-    """What the cache directory holds, per code version."""
-    directory = cache_dir()
+    """What the cache directory holds, per code version.
+
+    Raises
+    ------
+    ValueError
+        When ``DFLOOP_CACHE_DIR`` is set but empty.
+    OSError
+        When the directory cannot be listed (e.g. no read permission).
+    """
+    directory = _directory()
     return CacheInfo(directory, code_version(), _files(directory))
 
 
-def clear_cache(stale: bool = False) -> list[CacheFile]:
-    """Remove the cache's files; with ``stale=True`` only the files of other code versions and unreadable
-    ones (sparing ``*.tmp`` files younger than ``WRITE_GRACE``, possibly being written). Returns those removed."""
+def _to_clear(stale: bool) -> list[CacheFile]:
     info = cache_info()
-    if stale:
-        now = time.time()
-        removed = [f for f in info.stale
-                   if f.path.suffix != ".tmp" or now - f.path.stat().st_mtime > WRITE_GRACE]
+    if not stale:
+        return list(info.files)
+    now = time.time()
+    return [f for f in info.stale if f.path.suffix != ".tmp" or now - f.path.stat().st_mtime > WRITE_GRACE]
+
+
+def clear_cache(stale: bool = False, files: list[CacheFile] | None = None, *, dry_run: bool = False,
+                errors: list[tuple[CacheFile, OSError]] | None = None) -> list[CacheFile]:
+    """Remove cache files and return those removed (or, with ``dry_run=True``, those that would be).
+
+    Parameters
+    ----------
+    stale : bool
+        Remove only the files of other code versions and unreadable ones (sparing ``*.tmp`` files younger than
+        ``WRITE_GRACE``, possibly being written); otherwise every dfloop file of the cache.
+    files : list of CacheFile, optional
+        Remove exactly these (e.g. the list shown to a user for confirmation) instead of listing again: a table
+        written in between is not removed unseen. Each must lie directly in the cache directory.
+    dry_run : bool
+        Remove nothing; return the files that would be removed (what ``dfloop cache clear`` lists before
+        asking for confirmation).
+    errors : list, optional
+        Where to collect ``(file, OSError)`` for files that could not be removed (read-only cache); every other
+        file is still removed. Without it, such a failure raises the ``OSError`` after the others are removed,
+        its message naming how many failed and the first one.
+    """
+    if files is None:
+        files = _to_clear(stale)
     else:
-        removed = info.files
-    for f in removed:
-        f.path.unlink(missing_ok=True)
+        directory = _directory().resolve()
+        outside = [f for f in files if f.path.resolve().parent != directory]
+        if outside:
+            raise ValueError(f"files must lie in the cache directory {directory}; got {outside[0].path}")
+    if dry_run:
+        return list(files)
+    removed, failed = [], []
+    for f in files:
+        try:
+            f.path.unlink(missing_ok=True)
+        except OSError as exc:
+            failed.append((f, exc))
+        else:
+            removed.append(f)
+    if failed and errors is None:
+        f, exc = failed[0]
+        raise type(exc)(exc.errno, f"could not remove {len(failed)} of {len(files)} cache files ({len(removed)} "
+                        f"removed); first: {f.path}: {exc.strerror or exc}")
+    if errors is not None:
+        errors.extend(failed)
     return removed

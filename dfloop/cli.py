@@ -5,17 +5,37 @@ name of a shipped scene (``dfloop list``). Every scene is checked before any run
 key, closest valid name) and the others still run; the exit code is 1 if any failed. Progress is shown for the
 long stages (a bar on a terminal, plain lines in logs); ``--quiet`` turns it and the stage lines off.
 
+``dfloop cache clear [--stale] [--yes]`` lists the files it would remove (how many, which, their size) and asks
+for confirmation; ``--yes`` skips the question, and without it a non-interactive stdin refuses.
+
+Errors of usage or of the environment (an ``--out`` that is a file or cannot be written, a cache that cannot be
+listed or cleared, ``DFLOOP_CACHE_DIR`` set but empty, a bad option) print one line ``dfloop: ...`` to stderr and
+exit with status 2, without a traceback. A scene that fails exits with status 1 after the others ran.
+
 This module imports nothing heavy at import time, so ``dfloop --help`` answers at once.
 """
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+import tempfile
 from pathlib import Path
+
+_LISTED = 20  # files listed by `cache clear` before "... and n more"
+
+
+class CliError(Exception):
+    """A usage or environment error: main() prints ``dfloop: <message>`` on one line and returns 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, not argparse's usage block
+        raise CliError(f"{message} (see `{self.prog} --help`)")
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="dfloop", description="Describing-function limit-cycle studies.")
+    parser = _Parser(prog="dfloop", description="Describing-function limit-cycle studies.")
     parser.add_argument("--version", action="store_true", help="print the version and exit")
     sub = parser.add_subparsers(dest="command")
     run = sub.add_parser("run", help="run scenes: TOML files or names of shipped scenes (see `dfloop list`)")
@@ -27,10 +47,32 @@ def _parser() -> argparse.ArgumentParser:
     cache = sub.add_parser("cache", help="the table cache: `info` (files and size per code version) or `clear`")
     cache.add_argument("action", choices=("info", "clear"))
     cache.add_argument("--stale", action="store_true", help="clear only files of other code versions")
+    cache.add_argument("--yes", "-y", action="store_true", help="clear without asking for confirmation")
     return parser
 
 
+def _check_cache_env() -> None:
+    env = os.environ.get("DFLOOP_CACHE_DIR")
+    if env is not None and not env.strip():
+        raise CliError(f"DFLOOP_CACHE_DIR is set but empty ({env!r}); set it to a directory, or unset it for the "
+                       "default (~/.cache/dfloop, or $XDG_CACHE_HOME/dfloop)")
+
+
+def _check_out(out: Path) -> None:
+    """--out must be a directory dfloop can write in (created if missing), checked before any scene runs."""
+    if out.exists() and not out.is_dir():
+        raise CliError(f"--out {out}: exists and is not a directory")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out, prefix=".dfloop-write-check-"):
+            pass
+    except OSError as exc:
+        raise CliError(f"--out {out}: cannot write there ({exc.strerror or exc})") from None
+
+
 def _run(args: argparse.Namespace) -> int:
+    _check_cache_env()
+    _check_out(args.out)
     from .scene import load_scene, run_scene
 
     scenes, failed = [], []
@@ -44,8 +86,8 @@ def _run(args: argparse.Namespace) -> int:
         try:
             run_scene(scene, args.out, log=(lambda message: None) if args.quiet else print,
                       progress=not args.quiet)
-        except (ValueError, RuntimeError) as err:  # bad input or a bound reached: report it, run the others
-            print(f"dfloop: {scene.source}: {err}", file=sys.stderr)
+        except (ValueError, RuntimeError, OSError) as err:  # bad input, a bound reached, a write that failed
+            print(f"dfloop: {scene.source}: {' '.join(str(err).split())}", file=sys.stderr)
             failed.append(str(scene.source))
     if failed:
         print(f"dfloop: {len(failed)} of {len(args.scenes)} scenes failed: {', '.join(map(str, failed))}",
@@ -66,21 +108,69 @@ def _list() -> int:
     return 0
 
 
+def _mib(files) -> str:
+    size = sum(f.size for f in files)
+    return f"{size / 2**20:.1f} MiB" if size >= 2**20 else f"{size / 1024:.1f} KiB"
+
+
+def _confirm(what: str) -> bool:
+    """Ask "Remove <what>?" on the terminal; a non-interactive stdin refuses (CliError)."""
+    if not (sys.stdin is not None and sys.stdin.isatty()):
+        raise CliError(f"cache clear: refused to remove {what} without confirmation (stdin is not a terminal); "
+                       "pass --yes")
+    try:
+        answer = input(f"Remove {what}? [y/N] ")
+    except EOFError:
+        answer = ""
+    return answer.strip().lower() in ("y", "yes")
+
+
 def _cache(args: argparse.Namespace) -> int:
+    _check_cache_env()
     from .cache_admin import cache_info, clear_cache
 
-    if args.action == "info":
-        print(repr(cache_info()))
+    try:
+        info = cache_info()
+        if args.action == "info":
+            print(repr(info))
+            return 0
+        kind = "stale " if args.stale else ""
+        files = clear_cache(stale=args.stale, dry_run=True)
+    except OSError as exc:
+        raise CliError(f"cache {args.action}: {exc}") from None
+    if not files:
+        print(f"no {kind}files to remove in {info.directory}")
         return 0
-    removed = clear_cache(stale=args.stale)
-    print(f"removed {len(removed)} {'stale ' if args.stale else ''}files "
-          f"({sum(f.size for f in removed) / 2**20:.1f} MiB) from {cache_info().directory}")
+    print(f"cache {info.directory}: {len(files)} {kind}file{'s' * (len(files) != 1)} ({_mib(files)}) to remove:")
+    for f in files[:_LISTED]:
+        mark = " (current)" if f.version == info.current else ""
+        print(f"  {f.path.name}  {f.size / 1024:.1f} KiB  {f.version}{mark}")
+    if len(files) > _LISTED:
+        print(f"  ... and {len(files) - _LISTED} more ({_mib(files[_LISTED:])})")
+    if not args.yes and not _confirm(f"these {len(files)} files" if len(files) > 1 else "this file"):
+        print("dfloop: cache clear: nothing removed", file=sys.stderr)
+        return 1
+    errors: list = []
+    removed = clear_cache(files=files, errors=errors)
+    print(f"removed {len(removed)} {kind}files ({_mib(removed)}) from {info.directory}")
+    if errors:
+        f, exc = errors[0]
+        raise CliError(f"cache clear: could not remove {len(errors)} of {len(files)} files; first: {f.path}: "
+                       f"{exc.strerror or exc}")
     return 0
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The console script: returns the exit status (0 done, 1 a scene failed or a question was declined,
+    2 a usage or environment error, printed as one line on stderr)."""
     try:
         return _main(argv)
+    except CliError as err:
+        print(f"dfloop: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("dfloop: interrupted", file=sys.stderr)
+        return 130
     except BrokenPipeError:  # `dfloop scene-keys | head`: the reader left; stop quietly
         import os
 

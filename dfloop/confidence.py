@@ -19,7 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._checks import positive
+from ._checks import positive, show
+from .describing.interop import as_element
 
 __all__ = ["Confidence", "cycle_confidence"]
 
@@ -90,7 +91,7 @@ def unavailable(note: str) -> Confidence:
     return Confidence(None, None, None, None, False, note)
 
 
-def cycle_confidence(G, N, amplitude: float, frequency: float, *, samples: int = _SAMPLES,
+def cycle_confidence(G, N, amplitude: float, frequency: float | None = None, *, samples: int = _SAMPLES,
                      harmonics: int = _HARMONICS) -> Confidence:
     """Harmonic distortion at the element's input and estimated errors of a predicted cycle.
 
@@ -102,7 +103,9 @@ def cycle_confidence(G, N, amplitude: float, frequency: float, *, samples: int =
         The element (amplitude-only elements with an ``output`` or ``operator``; others give an unavailable
         Confidence that says why).
     amplitude, frequency : float
-        The predicted cycle: amplitude of x's fundamental and angular frequency (rad/s), > 0.
+        The predicted cycle: amplitude of x's fundamental and angular frequency (rad/s), > 0. Both are
+        required (a missing frequency is a ``ValueError``; for a LimitCycle ``c`` pass ``c.amplitude,
+        c.frequency``).
     samples : int
         Samples of one period (>= 64).
     harmonics : int
@@ -115,6 +118,10 @@ def cycle_confidence(G, N, amplitude: float, frequency: float, *, samples: int =
     from ._checks import in_closed_interval
     from .solve.plant import as_plant
 
+    N = as_element(N)
+    if frequency is None:
+        raise ValueError(f"frequency is required (rad/s): cycle_confidence(G, N, amplitude, frequency); got "
+                         f"amplitude={show(amplitude)} and no frequency (for a LimitCycle c pass c.amplitude, c.frequency)")
     A = positive("amplitude", amplitude)
     w = positive("frequency", frequency)
     S = int(in_closed_interval("samples", samples, 64, 2**20))

@@ -21,6 +21,7 @@ birth. Points of a traced curve that the solver did not report are listed in ``S
 from __future__ import annotations
 
 import csv
+import inspect
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -735,6 +736,12 @@ def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=No
     """
     vals = _check_values(values)
     max_steps = _checks.integer_at_least("max_steps", max_steps, 1)
+    known = [p.name for p in inspect.signature(predict_limit_cycles).parameters.values()
+             if p.kind is p.KEYWORD_ONLY and p.name not in ("omega", "amplitude")]
+    unknown = sorted(set(solver_options) - set(known))
+    if unknown:  # before any solve (a TypeError inside the batch would come out as a RuntimeError)
+        raise ValueError(f"sweep got unknown keyword argument(s) {', '.join(map(repr, unknown))}; the solver "
+                         f"options it passes on are {', '.join(known)}")
     if omega is not None:
         omega = _checks.window("omega", omega)
     if amplitude is not None:

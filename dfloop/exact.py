@@ -23,6 +23,7 @@ import numpy as np
 
 from ._blas import single_threaded_blas
 from ._checks import positive
+from .describing.interop import as_element
 
 __all__ = ["ExactCycle", "exact_cycle"]
 
@@ -203,6 +204,7 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     from ._checks import in_closed_interval
     from .hybrid import ShootingError, loop_model, periodic_orbit
 
+    N = as_element(N)
     A0, w0 = cycle_argument(cycle)
     predicted = (A0, w0)
     harmonics = int(in_closed_interval("harmonics", harmonics, 1, 1000))

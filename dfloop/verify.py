@@ -17,21 +17,31 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._blas import single_threaded_blas
+from .describing.interop import as_element
 from .harmonics import SteadyState, steady_state
 from .hybrid import LoopSimulation, loop_model, simulate, start_on_prediction
 
 __all__ = ["LoopSimulation", "simulate_loop", "Verification", "verify_cycle"]
 
 _DIVERGED = 1e6  # |x| beyond this many times the start amplitude stops a run as divergent
+MAX_PERIODS = 100_000  # bound on the length of a run (about 1 ms of work per period and run)
+MAX_SAMPLES = 10**7  # bound on periods * steps_per_period (the returned signals)
 
 
 def _run_options(periods, steps_per_period) -> tuple[float, int]:
     from ._checks import in_closed_interval, positive
 
-    periods = positive("periods", periods)
+    periods = in_closed_interval("periods", periods, 0.0, MAX_PERIODS)
+    if periods == 0:
+        raise ValueError(f"periods must be > 0, got {periods}")
     steps = in_closed_interval("steps_per_period", steps_per_period, 20, 10**7)
     if steps != int(steps):
         raise ValueError(f"steps_per_period must be an integer, got {steps_per_period!r}")
+    samples = periods * steps
+    if samples > MAX_SAMPLES:  # t, x, y of every sample are kept: 24 bytes each, plus the run's work arrays
+        raise ValueError(f"periods * steps_per_period = {periods:g} * {int(steps)} = {samples:.3g} samples exceeds "
+                         f"the bound of {MAX_SAMPLES:.0e} (about {48 * samples / 2**30:.2g} GiB of signals); lower "
+                         "periods or steps_per_period")
     return periods, int(steps)
 
 
@@ -53,9 +63,10 @@ def simulate_loop(G, N, amplitude: float, frequency: float, *, periods: float = 
     amplitude, frequency : float
         The cycle to start from (element input units, rad/s), > 0.
     periods : float
-        Length of the run in periods of ``frequency``, finite and > 0.
+        Length of the run in periods of ``frequency``, in (0, ``MAX_PERIODS`` = 1e5].
     steps_per_period : int
         Samples per period of the returned signals (>= 20); the step of the fixed-step fallback only.
+        ``periods * steps_per_period`` is at most ``MAX_SAMPLES`` (1e7).
 
     Returns
     -------
@@ -64,6 +75,7 @@ def simulate_loop(G, N, amplitude: float, frequency: float, *, periods: float = 
     """
     from ._checks import positive
 
+    N = as_element(N)  # anything else (a number, None) is a ValueError naming N, before any work
     A0, w = positive("amplitude", amplitude), positive("frequency", frequency)
     periods, steps_per_period = _run_options(periods, steps_per_period)
     loop = loop_model(G, N, A0, w, steps_per_period=steps_per_period)
@@ -149,7 +161,7 @@ def verify_cycle(G, N, cycle, *, perturbation: float = 0.3, periods: float = 80,
     perturbation : float
         Relative amplitude offset of the two starts, in [1e-3, 0.95]; larger than the DF's expected error.
     periods : float
-        Length of each run in predicted periods, finite and > 0.
+        Length of each run in predicted periods, in (0, 1e5]; ``periods * steps_per_period`` <= 1e7.
     steps_per_period : int
         Samples per period of the runs (the step only of the fixed-step fallback, see :func:`simulate_loop`).
     measure_periods : int
@@ -158,6 +170,7 @@ def verify_cycle(G, N, cycle, *, perturbation: float = 0.3, periods: float = 80,
     from ._checks import in_closed_interval
     from .exact import cycle_argument
 
+    N = as_element(N)
     A0, w = cycle_argument(cycle)
     d = in_closed_interval("perturbation", perturbation, 1e-3, 0.95)
     periods, steps_per_period = _run_options(periods, steps_per_period)

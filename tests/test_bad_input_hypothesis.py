@@ -9,7 +9,7 @@ import math
 import control as ct
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 import dfloop as df
@@ -93,13 +93,16 @@ def test_constructors_accept_or_reject_by_value_error(ctor, n, data):
         check_element(el, np.array([0.0, 0.3, 1.0, 7.0, np.inf]), 2.0 if el.frequency_dependent else None)
 
 
-# the solver's own checks are being rewritten (issue 7); integers beyond the float range are left out here
-# until its window check catches OverflowError
-_window_scalars = st.one_of(_floats, st.complex_numbers(allow_nan=True, allow_infinity=True), st.text(max_size=3),
-                            st.none(), st.booleans())
+_window_scalars = st.one_of(_floats, st.integers(-(10**400), 10**400),
+                            st.complex_numbers(allow_nan=True, allow_infinity=True), st.text(max_size=3), st.none(),
+                            st.booleans())
+# grid sizes: every kind of bad value, and valid ones small enough to keep the run short
+_grid_sizes = st.one_of(st.integers(-3, 40), st.sampled_from([2.5, 16.0, np.inf, -np.inf, np.nan, True, 10**400, "16",
+                                                              None, 1 + 0j, np.int64(16), 2_000_001]))
+_LIGHT = settings(max_examples=30, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 
 
-@settings(max_examples=20, deadline=3000, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=20, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 @given(omega=st.one_of(st.none(), _window_scalars, st.tuples(_window_scalars, _window_scalars)),
        amplitude=st.one_of(st.none(), _window_scalars, st.tuples(_window_scalars, _window_scalars)))
 def test_predict_limit_cycles_windows(omega, amplitude):
@@ -109,6 +112,135 @@ def test_predict_limit_cycles_windows(omega, amplitude):
         return
     for c in res:
         assert math.isfinite(c.amplitude) and math.isfinite(c.frequency)
+
+
+@_LIGHT
+@given(grid=st.one_of(st.tuples(_grid_sizes, _grid_sizes), _grid_sizes, st.lists(_grid_sizes, max_size=3)))
+def test_predict_limit_cycles_grid(grid):
+    """A grid is a pair of integers >= 2 (2.5 is not truncated, inf does not overflow): else a ValueError."""
+    try:
+        res = df.predict_limit_cycles(G, df.Saturation(1.0), grid=grid)
+    except ValueError:
+        ok = False
+    else:
+        ok = True
+        assert all(math.isfinite(c.amplitude) for c in res)
+    pair = grid if isinstance(grid, (tuple, list)) else ()
+    assert ok == (len(pair) == 2 and all(_valid_size(x) for x in pair)), grid
+
+
+def _valid_size(x) -> bool:
+    if isinstance(x, bool) or not isinstance(x, (int, np.integer, float)):
+        return False
+    return 2 <= x <= 1_000_000 and x == int(x)  # NaN and inf fail the range; big integers too
+
+
+def _plant_coefficients():
+    entry = st.one_of(st.floats(-10, 10), st.sampled_from([np.nan, np.inf, -np.inf, 0.0]))
+    return st.lists(entry, min_size=1, max_size=5)
+
+
+@_LIGHT
+@given(num=_plant_coefficients(), den=_plant_coefficients())
+def test_predict_limit_cycles_plant_coefficients(num, den):
+    """Any tf coefficients: a result or a ValueError (NaN used to escape as LinAlgError)."""
+    try:
+        G_bad = ct.tf(num, den)
+    except (ValueError, ZeroDivisionError, TypeError):  # python-control's own checks (e.g. a zero denominator)
+        return
+    try:
+        df.predict_limit_cycles(G_bad, df.Relay(1.0), grid=(8, 16))
+    except ValueError:
+        return
+
+
+@_LIGHT
+@given(entry=st.sampled_from([np.nan, np.inf, -np.inf]), where=st.sampled_from("ABCD"), i=st.integers(0, 1))
+def test_predict_limit_cycles_state_space_with_non_finite_entries(entry, where, i):
+    m = {"A": -np.eye(2), "B": np.ones((2, 1)), "C": np.ones((1, 2)), "D": np.zeros((1, 1))}
+    m[where].flat[min(i, m[where].size - 1)] = entry
+    with pytest.raises(ValueError, match=f"G \\(ss\\) must have finite matrices; got {where} ="):
+        df.predict_limit_cycles(ct.ss(m["A"], m["B"], m["C"], m["D"]), df.Relay(1.0))
+
+
+@_LIGHT
+@given(N=st.one_of(scalars, st.just(df.Saturation(1.0))), cycle=st.one_of(values, st.tuples(scalars, scalars)),
+       periods=scalars, perturbation=st.one_of(scalars, st.just(0.3)))
+def test_verify_cycle(N, cycle, periods, perturbation):
+    """Bad N, cycle, periods or perturbation: a ValueError (N = 3 was an AttributeError, periods = 1e9 ran
+    unbounded). Valid calls are kept short (periods <= 4)."""
+    from dfloop.verify import verify_cycle
+
+    try:
+        p = float(periods)
+    except (TypeError, ValueError, OverflowError):
+        p = math.nan
+    assume(not (0 < p <= 1e5 and not isinstance(periods, (bool, str))) or p <= 4)
+    try:
+        v = verify_cycle(G, N, cycle, periods=periods, perturbation=perturbation, measure_periods=1)
+    except ValueError:
+        return
+    assert v.verdict in ("stable", "unstable", "inconclusive")
+
+
+@_LIGHT
+@given(amplitude=st.one_of(scalars, st.just(1.0)), frequency=st.one_of(st.none(), scalars, st.just(1.0)),
+       N=st.one_of(st.none(), scalars, st.just(df.Saturation(1.0))))
+def test_cycle_confidence(amplitude, frequency, N):
+    from dfloop.confidence import cycle_confidence
+
+    try:
+        c = cycle_confidence(G, N, amplitude, frequency)
+    except ValueError:
+        return
+    assert not c.available or math.isfinite(c.distortion)
+
+
+@_LIGHT
+@given(name=st.text(min_size=1, max_size=8).filter(lambda s: s not in ("grid", "tol", "marginal_tol", "exact")),
+       value=scalars)
+def test_sweep_unknown_keyword(name, value):
+    """An unknown keyword is a ValueError naming it, before any solve (it was a RuntimeError from the batch)."""
+    from dfloop.continuation import sweep
+
+    solved = []
+
+    def loop_at(k):
+        solved.append(k)
+        return k * G, df.Saturation(1.0)
+
+    with pytest.raises(ValueError, match="unknown keyword"):
+        sweep(loop_at, [1.0, 2.0], **{name: value})
+    assert solved == []
+
+
+@_LIGHT
+@given(nodes=st.one_of(scalars, st.integers(-5, 10**12)), samples=st.one_of(scalars, st.integers(-5, 10**12)))
+def test_numeric_df_constructor(nodes, samples):
+    """nodes and samples: integers in a bounded range, else a ValueError (10**9 was accepted, then MemoryError)."""
+    try:
+        el = df.NumericDF(np.tanh, nodes=nodes, samples=samples)
+    except ValueError:
+        return
+    assert 2 <= el.nodes <= 1024 and 16 <= el.samples <= 2**16
+    n = el(np.array([0.5, 2.0]))
+    assert np.all(np.isfinite(n))
+
+
+@_LIGHT
+@given(base_dx=st.one_of(scalars, st.floats(1e-3, 1.0)), min_dx=st.one_of(scalars, st.floats(1e-5, 1.0)),
+       periods=st.one_of(scalars, st.integers(-2, 50)), starts=st.one_of(scalars, st.integers(-1, 4)))
+def test_dynamic_backlash_constructor(base_dx, min_dx, periods, starts):
+    """Table settings: a ValueError, or consistent settings (min_dx <= base_dx, integer counts)."""
+    from dfloop.impact.dynamic_backlash import DynamicBacklash
+
+    try:
+        el = DynamicBacklash(1.0, 1.0, 0.1, 0.5, base_dx=base_dx, min_dx=min_dx, periods=periods, starts=starts,
+                             cache=False)
+    except ValueError:
+        return
+    assert float(min_dx) <= float(base_dx)
+    assert el.periods == float(periods) and el.starts == float(starts) and el.periods >= 1
 
 
 @SETTINGS

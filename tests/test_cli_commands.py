@@ -167,12 +167,12 @@ def test_cache_clear_stale_keeps_current_tables_readable(cache, capsys, monkeypa
 
     c, current, old, unreadable = cache
     monkeypatch.setattr(admin, "WRITE_GRACE", -1.0)  # the stray .tmp counts as abandoned
-    assert main(["cache", "clear", "--stale"]) == 0
+    assert main(["cache", "clear", "--stale", "--yes"]) == 0
     assert "removed 5 stale files" in capsys.readouterr().out
     assert all(p.exists() for p in current) and not any(p.exists() for p in old + unreadable)
     assert c.load_table(current[1], "k1").arrays["x"].tolist() == list(range(50))
     assert (c.cache_dir() / "notes.txt").exists()
-    assert main(["cache", "clear"]) == 0
+    assert main(["cache", "clear", "--yes"]) == 0
     assert not any(p.exists() for p in current) and (c.cache_dir() / "notes.txt").exists()
     assert admin.cache_info().files == []
 

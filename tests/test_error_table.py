@@ -34,6 +34,7 @@ from dfloop.impact import (ImpactParameters, beta_of, impact_describing_function
                            lower_limit_frequency, no_impact_frequency, prepare_many, simulate_impacts)
 from dfloop.solve import as_plant, graphical_stability
 from dfloop import cli, harmonics
+from dfloop.confidence import cycle_confidence
 from dfloop.errors import DfloopError
 from dfloop.impact.kernel import simulate
 from dfloop.plot.impact import plot_collision_map, plot_time_response
@@ -132,6 +133,10 @@ PROBES: list[Probe] = [
     Probe("NumericDF(element, ...)", "element = 3.0", lambda: df.NumericDF(3.0), DfloopError, ("element must be callable", "3.0")),
     Probe("NumericDF(element, ...)", "nodes = 2.5", lambda: df.NumericDF(np.tanh, nodes=2.5), DfloopError,
           ("nodes must be an integer >= 2", "2.5")),
+    Probe("NumericDF(element, ...)", "nodes = 10**9", lambda: df.NumericDF(np.tanh, nodes=10**9), DfloopError,
+          ("nodes must be <= 1024", "1000000000")),
+    Probe("NumericDF(element, ...)", "samples = 10**9", lambda: df.NumericDF(np.tanh, samples=10**9), DfloopError,
+          ("samples must be <= 65536", "1000000000")),
     Probe("NumericDF(element, ...)", "samples = 8", lambda: df.NumericDF(np.tanh, samples=8), DfloopError,
           ("samples must be an integer >= 16", "8")),
     Probe("NumericDF(element, ...)", "rtol = 0.5", lambda: df.NumericDF(np.tanh, rtol=0.5), DfloopError,
@@ -144,6 +149,11 @@ PROBES: list[Probe] = [
           DfloopError, ("restitution must lie in [0.0, 1.0]", "1.5")),
     Probe("DynamicBacklash(m1, m2, h, restitution, ...)", "h = 0", lambda: df.DynamicBacklash(1.0, 1.0, 0.0, 0.5),
           DfloopError, ("h must be > 0", "0.0")),
+    Probe("DynamicBacklash(m1, m2, h, restitution, ...)", "min_dx = 0.5 > base_dx = 0.1",
+          lambda: df.DynamicBacklash(1.0, 1.0, 0.1, 0.5, base_dx=0.1, min_dx=0.5), DfloopError,
+          ("min_dx must be <= base_dx = 0.1", "0.5")),
+    Probe("DynamicBacklash(m1, m2, h, restitution, ...)", "periods = 2.5",
+          lambda: df.DynamicBacklash(1.0, 1.0, 0.1, 0.5, periods=2.5), DfloopError, ("periods must be an integer >= 1", "2.5")),
     Probe("DynamicBacklash(m1, m2, h, restitution, ...)", "beta_max = 0.2", lambda: df.DynamicBacklash(1.0, 1.0, 0.1, 0.5, beta_max=0.2),
           ValueError, ("beta_max must exceed 1/4", "0.2")),
     Probe("DynamicBacklash(m1, m2, h, restitution, ...)", 'effects = ("damping",)',
@@ -220,6 +230,14 @@ PROBES: list[Probe] = [
           ("G is zero",)),
     Probe("predict_limit_cycles(G, N, ...)", "grid = (20000, 20000)", lambda: df.predict_limit_cycles(G3, SAT, grid=(20000, 20000)),
           ValueError, ("20000 x 20000", "17.9 GiB")),
+    Probe("predict_limit_cycles(G, N, ...)", "grid = (6000, 7000), frequency-dependent N",
+          lambda: df.predict_limit_cycles(G3, MB, grid=(6000, 7000)), ValueError,
+          ("6000 x 7000 points would need 6.3 GiB", "160 bytes per point", "DFLOOP_MEMORY_LIMIT")),
+    Probe("predict_limit_cycles(G, N, ...)", "G of order 5000",
+          lambda: df.predict_limit_cycles(ct.tf([1.0], np.poly(-np.ones(5000))), SAT), ValueError,
+          ("G has order 5000, above the bound of 1000", "reduce the model")),
+    Probe("predict_limit_cycles(G, N, ...)", 'DFLOOP_MEMORY_LIMIT = "lots"', lambda: _with_env("DFLOOP_MEMORY_LIMIT", "lots",
+          lambda: df.predict_limit_cycles(G3, SAT)), ValueError, ("DFLOOP_MEMORY_LIMIT must be a positive number of GiB", "'lots'")),
     Probe("predict_limit_cycles(G, N, ...)", "callable G of wrong shape",
           lambda: df.predict_limit_cycles(lambda w: np.ones(3), SAT, omega=(0.1, 10.0)), ValueError,
           ("G(omega) must return an array of the same shape as omega", "(3,)")),
@@ -247,7 +265,24 @@ PROBES: list[Probe] = [
     Probe("predict_limit_cycles(G, N, ...)", "amplitude = 5", lambda: df.predict_limit_cycles(G3, SAT, amplitude=5.0), ValueError,
           ("amplitude window must be a pair", "5.0")),
     Probe("predict_limit_cycles(G, N, ...)", "grid = (1, 100)", lambda: df.predict_limit_cycles(G3, SAT, grid=(1, 100)), ValueError,
-          ("grid sizes must lie in", "(1, 100)")),
+          ("grid[0] (amplitudes) must be an integer >= 2", "got 1")),
+    Probe("predict_limit_cycles(G, N, ...)", "grid = (inf, 10)", lambda: df.predict_limit_cycles(G3, SAT, grid=(np.inf, 10)),
+          ValueError, ("grid[0] (amplitudes) must be finite", "inf")),
+    Probe("predict_limit_cycles(G, N, ...)", "grid = (2.5, 10)", lambda: df.predict_limit_cycles(G3, SAT, grid=(2.5, 10)),
+          ValueError, ("grid[0] (amplitudes) must be an integer >= 2", "2.5")),
+    Probe("predict_limit_cycles(G, N, ...)", "grid = (64, 10**400)",
+          lambda: df.predict_limit_cycles(G3, SAT, grid=(64, 10**400)), ValueError,
+          ("grid[1] (frequencies) must be representable as a float", "1000000")),
+    Probe("predict_limit_cycles(G, N, ...)", "NaN in den", lambda: df.predict_limit_cycles(ct.tf([1.0], [1.0, np.nan, 1.0]), SAT),
+          ValueError, ("G (tf) must have finite coefficients", "den = [1.0, nan, 1.0]")),
+    Probe("predict_limit_cycles(G, N, ...)", "NaN in ss.A",
+          lambda: df.predict_limit_cycles(ct.ss([[-1.0, 0.0], [np.nan, -2.0]], [[1.0], [0.0]], [[0.0, 1.0]], 0.0), SAT),
+          ValueError, ("G (ss) must have finite matrices", "A = [[-1. 0.] [nan -2.]]")),
+    Probe("predict_limit_cycles(G, N, ...)", "order-200 plant, omega up to 1e154",
+          lambda: df.predict_limit_cycles(ct.tf([1.0], np.poly(-np.ones(200))), SAT, omega=(1.0, 1e154)), ValueError,
+          ("G(jw) overflows", "omega=1e+154", "degree-200", "narrow the omega window")),
+    Probe("predict_limit_cycles(G, N, ...)", "omega = (True, 10)", lambda: df.predict_limit_cycles(G3, SAT, omega=(True, 10.0)),
+          ValueError, ("omega window must be a real number", "True")),
     Probe("graphical_stability(G, N, amplitude, frequency)", "N frequency-dependent",
           lambda: graphical_stability(G3, MB, 1.0, 1.0), ValueError, ("N must be amplitude-only",)),
     Probe("as_plant(G)", "G = 3", lambda: as_plant(3), ValueError, ("G must be a python-control tf/ss/frd or a callable", "int")),
@@ -263,6 +298,21 @@ PROBES: list[Probe] = [
           ("steps_per_period must lie in [20, 10000000]", "10")),
     Probe("verify_cycle(G, N, cycle, ...)", "periods = inf", lambda: df.verify_cycle(G3, SAT, (1.0, 1.0), periods=np.inf),
           ValueError, ("periods must be finite", "inf")),
+    Probe("verify_cycle(G, N, cycle, ...)", "N = 3", lambda: df.verify_cycle(G3, 3, (1.0, 1.0)), ValueError,
+          ("N must be a dfloop DescribingFunction", "int: 3")),
+    Probe("verify_cycle(G, N, cycle, ...)", "periods = 1e9", lambda: df.verify_cycle(G3, SAT, (1.0, 1.0), periods=1e9),
+          ValueError, ("periods must lie in [0.0, 100000]", "1000000000.0")),
+    Probe("verify_cycle(G, N, cycle, ...)", "periods = 1e5 at 400 steps per period",
+          lambda: df.verify_cycle(G3, SAT, (1.0, 1.0), periods=1e5), ValueError,
+          ("periods * steps_per_period = 100000 * 400 = 4e+07 samples exceeds the bound of 1e+07",
+           "lower periods or steps_per_period")),
+    Probe("exact_cycle(G, N, cycle, ...)", "N = None", lambda: df.exact_cycle(G3, None, (1.0, 1.0)), ValueError,
+          ("N must be a dfloop DescribingFunction", "NoneType: None")),
+    Probe("cycle_confidence(G, N, amplitude, frequency)", "frequency missing",
+          lambda: cycle_confidence(G3, SAT, 1.0), ValueError, ("frequency is required", "amplitude=1.0")),
+    Probe("sweep(loop_at, values, ...)", "unknown keyword bogus = 3",
+          lambda: df.sweep(lambda k: (k * G3, SAT), [1.0, 2.0], bogus=3), ValueError,
+          ("sweep got unknown keyword argument(s) 'bogus'", "grid, tol")),
     Probe("verify_cycle(G, N, cycle, ...)", "cycle = None", lambda: df.verify_cycle(G3, SAT, None), ValueError,
           ("cycle must be a LimitCycle or an (amplitude, frequency) pair", "None")),
     Probe("verify_cycle(G, N, cycle, ...)", "a list of cycles", lambda: df.verify_cycle(G3, SAT, [(1.0, 1.0)]), ValueError,
@@ -365,7 +415,65 @@ PROBES: list[Probe] = [
           lambda: cli.main(["run", str(scene_file(_PLANT + '[element]\ntype = "Backlash"\nh = -1.0\n', "bad.toml"))]), "exit 1",
           ("h must be > 0", "-1.0")),
     Probe("dfloop", "unknown option --fast", lambda: cli.main(["--fast"]), "exit 2", ("unrecognized arguments: --fast",)),
+    Probe("dfloop run SCENE...", "--out is a regular file", lambda: cli.main(["run", "relay_hysteresis", "--out", str(_a_file())]),
+          "exit 2", ("--out <dir>/a_file: exists and is not a directory",)),
+    Probe("dfloop run SCENE...", "--out cannot be created",
+          lambda: cli.main(["run", "relay_hysteresis", "--out", str(_a_file() / "out")]), "exit 2",
+          ("--out <dir>/a_file/out: cannot write there (Not a directory)",)),
+    Probe("dfloop run SCENE...", 'DFLOOP_CACHE_DIR=""', lambda: _with_cache_dir("", ["run", "relay_hysteresis"]), "exit 2",
+          ("DFLOOP_CACHE_DIR is set but empty",)),
+    Probe("dfloop cache info|clear", 'DFLOOP_CACHE_DIR=""', lambda: _with_cache_dir("", ["cache", "info"]), "exit 2",
+          ("DFLOOP_CACHE_DIR is set but empty", "unset it for the default")),
+    Probe("dfloop cache info|clear", "clear without --yes, stdin not a terminal",
+          lambda: _with_cache_dir(_full_cache(), ["cache", "clear"]), "exit 2",
+          ("cache clear: refused to remove this file without confirmation", "pass --yes")),
+    Probe("dfloop cache info|clear", "clear --yes on a read-only cache",
+          lambda: _with_cache_dir(_full_cache(), ["cache", "clear", "--yes"], read_only=True), "exit 2",
+          ("could not remove 1 of 1 files; first: <dir>/cache/t.npz: Permission denied",)),
+    Probe("dfloop cache info|clear", "cache directory not listable",
+          lambda: _with_cache_dir(_full_cache(), ["cache", "info"], unlistable=True), "exit 2",
+          ("cache info: [Errno 13] Permission denied",)),
 ]
+
+
+def _with_env(name: str, value: str, call: Callable[[], object]):
+    from unittest import mock
+
+    with mock.patch.dict("os.environ", {name: value}):
+        return call()
+
+
+def _a_file() -> Path:
+    path = _SCRATCH / "a_file"
+    path.write_text("")
+    return path
+
+
+def _full_cache() -> str:
+    """A cache directory holding one table (of the current code version)."""
+    from dfloop.impact.cache import save_table
+
+    directory = _SCRATCH / "cache"
+    save_table(directory / "t.npz", {"x": np.arange(3.0)}, "k", {}, {})
+    return str(directory)
+
+
+def _with_cache_dir(value: str, argv: list[str], read_only: bool = False, unlistable: bool = False):
+    """cli.main(argv) with DFLOOP_CACHE_DIR = value, stdin not a terminal, and optionally a cache whose files
+    cannot be removed (PermissionError, as from a read-only directory; the suite may run as root) or listed."""
+    from unittest import mock
+
+    def refuse(path, *args, **kwargs):
+        raise PermissionError(13, "Permission denied", str(path))
+
+    with contextlib.ExitStack() as stack:
+        stack.enter_context(mock.patch.dict("os.environ", {"DFLOOP_CACHE_DIR": value}))
+        stack.enter_context(mock.patch("sys.stdin", io.StringIO("")))
+        if read_only:
+            stack.enter_context(mock.patch.object(Path, "unlink", refuse))
+        if unlistable:
+            stack.enter_context(mock.patch.object(Path, "glob", refuse))
+        return cli.main(argv + (["--out", str(_SCRATCH / "out")] if argv[0] == "run" else []))
 
 
 def _normalise(message: str) -> str:
@@ -417,7 +525,12 @@ def render(probes: list[Probe] = PROBES) -> str:
         "- Frequencies are real, finite and > 0 (rad/s); amplitude-only elements validate and ignore them.",
         "- The disk cache never raises: an unreadable, unwritable, corrupted or stale cache file gives one",
         "  `dfloop.errors.CacheWarning` naming what failed and where, and the table is computed in memory.",
-        "- The command line prints the message on stderr and exits with status 1 (a bad scene) or 2 (bad usage).",
+        "- The command line prints one line `dfloop: <message>` on stderr, without a traceback, and exits with",
+        "  status 1 when a scene failed (the others still run) or 2 for bad usage or environment: an `--out` that",
+        "  is a file or cannot be written, a cache that cannot be listed or cleared, `DFLOOP_CACHE_DIR` set but",
+        "  empty (refused rather than taken to mean the default directory: unset it for the default).",
+        "  `dfloop cache clear` lists the files it would remove and asks first; `--yes` skips the question, and",
+        "  without it a non-interactive stdin refuses.",
         "",
         "| Entry point | Bad input | Raises | Message |",
         "|---|---|---|---|",

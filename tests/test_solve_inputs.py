@@ -82,7 +82,8 @@ def test_not_a_describing_function_rejected():
         df.predict_limit_cycles(H, 3.0)
 
 
-@pytest.mark.parametrize("kw, match", [({"grid": (1, 10)}, "grid sizes"), ({"tol": 0.0}, "tol"),
+@pytest.mark.parametrize("kw, match", [({"grid": (1, 10)}, r"grid\[0\] \(amplitudes\) must be an integer >= 2"), ({"tol": 0.0}, "tol"),
+                                       ({"grid": (10, 2_000_000)}, "grid sizes must lie in"),
                                        ({"grid": "x"}, "grid must be a pair")])
 def test_bad_options(kw, match):
     with pytest.raises(ValueError, match=match):

@@ -19,6 +19,7 @@ import numpy as np
 
 from .._checks import amplitude_array, in_closed_interval, integer_at_least
 from ..errors import DfloopError
+from ..progress import progress_bar
 from .base import DescribingFunction
 from .static import PlayOperator, RelayOperator, StaticElement
 from .time_model import Sampled, fresh_copy, play_model, relay_model, static_model
@@ -34,6 +35,10 @@ _SUB_SAMPLES = 32  # detection grid inside a bracket, on each side of the singul
 _MAX_NESTING = 3  # levels of that nested search
 _MAX_LEVELS = 64  # bound on adaptive halvings of a quadrature piece
 _MAX_PIECES = 8192  # bound on pieces under refinement per branch
+_MAX_NODES = 1024  # Gauss-Legendre nodes per piece (building the rule is O(nodes^3))
+_MAX_SAMPLES = 2**16  # detection cells per branch (or samples per period for method="sampled")
+_CHUNK_VALUES = 2**21  # amplitudes are evaluated in chunks of about this many samples (work arrays stay small)
+_HYSTERETIC_CHUNK = 8  # amplitudes per chunk for an operator (a Python loop: ~5-25 ms per amplitude)
 _A_RANGE = (1e-250, 1e250)  # amplitudes computed: below, A sin t underflows; above, element arithmetic overflows
 
 
@@ -295,7 +300,13 @@ class NumericDF(DescribingFunction):
                               f"breakpoints={breakpoints!r}")
         self.breakpoints = breakpoints
         nodes = integer_at_least("nodes", nodes, 2)
+        if nodes > _MAX_NODES:  # the Gauss-Legendre rule costs O(nodes^3) to build: 4096 nodes take ~20 s
+            raise DfloopError(f"nodes must be <= {_MAX_NODES} (Gauss-Legendre nodes per piece; pieces are halved "
+                              f"adaptively instead), got {nodes!r}")
         samples = integer_at_least("samples", samples, 16)
+        if samples > _MAX_SAMPLES:
+            raise DfloopError(f"samples must be <= {_MAX_SAMPLES} (cells of the detection grid per branch), got "
+                              f"{samples!r}")
         if method not in ("pieces", "sampled"):
             raise DfloopError(f"method must be 'pieces' or 'sampled', got {method!r}")
         self.rtol = in_closed_interval("rtol", rtol, 1e-16, 1e-2)
@@ -341,10 +352,26 @@ class NumericDF(DescribingFunction):
                 f"samples {self.input_name} sin(t) underflow or the element's arithmetic overflows"
             )
         if a.size:
-            n, e = self._hysteretic(a) if self.hysteretic else self._static(a)
+            n, e = self._chunked(a)
             self._finite(np.column_stack([n.real, n.imag, e if self.method == "pieces" else 0 * n.real]), a)
             n_out[ok], e_out[ok] = n, e
         return n_out, e_out
+
+    def _chunked(self, a: np.ndarray):
+        """(N, error bound) over the amplitudes ``a``, in chunks: the work arrays of one chunk stay near
+        ``_CHUNK_VALUES`` samples whatever the number of amplitudes, and a long computation (an operator over
+        many amplitudes: a Python loop) shows progress after a second."""
+        compute = self._hysteretic if self.hysteretic else self._static
+        size = _HYSTERETIC_CHUNK if self.hysteretic else max(1, _CHUNK_VALUES // (self.samples + 1))
+        if a.size <= size:
+            return compute(a)
+        n, e = np.empty(a.size, complex), np.empty(a.size)
+        kind = "hysteretic" if self.hysteretic else "static"
+        with progress_bar(f"NumericDF ({kind}): {a.size} amplitudes", a.size) as bar:
+            for i in range(0, a.size, size):
+                n[i:i + size], e[i:i + size] = compute(a[i:i + size])
+                bar.update(min(size, a.size - i))
+        return n, e
 
     def _fixed_phases(self, a: np.ndarray) -> np.ndarray:
         if self.breakpoints is None:

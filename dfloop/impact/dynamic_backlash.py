@@ -28,6 +28,7 @@ from typing import Callable
 import numpy as np
 
 from .. import _checks
+from ..errors import DfloopError
 from ..describing.base import DescribingFunction
 from ..describing.time_model import Impact
 from ..tables import Table1D, Table2D, TableSettings, TableStore, TableValues, settings_dict
@@ -158,17 +159,19 @@ class DynamicBacklash(DescribingFunction):
         self.restitution = _checks.in_closed_interval("restitution", restitution if eps is None else eps, 0.0, 1.0)
         self.effects = _effects_tuple(effects)
         self.transient_periods = (None if transient_periods is None
-                                  else int(_checks.nonnegative("transient_periods", transient_periods)))
-        self.max_transient_periods = int(_checks.positive("max_transient_periods", max_transient_periods))
-        self.periods = int(_checks.positive("periods", periods))
-        self.starts = int(_checks.nonnegative("starts", starts))
+                                  else _checks.integer_at_least("transient_periods", transient_periods, 0))
+        self.max_transient_periods = _checks.integer_at_least("max_transient_periods", max_transient_periods, 1)
+        self.periods = _checks.integer_at_least("periods", periods, 1)
+        self.starts = _checks.integer_at_least("starts", starts, 0)
         if self.starts > len(STARTS):
             raise ValueError(f"starts must be <= {len(STARTS)}, got {starts!r}")
-        self.max_events = None if max_events is None else int(_checks.positive("max_events", max_events))
+        self.max_events = None if max_events is None else _checks.integer_at_least("max_events", max_events, 1)
         self.beta_max = _checks.positive("beta_max", beta_max)
         if self.beta_max <= BETA_NO_IMPACT:
             raise ValueError(f"beta_max must exceed 1/4, got {self.beta_max}")
         base_dx = _checks.positive("base_dx", base_dx)
+        if _checks.positive("min_dx", min_dx) > base_dx:  # the table's finest step cannot exceed its coarsest
+            raise DfloopError(f"min_dx must be <= base_dx = {base_dx!r}, got min_dx = {min_dx!r}")
         self._settings = TableSettings(tol=_checks.positive("tol", tol), method=method, base_dx=base_dx,
                                        min_dx=_checks.positive("min_dx", min_dx),
                                        edge_dx=_checks.positive("edge_dx", edge_dx),

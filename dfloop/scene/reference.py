@@ -81,8 +81,12 @@ def scene_reference() -> str:
               "| `dfloop list` | The shipped scenes and their titles. |",
               "| `dfloop scene-keys` | This page. |",
               "| `dfloop cache info` | Files and size of the table cache, per code version. |",
-              "| `dfloop cache clear [--stale]` | Remove every cache file, or (`--stale`) only those of other code "
-              "versions and unreadable ones. |", "",
+              "| `dfloop cache clear [--stale] [--yes]` | Remove every cache file, or (`--stale`) only those of other "
+              "code versions and unreadable ones: lists them (how many, which, size) and asks first; `--yes` skips "
+              "the question, a non-interactive stdin without it refuses. |", "",
+              "Errors of usage or environment (an `--out` that is a file or cannot be written, a cache that cannot "
+              "be listed or cleared, `DFLOOP_CACHE_DIR` set but empty: unset it for the default directory) print "
+              "one line on stderr and exit with status 2; a failed scene exits with status 1 (docs/errors.md).", "",
               "## Shipped scenes", "",
               "They install with the package (`models/` in the repository becomes `dfloop/models`), so "
               "`dfloop run backlash_servo` works from any directory after `pip install .`; a path to a file of "

@@ -11,10 +11,16 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["Plant", "as_plant"]
+from ..errors import DfloopError
+
+__all__ = ["Plant", "as_plant", "MAX_ORDER"]
 
 _DECADES_BEYOND_FEATURES = 2.0  # default window: two decades beyond the slowest / fastest pole or zero
 _LIGHT_DAMPING = 0.2  # poles/zeros with damping ratio below this get a dense cluster of grid frequencies
+_CHUNK_VALUES = 2**18  # entries of one chunk of log_variation's work arrays (intervals x roots)
+MAX_ORDER = 1000
+"""Largest plant order accepted: beyond it the poles (O(n^3) work: an ss conversion takes ~3 s at n = 500, ~25 s at n = 1000) and
+the polynomial form (which overflows at |s| ~ 10^(308 / n)) are useless; reduce the model first."""
 
 
 @dataclass
@@ -50,7 +56,7 @@ class Plant:
         try:
             g = np.asarray(self.response(w), dtype=complex)
         except (TypeError, ValueError) as exc:
-            if "omega outside" in str(exc):
+            if isinstance(exc, DfloopError):  # dfloop's own message (frd range, overflow): unchanged
                 raise
             raise ValueError(f"G(omega) must return complex numbers for an array omega; it raised {exc!r}") from None
         if g.shape != w.shape:
@@ -61,7 +67,8 @@ class Plant:
         bad = ~np.isfinite(g)
         if bad.any():
             w_bad = w[bad].flat[0]
-            raise ValueError(f"G(jw) is not finite (NaN or pole on the imaginary axis) at omega={w_bad:g} rad/s")
+            raise ValueError(f"G(jw) is not finite (NaN, overflow or a pole on the imaginary axis) at "
+                             f"omega={w_bad:g} rad/s")
         return g
 
     @property
@@ -83,8 +90,18 @@ class Plant:
         minimum (at w = y). So the change of arg G over the interval lies between the sums of the
         negative and of the positive turns (zeros count +, poles -), the change of ln|G| likewise between
         the sums of the decreases and increases; the bound is the hypotenuse of the two extremes.
-        Infinite when a zero lies on the interval of the imaginary axis.
+        Infinite when a zero lies on the interval of the imaginary axis. Evaluated in chunks of intervals, so
+        the work arrays (intervals x poles and zeros) stay below ~``_CHUNK_VALUES`` entries.
         """
+        w0, w1 = np.broadcast_arrays(np.asarray(w0, float), np.asarray(w1, float))
+        n_roots = max(1, sum(r.size for r in self.roots))
+        size = max(1, _CHUNK_VALUES // n_roots)
+        if w0.ndim != 1 or w0.size <= size:
+            return self._log_variation(w0, w1)
+        return np.concatenate([self._log_variation(w0[i:i + size], w1[i:i + size])
+                               for i in range(0, w0.size, size)])
+
+    def _log_variation(self, w0, w1) -> np.ndarray:
         zeros, poles = self.roots
         r = np.concatenate([zeros, poles])
         sign = np.concatenate([np.ones(zeros.size), -np.ones(poles.size)])
@@ -129,11 +146,29 @@ def _feature_grid(roots: np.ndarray) -> tuple[np.ndarray, tuple[float, float] | 
     return np.unique(pts[pts > 0]), (float(lo), float(hi))
 
 
+def _show_matrix(m: np.ndarray) -> str:
+    text = np.array2string(m, threshold=6, edgeitems=2)
+    return " ".join(text.split())
+
+
 def _from_tf(sys) -> Plant:
     import control as ct
 
+    order = sys.nstates if isinstance(sys, ct.StateSpace) else max(len(sys.den[0][0]) - 1, len(sys.num[0][0]) - 1)
+    if order > MAX_ORDER:  # refused before the O(n^3) conversion and root finding (order 5000: 10 GB, minutes)
+        raise DfloopError(f"G has order {order}, above the bound of {MAX_ORDER}: its poles cost O(n^3) and its "
+                          f"polynomials overflow for |s| > about 10^{308 / order:.2g}; reduce the model first "
+                          "(e.g. control.balred or control.minreal)")
+    if isinstance(sys, ct.StateSpace):  # a NaN in A would surface as a LinAlgError of the conversion
+        for name in ("A", "B", "C", "D"):
+            m = np.asarray(getattr(sys, name))
+            if not np.all(np.isfinite(m)):
+                raise ValueError(f"G (ss) must have finite matrices; got {name} = {_show_matrix(m)}")
     tf = sys if isinstance(sys, ct.TransferFunction) else ct.tf(sys)
     num, den = (np.asarray(x, dtype=float) for x in (tf.num[0][0], tf.den[0][0]))
+    for name, coef in (("num", num), ("den", den)):  # np.roots would raise LinAlgError
+        if not np.all(np.isfinite(coef)):
+            raise ValueError(f"G (tf) must have finite coefficients; got {name} = {coef.tolist()!r}")
     num, den = (x[np.argmax(x != 0):] if np.any(x) else x[:0] for x in (num, den))  # leading zeros off
     if num.size == 0:
         raise ValueError("G is zero (its numerator is 0): no loop, no limit cycle")
@@ -143,7 +178,14 @@ def _from_tf(sys) -> Plant:
 
     def response(w):
         s = 1j * w
-        return np.polyval(num, s) / np.polyval(den, s)
+        with np.errstate(over="ignore", invalid="ignore"):
+            top, bottom = np.polyval(num, s), np.polyval(den, s)
+        over = ~(np.isfinite(top) & np.isfinite(bottom)) & np.isfinite(w)
+        if np.any(over):  # the polynomials, not G, leave the float range: say so (not "NaN or pole")
+            raise DfloopError(f"G(jw) overflows: at omega={float(w[over].flat[0]):g} rad/s the degree-"
+                             f"{den.size - 1} polynomials of G exceed the float range (about 1.8e308); "
+                             "narrow the omega window (or scale time so that the frequencies are near 1)")
+        return top / bottom
 
     zeros, poles = np.roots(num), np.roots(den)
     features, window = _feature_grid(np.concatenate([poles, zeros]))
@@ -165,7 +207,7 @@ def _from_frd(sys) -> Plant:
 
     def response(omega):
         if np.any(omega < lo * (1 - 1e-12)) or np.any(omega > hi * (1 + 1e-12)):
-            raise ValueError(f"omega outside the frd's frequency grid [{lo:g}, {hi:g}] rad/s")
+            raise DfloopError(f"omega outside the frd's frequency grid [{lo:g}, {hi:g}] rad/s")
         x = np.log(omega)
         return re(x) + 1j * im(x)
 

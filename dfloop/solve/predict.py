@@ -8,7 +8,7 @@ import warnings
 
 import numpy as np
 
-from .._checks import finite, window as checked_window
+from .._checks import finite, integer_at_least, window as checked_window
 from ..describing.base import DescribingFunction
 from ..describing.interop import as_element
 from ._kernels import candidate_cells
@@ -28,14 +28,18 @@ _PHASE_STEP = np.pi / 3  # max turn of arg(G N) between neighbours (frequency-de
 _NEAR_UNIT = math.log(20.0)  # "near 1": 1/20 <= |G N| <= 20
 
 
-def _grid_size(grid) -> tuple[int, int]:
+def _grid_size(grid, frequency_dependent: bool) -> tuple[int, int]:
     try:
-        na, nw = (int(x) for x in grid)
-    except (TypeError, ValueError):
-        raise ValueError(f"grid must be a pair (n_amplitudes, n_frequencies); got {grid!r}") from None
-    if na < 2 or nw < 2 or na > _MAX_GRID or nw > _MAX_GRID:
+        pair = tuple(grid)
+    except TypeError:
+        pair = ()
+    if len(pair) != 2 or any(isinstance(x, (str, bytes)) for x in pair):
+        raise ValueError(f"grid must be a pair (n_amplitudes, n_frequencies); got {grid!r}")
+    na, nw = (integer_at_least(f"grid[{i}] ({what})", x, 2) for i, (x, what) in
+              enumerate(zip(pair, ("amplitudes", "frequencies"))))  # 2.5, inf, NaN, True: a ValueError
+    if na > _MAX_GRID or nw > _MAX_GRID:
         raise ValueError(f"grid sizes must lie in [2, {_MAX_GRID}]; got {grid!r}")
-    check_memory(na, nw)
+    check_memory(na, nw, frequency_dependent)
     return na, nw
 
 
@@ -109,7 +113,7 @@ def _resolve_grid(res: Residual, a: np.ndarray, v: np.ndarray):
             return a, v, P
         a = np.sort(np.concatenate([a, (a[:-1] + a[1:])[split_a] / 2]))
         v = np.sort(np.concatenate([v, (v[:-1] + v[1:])[split_v] / 2]))
-        check_memory(a.size, v.size)
+        check_memory(a.size, v.size, True)
     raise RuntimeError(f"grid refinement did not settle within max_rounds={_MAX_REFINE_ROUNDS}")
 
 
@@ -187,7 +191,7 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     marginal_tol = finite("marginal_tol", marginal_tol)
     if not (0 <= marginal_tol < 1):
         raise ValueError(f"marginal_tol must lie in [0, 1); got {marginal_tol}")
-    na, nw = _grid_size(grid)
+    na, nw = _grid_size(grid, N.frequency_dependent)
     res = Residual(plant, N)
 
     if omega is None:
@@ -200,6 +204,7 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
         w_src = "given"
     if w_lo < plant.domain[0] * (1 - 1e-12) or w_hi > plant.domain[1] * (1 + 1e-12):
         raise ValueError(f"omega window ({w_lo:g}, {w_hi:g}) leaves the plant's frequency range {plant.domain}")
+    plant(np.array([w_lo, w_hi]))  # input check before any work: NaN, a pole on the axis or overflow at the ends
     v_lo, v_hi = math.log(w_lo), math.log(w_hi)
     v = np.linspace(v_lo, v_hi, nw)
     if not plant.exact:  # rational plants need no hints: their grid is placed from the poles and zeros
@@ -236,13 +241,13 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
         a, _, eps_a, n_n = resolve_sampled(lambda A: res._n(A[:, None], w_sub[None, :]), a, "N along the amplitude",
                                            min_width=FD_MIN_WIDTH)
         n_eval += n_gn * A0.size + n_n * w_sub.size
-        check_memory(a.size, v.size)
+        check_memory(a.size, v.size, True)
         a, v, P = _resolve_grid(res, a, v)
         cells, a_rule, n_cand, n = None, f"sampled at {w_sub.size} frequencies, then 2-D near |G N| = 1", None, None
     else:
         a, n, eps_a, n_n = resolve_sampled(lambda A: res._n(A, None), a, "N along the amplitude")
         n_eval += n_n
-        check_memory(a.size, v.size)
+        check_memory(a.size, v.size, False)
         P = n[:, None] * g[None, :]
         cells = candidate_cells(clog(n), eps_a, clog(g), eps_v)
         a_rule, n_cand = "sampled", int(cells[0].size)

@@ -518,15 +518,26 @@ def merge(res: Residual, a: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.n
 
 def greedy_unique(a: np.ndarray, v: np.ndarray, radius) -> np.ndarray:
     """Indices of points kept in order, dropping each point within radius[k] + radius[m] (max norm) of
-    an earlier kept point m. Vectorised over pairs (the python loop runs only over points with a
-    neighbour)."""
+    an earlier kept point m.
+
+    Memory O(n): the points are sorted by v and each one is compared only with those within
+    radius[k] + max(radius) of it in v (a delay plant has ~1e4 roots: the n x n pair matrix took GBs);
+    the python loop runs only over points with such a neighbour.
+    """
+    a, v = np.asarray(a, float), np.asarray(v, float)
     radius = np.broadcast_to(np.asarray(radius, float), a.shape)
-    close = (np.maximum(np.abs(a[:, None] - a[None, :]), np.abs(v[:, None] - v[None, :]))
-             <= radius[:, None] + radius[None, :])
-    np.fill_diagonal(close, False)
+    if a.size < 2:
+        return np.arange(a.size)
+    order = np.argsort(v, kind="stable")
+    vs = v[order]
+    reach = (radius + radius.max()) * (1 + 1e-9)  # a prefilter only, widened against rounding
+    lo, hi = np.searchsorted(vs, v - reach, "left"), np.searchsorted(vs, v + reach, "right")
     keep = np.ones(a.size, bool)
-    for k in np.flatnonzero(close.any(axis=1)):
-        if keep[k] and close[k, :k][keep[:k]].any():
+    for k in np.flatnonzero(hi - lo > 1):  # every point lies in its own window
+        m = order[lo[k]:hi[k]]
+        m = m[m < k]
+        m = m[keep[m]]
+        if m.size and np.any(np.maximum(np.abs(a[k] - a[m]), np.abs(v[k] - v[m])) <= radius[k] + radius[m]):
             keep[k] = False
     return np.flatnonzero(keep)
 
