@@ -37,7 +37,7 @@ from .solve import LimitCycles, as_plant, predict_limit_cycles
 from .solve.errors import ContinuumError
 from .solve.stability import MARGINAL_TOL, label_roots
 
-__all__ = ["sweep", "SweepResult", "Branch", "SweepEvent", "ContinuumAt"]
+__all__ = ["sweep", "SweepResult", "Branch", "SweepEvent"]
 
 _FD = 1e-6  # central-difference step in ln A, ln w and q (q: the parameter range scaled to [0, 1])
 _XTOL = 1e-11  # Newton converged when the update is below this (max norm)
@@ -229,6 +229,41 @@ class SweepResult:
         """The fold events."""
         return [e for e in self.events if e.kind == "fold"]
 
+    def margin(self, nominal: float, gain: bool = False) -> "LimitCycleMargin":
+        """How far the parameter can move from ``nominal`` (in either direction) before a limit cycle appears
+        or disappears, and before a stable one does.
+
+        Parameters
+        ----------
+        nominal : float
+            The design value, inside the swept range (the parameter's unit).
+        gain : bool
+            The parameter is a loop gain: the margins are also given in dB (20 log10 of the ratio).
+
+        Returns
+        -------
+        LimitCycleMargin
+            The nearest events below and above ``nominal`` (births, deaths, folds, stability changes, and
+            window edges when no physical event is in range).
+        """
+        nominal = _checks.finite("nominal", nominal)
+        lo, hi = sorted((float(self.values[0]), float(self.values[-1])))
+        if not lo <= nominal <= hi:
+            raise ValueError(f"nominal must lie in the swept range [{lo:.6g}, {hi:.6g}]; got {nominal!r}")
+        if gain and not (lo > 0 or hi < 0):
+            raise ValueError(f"a gain margin in dB needs a range of one sign; got [{lo:.6g}, {hi:.6g}]")
+
+        def stable_involved(e):
+            return e.kind == "stability change" or any(self.branches[i].kind == "stable" for i in e.branches)
+
+        physical = [e for e in self.events if e.kind in ("fold", "birth", "death", "stability change")]
+        found = {}
+        for key, pick in (("any", lambda e: True), ("stable", stable_involved)):
+            ev = [e for e in physical if pick(e)]
+            found[key] = (max((e for e in ev if e.parameter < nominal), key=lambda e: e.parameter, default=None),
+                          min((e for e in ev if e.parameter > nominal), key=lambda e: e.parameter, default=None))
+        return LimitCycleMargin(self.parameter, self.unit, nominal, gain, (lo, hi), *found["stable"], *found["any"])
+
     def to_csv(self, path) -> None:
         """Write every branch point: branch, parameter, amplitude, frequency (rad/s), stability, and what
         the point is (``value`` at a given value, ``step`` of the continuation, or the event at a branch end:
@@ -303,6 +338,72 @@ class SweepResult:
         if seen:
             ax_a.legend(loc="best", fontsize="small")
         return ax_a, ax_w
+
+
+@dataclass(frozen=True)
+class LimitCycleMargin:
+    """How far a parameter can change from its nominal value before a limit cycle appears or disappears.
+
+    Attributes
+    ----------
+    parameter, unit : str
+        Name and unit of the parameter.
+    nominal : float
+        The design value.
+    gain : bool
+        Whether the parameter is a gain (margins also in dB).
+    range : (float, float)
+        The swept range: without an event on one side, the margin there is at least the distance to its end.
+    stable_below, stable_above : SweepEvent or None
+        The nearest events below / above the nominal value where a stable cycle appears, disappears or
+        changes stability.
+    any_below, any_above : SweepEvent or None
+        The nearest events of any cycle (stable or unstable).
+    """
+
+    parameter: str
+    unit: str
+    nominal: float
+    gain: bool
+    range: tuple
+    stable_below: SweepEvent | None
+    stable_above: SweepEvent | None
+    any_below: SweepEvent | None
+    any_above: SweepEvent | None
+
+    def distance(self, side: str, which: str = "stable") -> tuple[float, bool]:
+        """(signed change of the parameter to the nearest event on ``side`` ("below"/"above"), exact) for
+        ``which`` in ("stable", "any"); exact is False when no event is in the range (the value is then the
+        distance to the range's end, a lower bound)."""
+        e = getattr(self, f"{which}_{side}")
+        end = self.range[0] if side == "below" else self.range[1]
+        return ((e.parameter if e is not None else end) - self.nominal, e is not None)
+
+    def decibels(self, change: float) -> float:
+        """20 log10((nominal + change) / nominal) (gains)."""
+        return 20 * math.log10((self.nominal + change) / self.nominal) if self.nominal + change != 0 else -math.inf
+
+    def lines(self) -> list[str]:
+        """The report's sentences."""
+        u = f" {self.unit}" if self.unit else ""
+        out = [f"limit-cycle margin of {self.parameter} from the nominal {self.nominal:.6g}{u}:"]
+        for which, what in (("stable", "a stable cycle appears, disappears or changes stability"),
+                            ("any", "any cycle appears or disappears")):
+            for side in ("below", "above"):
+                d, exact = self.distance(side, which)
+                e = getattr(self, f"{which}_{side}")
+                db = f" ({self.decibels(d):+.3g} dB)" if self.gain else ""
+                if exact:
+                    out.append(f"  {side}: {what} at {self.parameter} = {e.parameter:.9g}{u} ({e.kind}"
+                               f"{': ' + e.cause if e.cause and e.cause != e.kind else ''}): change {d:+.6g}{u}{db}")
+                else:
+                    out.append(f"  {side}: {what}: no event down to the range's end" if side == "below" else
+                               f"  {side}: {what}: no event up to the range's end")
+                    out[-1] += f" ({self.nominal + d:.6g}{u}): margin beyond {d:+.6g}{u}{db}"
+        return out
+
+    def __repr__(self) -> str:
+        return "\n".join(self.lines())
 
 
 def _end_word(end: str, default: str) -> str:
