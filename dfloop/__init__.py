@@ -39,8 +39,9 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     "dfloop.confidence": ("Confidence", "cycle_confidence"),
     "dfloop.continuation": ("sweep", "SweepResult", "Branch", "SweepEvent"),
     "dfloop.batch": ("predict_many", "run_batch"),
+    "dfloop.chart": ("design_chart", "ChartResult", "Boundary", "ChartAxis"),
 }
-_SUBMODULES = ("describing", "impact", "solve", "verify", "plot", "harmonics", "progress", "scene", "cli", "cache_admin", "errors", "exact", "confidence", "hybrid", "batch")
+_SUBMODULES = ("describing", "impact", "solve", "verify", "plot", "harmonics", "progress", "scene", "cli", "cache_admin", "errors", "exact", "confidence", "hybrid", "batch", "chart")
 
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
 __all__ = [*_WHERE, "__version__"]

@@ -506,17 +506,7 @@ class _Family:
             return hit
         if len(self._edges) >= _CACHE:
             self._edges.clear()
-        N = self.loop(q)[1]
-        out = []
-        if N.frequency_dependent:
-            out.append(("amplitude domain", 1, lambda w, N=N: float(N.amplitude_domain(w)[0])))
-            out.append(("amplitude domain", -1, lambda w, N=N: float(N.amplitude_domain(w)[1])))
-        else:
-            lo, hi = (float(x) for x in N.amplitude_domain())
-            out.append(("amplitude domain", 1, lambda w, x=lo: x))
-            out.append(("amplitude domain", -1, lambda w, x=hi: x))
-            out += _breakpoint_edges(N, lo, hi, math.exp(self.log_window[1] + 1))
-        self._edges[q] = out = [e for e in out if 0 < e[2](1.0) < math.inf or N.frequency_dependent]
+        self._edges[q] = out = element_edges(self.loop(q)[1], math.exp(self.log_window[1] + 1))
         return out
 
     def edge_value(self, edge: tuple, X: np.ndarray) -> float:
@@ -683,6 +673,21 @@ class _Family:
             if max(abs(d[0]), abs(d[1])) <= _XTOL:
                 return q, v
         return None
+
+
+def element_edges(N, a_max: float) -> list:
+    """An element's amplitude edges where a branch of cycles can begin or end: ``(kind, side, level)`` with
+    ``level(w) -> A`` (N's input unit), ``side`` +1 when cycles live above the level, -1 below, 0 on both
+    sides. Kinds: ``"amplitude domain"`` (the ends of ``N.amplitude_domain``, when finite and non-zero),
+    ``"linear range"`` (N is constant on one side of a breakpoint: the linear loop), ``"jump"`` (N jumps at a
+    breakpoint). Breakpoints come from ``N.breakpoints(A_max=a_max)`` when the element has them."""
+    if N.frequency_dependent:
+        return [("amplitude domain", 1, lambda w, N=N: float(N.amplitude_domain(w)[0])),
+                ("amplitude domain", -1, lambda w, N=N: float(N.amplitude_domain(w)[1]))]
+    lo, hi = (float(x) for x in N.amplitude_domain())
+    out = [("amplitude domain", 1, lambda w, x=lo: x), ("amplitude domain", -1, lambda w, x=hi: x)]
+    out = [e for e in out if 0 < e[2](1.0) < math.inf]
+    return out + _breakpoint_edges(N, lo, hi, a_max)
 
 
 def _breakpoint_edges(N, lo: float, hi: float, a_max: float) -> list:
