@@ -32,13 +32,14 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     # many loops: a parameter sweep, a batch
     "dfloop.continuation": ("sweep", "SweepResult"),
     "dfloop.batch": ("predict_many",),
+    "dfloop.chart": ("design_chart", "ChartResult"),
     # the picture, the scene files
     "dfloop.plot": ("plot_nyquist",),
     "dfloop.scene": ("SceneError", "load_scene", "run_scene"),
     "dfloop.errors": ("DfloopError", "EventLimitError", "CacheWarning"),
 }
 _SUBMODULES = ("describing", "impact", "tables", "solve", "verify", "plot", "harmonics", "progress", "scene", "cli",
-               "cache_admin", "errors", "exact", "confidence", "hybrid", "batch", "continuation")
+               "cache_admin", "errors", "exact", "confidence", "hybrid", "batch", "continuation", "chart")
 
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
 __all__ = [*_WHERE, "__version__"]

@@ -35,7 +35,8 @@ from .batch import run_batch
 from .describing.interop import as_element
 from .progress import progress_bar
 from .solve import LimitCycles, as_plant, predict_limit_cycles
-from .solve.stability import MARGINAL_TOL
+from .solve.errors import ContinuumError
+from .solve.stability import MARGINAL_TOL, label_roots
 
 __all__ = ["sweep", "SweepResult", "Branch", "SweepEvent"]
 
@@ -49,6 +50,9 @@ _MATCH = 1e-6  # a solver's cycle lies on a traced curve when within this (ln A,
 _MATCH_MARGINAL = 1e-3  # ... or within this for a cycle the solver called marginal (a double root)
 _SAME_Q = 1e-12  # a point this close to a given value (in q) lies on it
 _CACHE = 512  # loops kept per sweep (the corrector asks for the same parameter values repeatedly)
+_EDGE_IN = 1e-12  # an element edge is approached this far (relative) on the branch's side
+_MAX_BREAKPOINTS = 64  # breakpoints of a static element examined as possible edges
+_LIMIT_NEWTON = 40  # Newton iterations for a birth from infinity / zero amplitude
 
 
 # ----------------------------------------------------------------------------------------- result objects
@@ -102,15 +106,41 @@ class Branch:
 
 
 @dataclass(frozen=True)
+class ContinuumAt:
+    """The solver met a continuum of solutions at one given value (``SweepResult.cycles`` holds this there).
+
+    Attributes
+    ----------
+    amplitude_range, omega_range : (float, float)
+        The part of the continuum the solver followed (N's input unit; rad/s).
+    message : str
+        The solver's explanation.
+    """
+
+    amplitude_range: tuple
+    omega_range: tuple
+    message: str = ""
+
+    def __len__(self) -> int:
+        return 0
+
+    def __iter__(self):
+        return iter(())
+
+
+@dataclass(frozen=True)
 class SweepEvent:
     """Where branches are born, die or change stability.
 
     Attributes
     ----------
     kind : str
-        ``"fold"`` (a stable and an unstable cycle meet and vanish together), ``"entry"`` / ``"exit"`` (a
-        branch crosses an edge of the window, in the order of the sweep), ``"stability change"`` (a branch
-        point: curves cross), ``"lost"`` (continuation could not go on; see ``detail``).
+        ``"fold"`` (a stable and an unstable cycle meet and vanish together), ``"birth"`` / ``"death"`` (a
+        branch begins / ends in the order of the sweep at an element edge, from infinity or from zero
+        amplitude: see ``cause``), ``"continuum"`` (at this isolated value 1 + G N = 0 along a whole curve:
+        the sweep goes on past it), ``"entry"`` / ``"exit"`` (a branch crosses an edge of the window, in the
+        order of the sweep), ``"stability change"`` (a branch point: curves cross), ``"lost"`` (continuation
+        could not go on; see ``detail``).
     parameter, amplitude, frequency : float
         Where (parameter in its unit, amplitude in N's input unit, frequency in rad/s).
     branches : tuple of int
@@ -125,11 +155,14 @@ class SweepEvent:
     frequency: float
     branches: tuple
     detail: str = ""
+    cause: str = ""
+    name: str = "p"
 
     def __str__(self) -> str:
         ids = ", ".join(map(str, self.branches))
-        return (f"{self.kind} at p={self.parameter:.9g}: A={self.amplitude:.6g}, omega={self.frequency:.6g} rad/s; "
-                f"branch{'es' if len(self.branches) > 1 else ''} {ids}" + (f" ({self.detail})" if self.detail else ""))
+        where = f"branch{'es' if len(self.branches) > 1 else ''} {ids}" if self.branches else "no branch"
+        return (f"{self.kind} at {self.name}={self.parameter:.9g}: A={self.amplitude:.6g}, "
+                f"omega={self.frequency:.6g} rad/s; {where}" + (f" ({self.detail})" if self.detail else ""))
 
 
 @dataclass(eq=False)
@@ -197,6 +230,41 @@ class SweepResult:
         """The fold events."""
         return [e for e in self.events if e.kind == "fold"]
 
+    def margin(self, nominal: float, gain: bool = False) -> "LimitCycleMargin":
+        """How far the parameter can move from ``nominal`` (in either direction) before a limit cycle appears
+        or disappears, and before a stable one does.
+
+        Parameters
+        ----------
+        nominal : float
+            The design value, inside the swept range (the parameter's unit).
+        gain : bool
+            The parameter is a loop gain: the margins are also given in dB (20 log10 of the ratio).
+
+        Returns
+        -------
+        LimitCycleMargin
+            The nearest events below and above ``nominal`` (births, deaths, folds, stability changes, and
+            window edges when no physical event is in range).
+        """
+        nominal = _checks.finite("nominal", nominal)
+        lo, hi = sorted((float(self.values[0]), float(self.values[-1])))
+        if not lo <= nominal <= hi:
+            raise ValueError(f"nominal must lie in the swept range [{lo:.6g}, {hi:.6g}]; got {nominal!r}")
+        if gain and not (lo > 0 or hi < 0):
+            raise ValueError(f"a gain margin in dB needs a range of one sign; got [{lo:.6g}, {hi:.6g}]")
+
+        def stable_involved(e):
+            return e.kind == "stability change" or any(self.branches[i].kind == "stable" for i in e.branches)
+
+        physical = [e for e in self.events if e.kind in ("fold", "birth", "death", "stability change")]
+        found = {}
+        for key, pick in (("any", lambda e: True), ("stable", stable_involved)):
+            ev = [e for e in physical if pick(e)]
+            found[key] = (max((e for e in ev if e.parameter < nominal), key=lambda e: e.parameter, default=None),
+                          min((e for e in ev if e.parameter > nominal), key=lambda e: e.parameter, default=None))
+        return LimitCycleMargin(self.parameter, self.unit, nominal, gain, (lo, hi), *found["stable"], *found["any"])
+
     def to_csv(self, path) -> None:
         """Write every branch point: branch, parameter, amplitude, frequency (rad/s), stability, and what
         the point is (``value`` at a given value, ``step`` of the continuation, or the event at a branch end:
@@ -229,6 +297,72 @@ class SweepResult:
         return plot_sweep(self, ax)
 
 
+@dataclass(frozen=True)
+class LimitCycleMargin:
+    """How far a parameter can change from its nominal value before a limit cycle appears or disappears.
+
+    Attributes
+    ----------
+    parameter, unit : str
+        Name and unit of the parameter.
+    nominal : float
+        The design value.
+    gain : bool
+        Whether the parameter is a gain (margins also in dB).
+    range : (float, float)
+        The swept range: without an event on one side, the margin there is at least the distance to its end.
+    stable_below, stable_above : SweepEvent or None
+        The nearest events below / above the nominal value where a stable cycle appears, disappears or
+        changes stability.
+    any_below, any_above : SweepEvent or None
+        The nearest events of any cycle (stable or unstable).
+    """
+
+    parameter: str
+    unit: str
+    nominal: float
+    gain: bool
+    range: tuple
+    stable_below: SweepEvent | None
+    stable_above: SweepEvent | None
+    any_below: SweepEvent | None
+    any_above: SweepEvent | None
+
+    def distance(self, side: str, which: str = "stable") -> tuple[float, bool]:
+        """(signed change of the parameter to the nearest event on ``side`` ("below"/"above"), exact) for
+        ``which`` in ("stable", "any"); exact is False when no event is in the range (the value is then the
+        distance to the range's end, a lower bound)."""
+        e = getattr(self, f"{which}_{side}")
+        end = self.range[0] if side == "below" else self.range[1]
+        return ((e.parameter if e is not None else end) - self.nominal, e is not None)
+
+    def decibels(self, change: float) -> float:
+        """20 log10((nominal + change) / nominal) (gains)."""
+        return 20 * math.log10((self.nominal + change) / self.nominal) if self.nominal + change != 0 else -math.inf
+
+    def lines(self) -> list[str]:
+        """The report's sentences."""
+        u = f" {self.unit}" if self.unit else ""
+        out = [f"limit-cycle margin of {self.parameter} from the nominal {self.nominal:.6g}{u}:"]
+        for which, what in (("stable", "a stable cycle appears, disappears or changes stability"),
+                            ("any", "any cycle appears or disappears")):
+            for side in ("below", "above"):
+                d, exact = self.distance(side, which)
+                e = getattr(self, f"{which}_{side}")
+                db = f" ({self.decibels(d):+.3g} dB)" if self.gain else ""
+                if exact:
+                    out.append(f"  {side}: {what} at {self.parameter} = {e.parameter:.9g}{u} ({e.kind}"
+                               f"{': ' + e.cause if e.cause and e.cause != e.kind else ''}): change {d:+.6g}{u}{db}")
+                else:
+                    out.append(f"  {side}: {what}: no event down to the range's end" if side == "below" else
+                               f"  {side}: {what}: no event up to the range's end")
+                    out[-1] += f" ({self.nominal + d:.6g}{u}): margin beyond {d:+.6g}{u}{db}"
+        return out
+
+    def __repr__(self) -> str:
+        return "\n".join(self.lines())
+
+
 def _end_word(end: str, default: str) -> str:
     if end.startswith("enters"):
         return "entry"
@@ -236,6 +370,10 @@ def _end_word(end: str, default: str) -> str:
         return "exit"
     if end.startswith("lost"):
         return "lost"
+    if end.startswith("born"):
+        return "birth"
+    if end.startswith("dies"):
+        return "death"
     return end if end in ("fold", "stability change", "sweep start", "sweep end") else default
 
 
@@ -271,11 +409,6 @@ class _Point:
         return float(J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0])
 
     @property
-    def conditioning(self) -> float:
-        s = 0.5 * float(np.sum(self.J[:, :2] ** 2))
-        return self.det / s if s > 0 else 0.0
-
-    @property
     def tangent(self) -> np.ndarray:
         c = np.cross(self.J[0], self.J[1])
         n = np.linalg.norm(c)
@@ -290,6 +423,7 @@ class _Family:
         self.values, self.qs = values, qs
         self.log_window = log_window  # (a_lo, a_hi, v_lo, v_hi)
         self._cache: dict = {}
+        self._edges: dict = {}
         self.last_failure = ""
 
     def value(self, q: float) -> float:
@@ -312,8 +446,51 @@ class _Family:
         n = N(A, w) if N.frequency_dependent else N(A)
         return 1.0 + plant(w) * n
 
-    def admissible(self, X: np.ndarray) -> bool:
-        """Inside [0, 1] in q, within one unit (ln) of the window, in N's amplitude domain and G's range."""
+    # -- the element's edges: where a branch can begin or end inside the window -------------------------
+    def edges(self, q: float) -> list:
+        """The element's amplitude edges at q: ``(kind, side, level)`` with ``level(w) -> A`` (N's input unit)
+        and ``side`` +1 when branches live above the level, -1 below, 0 on both sides (a jump of N).
+
+        kinds: ``"linear range"`` (N constant on the other side: the linear loop, a continuum when marginal),
+        ``"amplitude domain"`` (N's domain ends; N -> 0 there for most elements, so no branch reaches it),
+        ``"jump"`` (N jumps at a breakpoint). Read from the element's ``amplitude_domain`` and, for static
+        elements, its ``breakpoints``; the flatness and jump tests are numerical (exact equality of N on
+        either side), so they hold for any element exposing breakpoints.
+        """
+        q = float(q)
+        hit = self._edges.get(q)
+        if hit is not None:
+            return hit
+        if len(self._edges) >= _CACHE:
+            self._edges.clear()
+        self._edges[q] = out = element_edges(self.loop(q)[1], math.exp(self.log_window[1] + 1))
+        return out
+
+    def edge_value(self, edge: tuple, X: np.ndarray) -> float:
+        """a - ln(level) at X (signed distance in ln A from the edge; > 0 above it)."""
+        level = edge[2](math.exp(X[1]))
+        if not 0 < level < math.inf:
+            return math.inf if edge[1] >= 0 else -math.inf
+        return float(X[0] - math.log(level))
+
+    def edge_crossed(self, P: np.ndarray, X: np.ndarray):
+        """The first element edge crossed by the segment P -> X: (fraction, edge) or None."""
+        best = None
+        for edge in self.edges(min(max(P[2], 0.0), 1.0)):
+            gp = self.edge_value(edge, P)
+            gx = self.edge_value(edge, X)
+            if not (math.isfinite(gp) and math.isfinite(gx)):
+                continue
+            side = edge[1] if edge[1] != 0 else (1 if gp > 0 else -1)
+            if side * gp > 0 and side * gx <= 0:
+                frac = gp / (gp - gx)
+                if best is None or frac < best[0]:
+                    best = (frac, edge, side)
+        return best
+
+    def admissible(self, X: np.ndarray, edge_side: int = 0) -> bool:
+        """Inside [0, 1] in q, within one unit (ln) of the window, in N's amplitude domain and G's range
+        (``edge_side``: the point lies on an element edge, on that side of it: the domain test is waived)."""
         a, v, q = X
         a_lo, a_hi, v_lo, v_hi = self.log_window
         if not (-1e-12 <= q <= 1 + 1e-12 and a_lo - 1 < a < a_hi + 1 and v_lo - 1 < v < v_hi + 1):
@@ -326,37 +503,62 @@ class _Family:
             return False
         lo, hi = N.amplitude_domain(w) if N.frequency_dependent else N.amplitude_domain()
         A = math.exp(a)
-        if not (float(lo) < A * (1 - 2 * _FD) and A * (1 + 2 * _FD) < float(hi)):
+        if edge_side == 0 and not (float(lo) < A * (1 - 2 * _FD) and A * (1 + 2 * _FD) < float(hi)):
             self.last_failure = "reached the edge of N's amplitude domain"
             return False
         return True
 
-    def jacobian(self, X: np.ndarray) -> tuple[complex, np.ndarray]:
+    def jacobian(self, X: np.ndarray, side_a: int = 0) -> tuple[complex, np.ndarray]:
         """R at X and the real 2 x 3 Jacobian of (Re R, Im R) in (ln A, ln w, q): central differences in
         ln A, ln w; a one-sided difference in q (towards the inside of the range, so no loop outside it is
         built). The q column only steers Newton and the predictor: the roots, the Loeb determinant and so
-        the folds do not depend on its accuracy."""
+        the folds do not depend on its accuracy. ``side_a`` = +1 / -1: a one-sided difference in ln A
+        towards that side (on an element edge, where N is not differentiable)."""
         a, v, q = X
         q = min(max(q, 0.0), 1.0)
         h = _FD
-        r = self.residual(q, a + np.array([0, h, -h, 0, 0]), v + np.array([0, 0, 0, h, -h]))
+        da = np.array([0, h, -h, 0, 0]) if side_a == 0 else np.array([0, side_a * h, 0, 0, 0])
+        r = self.residual(q, a + da, v + np.array([0, 0, 0, h, -h]))
         hq = h if q + h <= 1 else -h  # one-sided: one more loop per Jacobian (see the docstring)
         rq = (self.residual(q + hq, a, v)[()] - r[0]) / hq
-        ra, rv = (r[1] - r[2]) / (2 * h), (r[3] - r[4]) / (2 * h)
+        ra = (r[1] - r[2]) / (2 * h) if side_a == 0 else (r[1] - r[0]) / (side_a * h)
+        rv = (r[3] - r[4]) / (2 * h)
         J = np.array([[ra.real, rv.real, rq.real], [ra.imag, rv.imag, rq.imag]])
         return complex(r[0]), J
 
-    def correct(self, X0: np.ndarray, n: np.ndarray, g: float) -> _Point | None:
-        """Newton on R(X) = 0, n . X = g from X0; None unless it converges, contracting, inside the domain."""
+    def slopes_at(self, q: float) -> Callable:
+        """``slopes(a, v) -> (P, dP/da, dP/dv)`` of the loop at q (central differences), for the shared
+        marginal test :func:`dfloop.solve.stability.label_roots`."""
+        def slopes(a, v):
+            a, v = np.asarray(a, float), np.asarray(v, float)
+            h = _FD
+            P = self.residual(q, a, v) - 1.0
+            pa = (self.residual(q, a + h, v) - self.residual(q, a - h, v)) / (2 * h)
+            pv = (self.residual(q, a, v + h) - self.residual(q, a, v - h)) / (2 * h)
+            return P, pa, pv
+        return slopes
+
+    def correct(self, X0: np.ndarray, n: np.ndarray, g: float, edge: tuple | None = None) -> _Point | None:
+        """Newton on R(X) = 0, n . X = g from X0; None unless it converges, contracting, inside the domain.
+
+        With ``edge = (element edge, side)`` the third equation is instead ln A = ln level(w; q) (approached by
+        ``_EDGE_IN`` on ``side``): the point where a branch meets the edge."""
         X = np.array(X0, float)
         prev = np.inf
+        side = 0 if edge is None else edge[1]
         for it in range(_MAX_NEWTON):
-            if not self.admissible(X):
+            if edge is not None:  # the edge's level at the current (w, q), and its slopes in ln w and q
+                X[0] = self._edge_level(edge[0], X) + side * _EDGE_IN
+            if not self.admissible(X, side):
                 return None
-            R, J = self.jacobian(X)
-            F = np.array([R.real, R.imag, n @ X - g])
+            R, J = self.jacobian(X, side)
+            if edge is None:
+                row, f3 = n, n @ X - g
+            else:
+                row, f3 = self._edge_row(edge[0], X), 0.0
+            F = np.array([R.real, R.imag, f3])
             try:
-                dx = np.linalg.solve(np.vstack([J, n]), -F)
+                dx = np.linalg.solve(np.vstack([J, row]), -F)
             except np.linalg.LinAlgError:
                 self.last_failure = "singular corrector"
                 return None
@@ -366,11 +568,108 @@ class _Family:
                 return None
             X, prev = X + dx, step
             if step <= _XTOL:
-                if not self.admissible(X):
+                if edge is not None:
+                    X[0] = self._edge_level(edge[0], X) + side * _EDGE_IN
+                if not self.admissible(X, side):
                     return None
-                return _Point(X, J, it + 1)
+                return _Point(X, self.jacobian(X, side)[1] if edge is not None else J, it + 1)
         self.last_failure = "corrector did not converge"
         return None
+
+    def _edge_level(self, edge: tuple, X: np.ndarray) -> float:
+        """ln of the edge's level at X's (w, q) (the edge of the loop at X's q)."""
+        q = min(max(float(X[2]), 0.0), 1.0)
+        kind, side, ref = edge[0], edge[1], edge[2](1.0)
+        same = [e for e in self.edges(q) if e[0] == kind and e[1] == side]
+        if not same:
+            raise RuntimeError(f"the element's {kind} edge disappeared at p={self.value(q):.9g}")
+        e = min(same, key=lambda e: abs(math.log(e[2](1.0) / ref)) if ref > 0 else 0.0)  # the same edge, moved
+        return math.log(e[2](math.exp(X[1])))
+
+    def _edge_row(self, edge: tuple, X: np.ndarray) -> np.ndarray:
+        """Gradient of a - ln level(w, q) in (a, v, q) (finite differences; zero for a fixed level)."""
+        base = self._edge_level(edge, X)
+        h = _FD
+        dv = (self._edge_level(edge, X + [0, h, 0]) - base) / h
+        hq = h if X[2] + h <= 1 else -h
+        dq = (self._edge_level(edge, X + [0, 0, hq]) - base) / hq
+        return np.array([1.0, -dv, -dq])
+
+    def limit_birth(self, X: np.ndarray, amplitude: float):
+        """Where a branch that runs to A -> ``amplitude`` (inf or 0) is born: the parameter at which
+        1 + G(jw) N(amplitude, w) = 0 (the loop with N's limit is marginal), by Newton in (ln w, q) from X.
+
+        Returns (q, ln w) or None (no finite non-zero limit of N, or no convergence inside the range)."""
+        v, q = float(X[1]), min(max(float(X[2]), 0.0), 1.0)
+
+        def r(v_, q_):
+            plant, N = self.loop(q_)
+            w = np.array([math.exp(v_)])
+            n = N(np.array([amplitude]), w) if N.frequency_dependent else N(np.array([amplitude]))
+            return complex((1.0 + plant(w) * n)[0])
+
+        try:
+            n0 = r(v, q) - 1.0
+        except ValueError:
+            return None
+        if not (np.isfinite(n0) and n0 != 0):
+            return None
+        for _ in range(_LIMIT_NEWTON):
+            try:
+                R = r(v, q)
+                hq = _FD if q + _FD <= 1 else -_FD
+                rv = (r(v + _FD, q) - r(v - _FD, q)) / (2 * _FD)
+                rq = (r(v, q + hq) - R) / hq
+                d = np.linalg.solve(np.array([[rv.real, rq.real], [rv.imag, rq.imag]]), -np.array([R.real, R.imag]))
+            except (ValueError, np.linalg.LinAlgError):
+                return None
+            v, q = v + d[0], q + d[1]
+            if not (-1e-12 <= q <= 1 + 1e-12 and math.isfinite(v)):
+                return None
+            q = min(max(q, 0.0), 1.0)
+            if max(abs(d[0]), abs(d[1])) <= _XTOL:
+                return q, v
+        return None
+
+
+def element_edges(N, a_max: float) -> list:
+    """An element's amplitude edges where a branch of cycles can begin or end: ``(kind, side, level)`` with
+    ``level(w) -> A`` (N's input unit), ``side`` +1 when cycles live above the level, -1 below, 0 on both
+    sides. Kinds: ``"amplitude domain"`` (the ends of ``N.amplitude_domain``, when finite and non-zero),
+    ``"linear range"`` (N is constant on one side of a breakpoint: the linear loop), ``"jump"`` (N jumps at a
+    breakpoint). Breakpoints come from ``N.breakpoints(A_max=a_max)`` when the element has them."""
+    if N.frequency_dependent:
+        return [("amplitude domain", 1, lambda w, N=N: float(N.amplitude_domain(w)[0])),
+                ("amplitude domain", -1, lambda w, N=N: float(N.amplitude_domain(w)[1]))]
+    lo, hi = (float(x) for x in N.amplitude_domain())
+    out = [("amplitude domain", 1, lambda w, x=lo: x), ("amplitude domain", -1, lambda w, x=hi: x)]
+    out = [e for e in out if 0 < e[2](1.0) < math.inf]
+    return out + _breakpoint_edges(N, lo, hi, a_max)
+
+
+def _breakpoint_edges(N, lo: float, hi: float, a_max: float) -> list:
+    """Edges at a static element's breakpoints: where N is constant on one side ("linear range") or jumps."""
+    bp = getattr(N, "breakpoints", None)
+    if bp is None:
+        return []
+    try:
+        pts = np.asarray(bp(A_max=a_max), float).ravel()[:_MAX_BREAKPOINTS]
+    except ValueError:
+        return []
+    out = []
+    for b in pts:
+        if not lo < b < hi:
+            continue
+        probe = N(np.array([b * (1 - 1e-3), b * (1 - 1e-9), b, b * (1 + 1e-9), b * (1 + 1e-3), b * 0.5, b * 2.0]))
+        below = probe[[0, 1, 5]]
+        above = probe[[3, 4, 6]]
+        if np.all(below == probe[2]) and probe[2] != 0:
+            out.append(("linear range", 1, lambda w, x=float(b): x))
+        elif np.all(above == probe[2]) and probe[2] != 0:
+            out.append(("linear range", -1, lambda w, x=float(b): x))
+        elif abs(probe[3] - probe[1]) > 1e-6 * max(abs(probe[3]), abs(probe[1])):
+            out.append(("jump", 0, lambda w, x=float(b): x))
+    return out
 
 
 # ------------------------------------------------------------------------------------------- the tracer
@@ -503,6 +802,21 @@ class _Tracer:
                 Q = self.f.correct(P.X + s * t, _EQ, bound)
             else:
                 Q = self.f.correct(Xp, t, float(t @ Xp))
+            # an element edge (linear range, domain, jump) crossed by the step: the branch ends on it
+            cross = self.f.edge_crossed(P.X, Q.X if Q is not None else Xp)
+            if cross is not None:
+                frac, el, side = cross
+                target = Q.X if Q is not None else Xp
+                E = self.f.correct(P.X + frac * (target - P.X), t, 0.0, edge=(el, side))
+                if E is None or float(t @ (E.X - P.X)) <= 0:
+                    h *= 0.5
+                    if h < _HMIN:
+                        out.append(_Node(P, "lost", -1, self.f.last_failure or "the step size underflowed"))
+                        return out
+                    continue
+                self._values_between(P, E, out)
+                out.append(_Node(E, "edge", self._value_index(E.X[2]), el[0]))
+                return out
             if Q is not None:
                 tq = Q.tangent * (1.0 if Q.tangent @ t >= 0 else -1.0)
                 ok = (tq @ t >= _COS_TURN) and (np.max(np.abs(Q.X - (P.X + h * t))) <= 0.5 * h or at_end)
@@ -570,21 +884,39 @@ class _Tracer:
             return [head] + fwd
         back = self.trace(seed, -t0)
         b, f = back[0].point, fwd[0].point
-        if (b.X[2] - seed.X[2]) * (f.X[2] - seed.X[2]) > 0:  # the seed is (next to) a fold: locate it
+        plain = back[0].tag in ("step", "value", "range") and fwd[0].tag in ("step", "value", "range")
+        if plain and (b.X[2] - seed.X[2]) * (f.X[2] - seed.X[2]) > 0:  # the seed is (next to) a fold: locate it
             tb = seed.X - b.X
             tb /= np.linalg.norm(tb)
             Fd = self._fold(b, tb, f)
             head = _Node(Fd, "fold", self._value_index(Fd.X[2]))
-        return back[::-1] + [head] + fwd
+        # a trace that ended at once (the seed on the range's end) repeats the seed: keep the end's node
+        same = any(np.max(np.abs(n.point.X - head.point.X)) <= 1e-12 for n in (back[0], fwd[0]))
+        return back[::-1] + ([] if same and head.tag == "seed" else [head]) + fwd
 
 
 # --------------------------------------------------------------------------------- curves -> branches
 
 
-def _label(P: _Point, marginal_tol: float) -> str:
-    if abs(P.conditioning) < marginal_tol:
-        return "marginal"
-    return "stable" if P.det > 0 else "unstable"
+def _label(node: _Node, family: _Family, marginal_tol: float) -> str:
+    """The shared marginal test (:func:`dfloop.solve.stability.label_roots`, as in predict_limit_cycles) at a
+    curve point; on an element edge, where N is not differentiable, the crossing angle of the one-sided
+    Jacobian decides."""
+    P = node.point
+    if node.tag == "edge":
+        ra, rv = complex(*P.J[:, 0]), complex(*P.J[:, 1])
+        scale = abs(ra) * abs(rv)
+        if scale == 0 or abs(P.det) / scale < marginal_tol:
+            return "marginal"
+        return "stable" if P.det > 0 else "unstable"
+    q = min(max(float(P.X[2]), 0.0), 1.0)
+    return str(label_roots(family.slopes_at(q), P.X[:1], P.X[1:2], marginal_tol)[2][0])
+
+
+_EDGE_TEXT = {"linear range": ("born from the linear loop at the edge of the element's linear range",
+                               "dies into the linear loop at the edge of the element's linear range"),
+              "amplitude domain": ("born at the edge of N's amplitude domain", "dies at the edge of N's amplitude domain"),
+              "jump": ("born where N jumps", "dies where N jumps")}
 
 
 def _pieces(nodes: list[_Node]) -> tuple[list[list[_Node]], bool]:
@@ -617,7 +949,32 @@ def _end_text(node: _Node, low_end: bool) -> str:
         return f"lost: {node.detail}"
     if node.tag in ("fold", "stability change"):
         return node.tag
+    if node.tag == "edge":
+        return _EDGE_TEXT[node.detail][0 if low_end else 1]
     return "closed curve"
+
+
+def _limit_event(node: _Node, family: _Family, low: bool, idx: int, name: str):
+    """A branch leaving the amplitude window towards A -> inf or A -> 0 where N has a finite non-zero limit:
+    the birth (or death) of the cycle from the loop with N's limit, when that loop is marginal in the range."""
+    if node.tag != "exit" or "amplitude" not in node.detail:
+        return None
+    upper = "upper" in node.detail
+    hit = family.limit_birth(node.point.X, math.inf if upper else 0.0)
+    if hit is None:
+        return None
+    q, v = hit
+    p = family.value(q)
+    # the limit lies beyond the exit, on the side the branch leaves to: before its start, after its end
+    before = low
+    if (q < node.point.X[2]) != low and q != node.point.X[2]:
+        return None
+    kind = "birth" if before else "death"
+    where = "infinity" if upper else "zero amplitude"
+    return SweepEvent(kind, parameter=p, amplitude=math.inf if upper else 0.0, frequency=math.exp(v),
+                      branches=(idx,), cause=where, name=name,
+                      detail=f"{'born from' if before else 'dies at'} {where}: the loop with N's limit "
+                             f"(A -> {'inf' if upper else '0'}) is marginal at {name} = {p:.9g}")
 
 
 def _assemble(curves, family: _Family, marginal_tol: float, name: str):
@@ -629,7 +986,7 @@ def _assemble(curves, family: _Family, marginal_tol: float, name: str):
             q = np.array([n.point.X[2] for n in piece])
             order = np.argsort(q, kind="stable") if q[-1] >= q[0] else np.arange(q.size)[::-1]
             first, last = piece[order[0]], piece[order[-1]]
-            lab = np.array([_label(piece[i].point, marginal_tol) for i in order])
+            lab = np.array([_label(piece[i], family, marginal_tol) for i in order])
             for j, i in enumerate(order):  # interior points take the branch's label when marginal by rounding
                 if piece[i].tag in ("fold", "stability change"):
                     lab[j] = "marginal"
@@ -645,10 +1002,18 @@ def _assemble(curves, family: _Family, marginal_tol: float, name: str):
                 X = node.point.X
                 where = dict(parameter=family.value(X[2]), amplitude=math.exp(X[0]), frequency=math.exp(X[1]))
                 if node.tag == "exit":
-                    events.append(SweepEvent("entry" if low else "exit", branches=(idx,),
+                    events.append(SweepEvent("entry" if low else "exit", branches=(idx,), name=name,
+                                             cause="window edge",
                                              detail=("enters " if low else "leaves ") + node.detail, **where))
+                    limit = _limit_event(node, family, low, idx, name)
+                    if limit is not None:
+                        events.append(limit)
+                elif node.tag == "edge":
+                    events.append(SweepEvent("birth" if low else "death", branches=(idx,), name=name,
+                                             cause=node.detail, detail=_EDGE_TEXT[node.detail][0 if low else 1],
+                                             **where))
                 elif node.tag == "lost":
-                    events.append(SweepEvent("lost", branches=(idx,), detail=node.detail, **where))
+                    events.append(SweepEvent("lost", branches=(idx,), detail=node.detail, name=name, **where))
         # events shared by consecutive pieces of the curve
         for j in range(len(pieces) - 1 + (nodes[-1].tag == "closed" and len(pieces) > 1)):
             node = pieces[j][-1]
@@ -661,9 +1026,9 @@ def _assemble(curves, family: _Family, marginal_tol: float, name: str):
                 side = ">" if min(ba.parameter.min(), bb.parameter.min()) >= p - 1e-12 * max(1.0, abs(p)) else "<"
                 detail = (f"a stable and an unstable cycle meet; the pair exists for {name} {side} {p:.9g}"
                           if {ba.kind, bb.kind} == {"stable", "unstable"} else f"a {ba.kind} and a {bb.kind} cycle meet")
-                events.append(SweepEvent("fold", branches=(a, b), detail=detail, **where))
+                events.append(SweepEvent("fold", branches=(a, b), detail=detail, name=name, cause="fold", **where))
             else:
-                events.append(SweepEvent("stability change", branches=(a, b),
+                events.append(SweepEvent("stability change", branches=(a, b), name=name, cause="branch point",
                                          detail=f"{branches[a].kind} -> {branches[b].kind} (branch point)", **where))
     events.sort(key=lambda e: (e.parameter - family.p0) / family.span)  # in the order of the sweep
     return branches, events
@@ -672,9 +1037,13 @@ def _assemble(curves, family: _Family, marginal_tol: float, name: str):
 # ------------------------------------------------------------------------------------------------ sweep
 
 
-def _predict_at(value: float, loop_at: Callable, options: dict) -> LimitCycles:
+def _predict_at(value: float, loop_at: Callable, options: dict) -> LimitCycles | ContinuumAt:
+    """The solver's cycles at one value, or the continuum it met there (a picklable record, not the error)."""
     plant, N = _build_loop(loop_at, value)
-    return predict_limit_cycles(plant, N, **options)
+    try:
+        return predict_limit_cycles(plant, N, **options)
+    except ContinuumError as exc:
+        return ContinuumAt(tuple(exc.amplitude_range), tuple(exc.omega_range), str(exc))
 
 
 def _check_values(values) -> np.ndarray:
@@ -749,8 +1118,12 @@ def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=No
     options = dict(solver_options, omega=omega, amplitude=amplitude)
     cycles = run_batch(partial(_predict_at, loop_at=loop_at, options=options), vals.tolist(), executor=executor,
                        chunksize=1, progress=progress, label=f"sweep of {parameter}: solves")
-    a_win = amplitude or (min(c.amplitude_window[0] for c in cycles), max(c.amplitude_window[1] for c in cycles))
-    w_win = omega or (min(c.omega_window[0] for c in cycles), max(c.omega_window[1] for c in cycles))
+    solved = [c for c in cycles if isinstance(c, LimitCycles)]
+    if not solved:
+        raise ValueError(f"sweep of {parameter}: the solver met a continuum of solutions at every value; give "
+                         "values where the describing-function equation has isolated roots")
+    a_win = amplitude or (min(c.amplitude_window[0] for c in solved), max(c.amplitude_window[1] for c in solved))
+    w_win = omega or (min(c.omega_window[0] for c in solved), max(c.omega_window[1] for c in solved))
     qs = (vals - vals[0]) / (vals[-1] - vals[0])
     qs[-1] = 1.0
     family = _Family(loop_at, vals, qs,
@@ -792,10 +1165,22 @@ def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=No
                     bar.update(1)
 
     branches, events = _assemble(curves, family, marginal_tol, parameter)
+    for k, c in enumerate(cycles):  # isolated values where the loop has a whole curve of solutions
+        if isinstance(c, ContinuumAt):
+            (a0, a1), (w0, w1) = c.amplitude_range, c.omega_range
+            touching = tuple(b.index for b in branches if np.any(b.value_index == k))
+            events.append(SweepEvent("continuum", parameter=float(vals[k]), amplitude=a1, frequency=0.5 * (w0 + w1),
+                                     branches=touching, cause="continuum", name=parameter,
+                                     detail=f"1 + G N = 0 along a whole curve through A in [{a0:.6g}, {a1:.6g}], "
+                                            f"omega in [{w0:.6g}, {w1:.6g}] rad/s at this value only; the sweep "
+                                            "goes on past it"))
+    events.sort(key=lambda e: (e.parameter - family.p0) / family.span)
     notes = []
     for b in branches:
         for j in np.flatnonzero(b.value_index >= 0):
             k = b.value_index[j]
+            if isinstance(cycles[k], ContinuumAt):
+                continue
             if not matches(k, np.log([b.amplitude[j], b.frequency[j]])):
                 notes.append(f"at {parameter}={vals[k]:.9g} the solver did not report the cycle at "
                              f"A={b.amplitude[j]:.6g}, omega={b.frequency[j]:.6g} rad/s that continuation found "

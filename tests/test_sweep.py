@@ -172,7 +172,7 @@ def test_csv_plot_and_repr(tmp_path):
         assert mine[0][5] == "fold" and mine[-1][5] == "sweep end"
         assert sum(r[5] == "value" for r in mine) == 3 - 1  # values past the fold, the last one is the end
     text = repr(res)
-    assert "fold at p=0.942477" in text and "stable and an unstable" in text
+    assert "fold at K=0.942477" in text and "stable and an unstable" in text
     ax_a, ax_w = res.plot().axes[:, 0]
     styles = {line.get_linestyle() for line in ax_a.get_lines() if line.get_label() in ("stable cycles",
                                                                                          "unstable cycles")}

@@ -19,7 +19,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
-__all__ = ["Scene", "SceneLoop", "load_scene", "find_scene", "shipped_scenes", "read_toml", "TableProgress"]
+__all__ = ["Scene", "SceneLoop", "ChartLoop", "load_scene", "find_scene", "shipped_scenes", "read_toml", "TableProgress"]
 
 
 # ------------------------------------------------------------------------------------------- finding files
@@ -139,6 +139,20 @@ class SceneLoop:
         return f"SceneLoop(parameter={self.parameter!r}, source={str(self.source)!r})"
 
 
+class ChartLoop:
+    """``loop_at(x, y) -> (G, N)``: a scene's loop rebuilt with two parameters replaced (a ``[chart]``).
+    Holds only the scene's data, so it pickles."""
+
+    def __init__(self, data: dict, x: str, y: str, source: Path | None = None):
+        self.data, self.x, self.y, self.source = data, x, y, source
+
+    def __call__(self, x: float, y: float) -> tuple[Any, Any]:
+        return SceneLoop(_set_path(self.data, self.x, x), self.y, self.source)(y)
+
+    def __repr__(self) -> str:
+        return f"ChartLoop(x={self.x!r}, y={self.y!r}, source={str(self.source)!r})"
+
+
 def sweep_values(spec: Sweep) -> np.ndarray:
     """The values of a ``[sweep]``: the list as given, or ``num`` values from ``start`` to ``stop``."""
     values = spec.values
@@ -165,6 +179,8 @@ class Scene:
     exact: bool = False
     sweep: Sweep | None = None
     loop_at: SceneLoop | None = None
+    chart: Any = None
+    chart_loop: ChartLoop | None = None
     source: Path | None = None
     data: dict = field(default_factory=dict, repr=False)
 
@@ -198,6 +214,10 @@ def load_scene(path: str | Path, *, progress: bool = False) -> Scene:
         problems += element_problems(data["element"], ("element",))
     if model is not None and model.sweep is not None:
         problems += check_parameter_path(data, model.sweep.parameter)
+    if model is not None and model.chart is not None:
+        for axis in ("x_axis", "y_axis"):
+            problems += [Problem(f"chart.{axis}.parameter", p.message, p.suggestion, p.expected)
+                         for p in check_parameter_path(data, getattr(model.chart, axis).parameter)]
     if problems:
         raise SceneError(path, problems)
     name = model.scene.name or path.stem
@@ -210,6 +230,13 @@ def load_scene(path: str | Path, *, progress: bool = False) -> Scene:
             loop_at = SceneLoop(data, model.sweep.parameter, path)
             for value in sweep_values(model.sweep):  # every swept loop must build: bad values fail here, not later
                 loop_at(value)
+        chart_loop = None
+        if model.chart is not None:
+            cx, cy = model.chart.x_axis, model.chart.y_axis
+            chart_loop = ChartLoop(data, cx.parameter, cy.parameter, path)
+            for x in (cx.start, cx.stop):  # the corners must build
+                for y in (cy.start, cy.stop):
+                    chart_loop(x, y)
     except SceneError as err:
         raise err.in_file(path) from None
     analysis = model.analysis
@@ -232,6 +259,8 @@ def load_scene(path: str | Path, *, progress: bool = False) -> Scene:
         exact=analysis.exact,
         sweep=model.sweep,
         loop_at=loop_at,
+        chart=model.chart,
+        chart_loop=chart_loop,
         source=path,
         data=data,
     )

@@ -56,12 +56,30 @@ def comparison_table(cycles: Any) -> list[str]:
     return rows
 
 
-def run_sweep(scene: Scene) -> Any:
-    """The scene's ``[sweep]``: every cycle followed over the swept values (:func:`dfloop.sweep`)."""
+def run_sweep(scene: Scene, executor: Any = None) -> Any:
+    """The scene's ``[sweep]``: every cycle followed over the swept values (:func:`dfloop.sweep`), the parameter
+    named as the scene says (or as derived from its path: :func:`dfloop.scene.parameters.parameter_label`)."""
     from dfloop.continuation import sweep
 
-    return sweep(scene.loop_at, scene.sweep_values, omega=scene.omega, amplitude=scene.amplitude, executor=None,
-                 parameter=scene.sweep.parameter)
+    from .parameters import parameter_label
+
+    label = parameter_label(scene.data, scene.sweep.parameter, scene.sweep.name, scene.sweep.unit)
+    return sweep(scene.loop_at, scene.sweep_values, omega=scene.omega, amplitude=scene.amplitude,
+                 executor=executor, parameter=label.name, unit=label.unit)
+
+
+def sweep_margin(scene: Scene, result: Any) -> Any:
+    """The limit-cycle margin of a ``[sweep]`` from its nominal value (the scene's ``nominal``, else the value
+    written at the parameter's path), or None when that value is outside the swept range or unknown."""
+    from .parameters import nominal_value, parameter_label
+
+    label = parameter_label(scene.data, scene.sweep.parameter, scene.sweep.name, scene.sweep.unit)
+    nominal = scene.sweep.nominal if scene.sweep.nominal is not None else nominal_value(scene.data,
+                                                                                       scene.sweep.parameter)
+    lo, hi = sorted((float(result.values[0]), float(result.values[-1])))
+    if nominal is None or not lo <= nominal <= hi:
+        return None
+    return result.margin(nominal, gain=label.gain and lo > 0)
 
 
 @dataclass
@@ -76,6 +94,8 @@ class SceneReport:
     notes: list[str] = field(default_factory=list)
     sweep: Any = None
     figure: Any = None
+    margins: list[Any] = field(default_factory=list)
+    chart: Any = None
 
     def to_markdown(self) -> str:
         lines = [f"# {self.scene.title}", "", f"Scene `{self.scene.source}`; element `{self.scene.element!r}`.", ""]
@@ -89,6 +109,15 @@ class SceneReport:
             lines += ["```", ""]
         if self.sweep is not None:
             lines += ["## Sweep", "", "```", repr(self.sweep), "```", ""]
+        if self.chart is not None:
+            lines += ["## Design chart", "", "```", repr(self.chart), "```", ""]
+        if self.sweep is not None or self.chart is not None:
+            lines += ["## Limit-cycle margins", ""]
+            if self.margins:
+                for m in self.margins:
+                    lines += ["```", repr(m), "```", ""]
+            else:
+                lines += ["No nominal value inside the swept range (set `nominal` in `[sweep]` / `[chart]`).", ""]
         if self.figure is not None:
             lines += ["## Figure", "", "```", repr(self.figure), "```", ""]
         lines += ["## Stages run", "", "| stage | time (s) |", "|---|---|"]
@@ -171,9 +200,16 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
                                                  perturbation=scene.verify_perturbation)))
                 log(repr(report.verifications[-1]))
         if scene.sweep is not None:
-            report.sweep = stage(f"sweep {scene.sweep.parameter} over {len(scene.sweep_values)} values",
+            from .parameters import parameter_label
+
+            swept = parameter_label(scene.data, scene.sweep.parameter, scene.sweep.name, scene.sweep.unit).name
+            report.sweep = stage(f"sweep {swept} over {len(scene.sweep_values)} values",
                                  lambda: run_sweep(scene))
             log(repr(report.sweep))
+            margin = sweep_margin(scene, report.sweep)
+            if margin is not None:
+                report.margins.append(margin)
+                log(repr(margin))
             if scene.sweep.csv:
                 report.sweep.to_csv(out / f"{scene.name}_sweep.csv")
                 report.files.append(out / f"{scene.name}_sweep.csv")

@@ -19,7 +19,8 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Fiel
 
 from .errors import Problem, closest, dotted
 
-__all__ = ["SceneFile", "SceneMeta", "TfPlant", "ZpkPlant", "SsPlant", "Analysis", "Sweep", "SweepRange", "Figure",
+__all__ = ["SceneFile", "SceneMeta", "TfPlant", "ZpkPlant", "SsPlant", "Analysis", "Sweep", "SweepRange", "Chart", "ChartAxis",
+           "Figure",
            "validate_scene", "validate_plant", "type_name", "PLANT_TYPES", "FIGURE_KINDS"]
 
 MAX_SWEEP_VALUES = 100_000
@@ -152,6 +153,50 @@ class Sweep(_Table):
                             Annotated[SweepRange, Tag("range")]], Discriminator(_values_tag)] = Field(
         description="The values: a list, or a table {start, stop, num, scale}.")
     csv: bool = Field(True, description="Write the branches to <name>_sweep.csv.")
+    name: str | None = Field(None, description='Name of the parameter in the report, the CSV header and the axes, '
+                                               'e.g. "gain K" (default: derived from the path: "gain K" for a '
+                                               'one-coefficient numerator, "delay T" for a delay, "clearance h" '
+                                               'for a backlash h, else the path).')
+    unit: str | None = Field(None, description='Unit of the parameter, e.g. "m" (default: derived from the path: '
+                                               '"s" for a delay, the element\'s input unit for its thresholds).')
+    nominal: float | None = Field(None, description="The design value the limit-cycle margins are measured from "
+                                                    "(default: the value in the scene at `parameter`).")
+
+
+class ChartAxis(_Table):
+    """One axis of a design chart: a parameter of the scene, its range, name and unit."""
+
+    parameter: str = Field(description='Dotted path of a number in the scene, e.g. "plant.num.0", "plant.delay".')
+    start: float = Field(description="First value.")
+    stop: float = Field(description="Last value (!= start).")
+    scale: Literal["linear", "log"] = Field("linear", description="Spacing of the chart's samples and plot axis.")
+    name: str | None = Field(None, description="Name in the report, the CSV and the axes (default: derived "
+                                               "from the path, as for `[sweep]`).")
+    unit: str | None = Field(None, description="Unit (default: derived from the path).")
+    nominal: float | None = Field(None, description="Design value (default: the value in the scene).")
+
+    @model_validator(mode="after")
+    def _range(self) -> "ChartAxis":
+        if self.start == self.stop:
+            raise ValueError(f"start and stop must differ, got {self.start}")
+        if self.scale == "log" and not (self.start > 0 and self.stop > 0):
+            raise ValueError(f"a log scale needs start > 0 and stop > 0, got start={self.start}, stop={self.stop}")
+        return self
+
+
+class Chart(_Table):
+    """A two-parameter design chart: where the loop has no cycle, a stable cycle, only unstable cycles or
+    several, with the boundaries traced as curves (births, folds, stability changes)."""
+
+    x_axis: ChartAxis = Field(description="Horizontal axis: `{parameter, start, stop, scale, name, unit, "
+                                          "nominal}`.")
+    y_axis: ChartAxis = Field(description="Vertical axis: the same keys.")
+    samples: int = Field(13, ge=3, le=200, description="Region samples per axis (predict_limit_cycles at each); "
+                                                       "the boundaries are traced, not sampled.")
+    resolution: int = Field(100, ge=10, le=2000, description="Equivalent resolution per axis: the boundary "
+                                                             "curves' steps and the filled plot's grid.")
+    csv: bool = Field(True, description="Write the boundary curves to <name>_chart.csv and the region samples "
+                                        "to <name>_chart_regions.csv.")
 
 
 class Figure(_Table):
@@ -209,6 +254,7 @@ class SceneFile(_Table):
                                                 "class, the other keys are its parameters (see below).")
     analysis: Analysis = Field(default_factory=Analysis, description="Windows and the optional stages.")
     sweep: Sweep | None = Field(None, description="A parameter sweep (continuation of every cycle).")
+    chart: Chart | None = Field(None, description="A two-parameter design chart (regions and traced boundaries).")
     figure: Figure | None = Field(None, description="A figure of the element alone: its -1/N loci, or (dynamic "
                                                     "backlash) the forced motion's time responses and collision "
                                                     "runs, for several input amplitudes and values of one "

@@ -8,11 +8,13 @@ the -1/N locus), which does not change when A, w, G or N are rescaled, nor with 
 """
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from .roots import Residual
 
-__all__ = ["loeb", "classify", "graphical_stability", "MARGINAL_TOL"]
+__all__ = ["loeb", "classify", "label_roots", "graphical_stability", "MARGINAL_TOL"]
 
 MARGINAL_TOL = 1e-4
 """|sin| of the crossing angle, det J / (|R_a| |R_w|), below which a cycle is called marginal."""
@@ -39,14 +41,43 @@ def _loeb_from(a, v, ra, rv):
 def classify(res: Residual, a: np.ndarray, v: np.ndarray, marginal_tol: float = MARGINAL_TOL):
     """Loeb determinant, conditioning and label ("stable", "unstable", "marginal") of roots (a, v).
 
-    A root is marginal when its Loeb sign is not decided: the crossing angle's sine is below
-    ``marginal_tol``, or the sign of the determinant changes within the root's position uncertainty
+    The one marginal test of dfloop (:func:`label_roots` on the residual's slopes); see there.
+    """
+    return label_roots(res.slopes, a, v, marginal_tol)
+
+
+def label_roots(slopes: Callable, a, v, marginal_tol: float = MARGINAL_TOL):
+    """Loeb determinant, conditioning and label of roots (a, v) of R = 1 + P, given P's slopes.
+
+    Shared by :func:`~dfloop.predict_limit_cycles` and :func:`~dfloop.continuation.sweep`, so that the two
+    call a root marginal by the same rule.
+
+    A root is marginal when its Loeb sign is not decided: the crossing angle's sine, det J / (|R_a| |R_w|),
+    is below ``marginal_tol``, or the sign of the determinant changes within the root's position uncertainty
     (4 |R| / s_min(J) in log units along the Jacobian's weakest direction, which is how far the true
     root may lie; a tangent (double) root is found at a distance of that order, with a determinant of
     either sign). Both tests are invariant under rescaling A, w, G and N.
+
+    Parameters
+    ----------
+    slopes : callable
+        ``slopes(a, v) -> (P, dP/da, dP/dv)`` at 1-D arrays of log coordinates a = ln A, v = ln w
+        (e.g. :meth:`dfloop.solve.roots.Residual.slopes`).
+    a, v : array_like
+        The roots, log coordinates (ln of N's input unit, ln rad/s).
+    marginal_tol : float
+        Bound on the crossing angle's sine below which a root is marginal.
+
+    Returns
+    -------
+    det, cond : ndarray
+        Loeb determinant in natural units (per unit amplitude, per rad/s) and the signed sine of the
+        crossing angle.
+    label : ndarray of str
+        ``"stable"``, ``"unstable"`` or ``"marginal"``.
     """
-    a, v = np.asarray(a, float), np.asarray(v, float)
-    P, ra, rv = res.slopes(a, v)
+    a, v = np.atleast_1d(np.asarray(a, float)), np.atleast_1d(np.asarray(v, float))
+    P, ra, rv = slopes(a, v)
     det, cond = _loeb_from(a, v, ra, rv)
     jaa, jvv, jav = np.abs(ra) ** 2, np.abs(rv) ** 2, (ra.conj() * rv).real
     half_tr, dj = (jaa + jvv) / 2, jaa * jvv - jav ** 2
@@ -62,7 +93,7 @@ def classify(res: Residual, a: np.ndarray, v: np.ndarray, marginal_tol: float = 
     ea, ev = ea / norm, ev / norm
     k = a.size
     ap, vp = np.concatenate([a + dx * ea, a - dx * ea]), np.concatenate([v + dx * ev, v - dx * ev])
-    d_pm, _ = _loeb_from(ap, vp, *res.slopes(ap, vp)[1:])
+    d_pm, _ = _loeb_from(ap, vp, *slopes(ap, vp)[1:])
     d_plus, d_minus = d_pm[:k], d_pm[k:]
     undecided = (np.sign(d_plus) != np.sign(det)) | (np.sign(d_minus) != np.sign(det))
     label = np.where((np.abs(cond) < marginal_tol) | undecided, "marginal", np.where(det > 0, "stable", "unstable"))
