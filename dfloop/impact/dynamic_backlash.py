@@ -27,7 +27,7 @@ from . import cache as _cache
 from ._core import FREE as FREE_MODE
 from .extract import PERIODICITY_TOL
 from .limits import BETA_NO_IMPACT
-from ..progress import progress_bar
+from ..progress import announce, compile_pending, progress_bar
 from .table import Samples, Table1D, TableSettings, TableValues, settings_dict
 from .table2d import Table2D
 
@@ -44,6 +44,16 @@ _PRIOR_SIMULATIONS_PER_BLOCK = 60              # progress estimate (per start) b
 # alternative starts probed for coexisting motions, in similarity units (h = 1, w = 1, force beta):
 # (gap / h, u / (beta h w)) with x1 = v1 = 0; rest with a centred gap is the default start
 _STARTS = ((0.1, 1.5), (0.9, -1.5), (0.5, 3.0), (0.3, -0.75))
+_COMPILE_SECONDS = 16                          # first-use compilation of the table driver (docs/impact.md, JIT row)
+_EFFECTS_COMPILE_SECONDS = 15                  # first-use compilation of the effects engine (fresh numba cache)
+_MOTIONS = {"simulated": 0}                    # motions simulated by every DynamicBacklash in this process
+_MOTIONS_LOCK = threading.Lock()
+
+
+def motions_simulated() -> int:
+    """Motions simulated for tables by every :class:`DynamicBacklash` in this process so far (a scene run
+    reports the difference over the run: what the run actually simulated, whichever elements did it)."""
+    return _MOTIONS["simulated"]
 
 
 def _effects_tuple(effects) -> tuple:
@@ -440,12 +450,15 @@ class DynamicBacklash(DescribingFunction):
         enabled = None if self._progress is None else (False if user is not None else bool(self._progress))
         lock = threading.Lock()
         count = {"sims": 0, "blocks": 0}
+        self._announce_compile(label, enabled)
         with progress_bar(label, n_blocks * _PRIOR_SIMULATIONS_PER_BLOCK * (1 + self.starts),
                           enabled=enabled) as bar:
             def tick():
                 with lock:
                     count["sims"] += 1
                     bar.update(1)
+                with _MOTIONS_LOCK:
+                    _MOTIONS["simulated"] += 1
 
             def checkpoint():
                 count["blocks"] += 1
@@ -459,6 +472,20 @@ class DynamicBacklash(DescribingFunction):
             finally:
                 self._tick = None
         self._store()
+
+    def _announce_compile(self, label: str, enabled: bool | None) -> None:
+        """Say before the first sample that numba compiles the table driver (once per installation)."""
+        if self.effects:
+            from . import _effects_core
+
+            pending, about = compile_pending(_effects_core.run_engine), f", about {_EFFECTS_COMPILE_SECONDS} s"
+        else:
+            from . import _core
+
+            pending, about = compile_pending(_core.adaptive_batch), f", about {_COMPILE_SECONDS} s"
+        if pending:
+            announce(f"{label}: compiling once for this installation{about} (later runs load the compiled code)",
+                     enabled=enabled)
 
     def _load_cached(self) -> None:
         if self._table is not None or not self._use_cache:
