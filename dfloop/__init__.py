@@ -16,7 +16,8 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
         "DescribingFunction", "negative_inverse", "StaticElement", "Backlash", "PlayOperator", "Saturation",
         "DeadZone", "Relay", "RelayOperator", "CubicStiffness", "Quantizer", "PreloadedSpring",
         "CoulombViscousFriction", "NumericDF", "LinearThenStatic", "MassBacklash"),
-    "dfloop.describing.interop": ("as_element", "ControlDescribingFunction"),
+    "dfloop.describing.interop": ("as_element", "ControlDescribingFunction", "to_control", "control_loop",
+                                  "control_initial_state"),
     "dfloop.impact": (
         "simulate_impacts", "ImpactParameters", "EventLimitError", "ViscousDamping", "LoadSpring",
         "CoulombFriction", "impact_describing_function", "impact_describing_function_batch",

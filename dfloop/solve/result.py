@@ -307,6 +307,20 @@ class LimitCycles(list):
 
         write_csv(path, [c.to_dict() for c in self])
 
+    def to_control(self):
+        """The closed loop these cycles come from as a python-control ``nlsys`` (:func:`dfloop.control_loop`).
+
+        Simulate it with ``control.input_output_response(loop, T, 0.0, loop.initial_state(cycles[i]))``: the
+        start lies on the harmonic-balance orbit of cycle i. The plant must be a python-control tf/ss.
+        """
+        from ..describing.interop import control_loop
+
+        G, N = getattr(self, "plant", None), getattr(self, "element", None)
+        if G is None or N is None:
+            raise ValueError("these cycles do not record the plant and element they came from: use "
+                             "dfloop.control_loop(G, N)")
+        return control_loop(G, N)
+
     def plot(self, G=None, N=None, **kwargs):
         """Nyquist picture of these cycles (python-control conventions): see :func:`dfloop.plot_nyquist`.
 
