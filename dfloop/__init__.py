@@ -22,7 +22,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
         "DescribingFunction", "Backlash", "PlayOperator", "Saturation", "DeadZone", "Relay", "RelayOperator",
         "CubicStiffness", "Quantizer", "PreloadedSpring", "CoulombViscousFriction", "NumericDF", "LinearThenStatic",
         "MassBacklash"),
-    "dfloop.describing.interop": ("as_element",),
+    "dfloop.describing.interop": ("as_element", "to_control", "control_loop"),
     "dfloop.impact": ("DynamicBacklash", "ViscousDamping", "LoadSpring", "CoulombFriction"),
     # prediction, and the checks of a predicted cycle
     "dfloop.solve": ("predict_limit_cycles", "LimitCycle", "LimitCycles", "ContinuumError"),

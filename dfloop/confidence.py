@@ -73,6 +73,21 @@ class Confidence:
             return None
         return BRACKET * abs(self.amplitude_error), BRACKET * abs(self.frequency_error)
 
+    def to_dict(self) -> dict:
+        """Plain data: ``distortion``, ``amplitude_error``, ``frequency_error``, ``available``, ``reliable``,
+        ``note`` and ``harmonics`` (a list of complex, or None)."""
+        from .export import plain
+
+        return {"distortion": plain(self.distortion), "amplitude_error": plain(self.amplitude_error),
+                "frequency_error": plain(self.frequency_error), "available": self.available,
+                "reliable": self.reliable, "note": self.note, "harmonics": plain(self.harmonics)}
+
+    def to_csv(self, path) -> None:
+        """Write the scalars of :meth:`to_dict` as a one-row CSV file (the harmonics are in ``to_dict``)."""
+        from .export import flat, write_csv
+
+        write_csv(path, [flat(self.to_dict())])
+
     def __repr__(self) -> str:
         if not self.available:
             return f"Confidence(unavailable: {self.note})"

@@ -101,7 +101,7 @@ class Branch:
 
     def __repr__(self) -> str:
         return (f"Branch({self.index}, {self.kind}, p {self.parameter[0]:.6g} -> {self.parameter[-1]:.6g}, "
-                f"A {self.amplitude[0]:.6g} -> {self.amplitude[-1]:.6g}, omega {self.frequency[0]:.6g} -> "
+                f"amplitude {self.amplitude[0]:.6g} -> {self.amplitude[-1]:.6g}, frequency {self.frequency[0]:.6g} -> "
                 f"{self.frequency[-1]:.6g} rad/s, {self.start} -> {self.end})")
 
 
@@ -161,8 +161,8 @@ class SweepEvent:
     def __str__(self) -> str:
         ids = ", ".join(map(str, self.branches))
         where = f"branch{'es' if len(self.branches) > 1 else ''} {ids}" if self.branches else "no branch"
-        return (f"{self.kind} at {self.name}={self.parameter:.9g}: A={self.amplitude:.6g}, "
-                f"omega={self.frequency:.6g} rad/s; {where}" + (f" ({self.detail})" if self.detail else ""))
+        return (f"{self.kind} at {self.name}={self.parameter:.9g}: amplitude={self.amplitude:.6g}, "
+                f"frequency={self.frequency:.6g} rad/s; {where}" + (f" ({self.detail})" if self.detail else ""))
 
 
 @dataclass(eq=False)
@@ -203,18 +203,18 @@ class SweepResult:
     def __repr__(self) -> str:
         p = self.parameter + (f" [{self.unit}]" if self.unit else "")
         head = (f"sweep of {p} over {self.values[0]:.6g} .. {self.values[-1]:.6g} ({self.values.size} values): "
-                f"{len(self.branches)} branch(es), {len(self.events)} event(s); window A in "
-                f"[{self.amplitude_window[0]:.4g}, {self.amplitude_window[1]:.4g}], omega in "
+                f"{len(self.branches)} branch(es), {len(self.events)} event(s); amplitude window "
+                f"[{self.amplitude_window[0]:.4g}, {self.amplitude_window[1]:.4g}], omega window "
                 f"[{self.omega_window[0]:.4g}, {self.omega_window[1]:.4g}] rad/s")
         rows = [head]
         if not self.branches:
             rows.append("no limit cycle in the window at the given values")
         else:
-            rows.append(f"{'#':>3} {'stability':>10} {p + ' from':>16} {'to':>12} {'A from':>12} {'to':>12} "
-                        f"{'omega from':>11} {'to':>11}  start -> end")
+            rows.append(f"{'#':>3} {'stability':>10} {p + ' from':>16} {'to':>12} {'amplitude from':>14} {'to':>12} "
+                        f"{'frequency from':>14} {'to':>11}  start -> end")
             for b in self.branches:
                 rows.append(f"{b.index:>3} {b.kind:>10} {b.parameter[0]:>16.6g} {b.parameter[-1]:>12.6g} "
-                            f"{b.amplitude[0]:>12.6g} {b.amplitude[-1]:>12.6g} {b.frequency[0]:>11.6g} "
+                            f"{b.amplitude[0]:>14.6g} {b.amplitude[-1]:>12.6g} {b.frequency[0]:>14.6g} "
                             f"{b.frequency[-1]:>11.6g}  {b.start} -> {b.end}")
         if self.events:
             rows.append("events:")
@@ -264,6 +264,23 @@ class SweepResult:
             found[key] = (max((e for e in ev if e.parameter < nominal), key=lambda e: e.parameter, default=None),
                           min((e for e in ev if e.parameter > nominal), key=lambda e: e.parameter, default=None))
         return LimitCycleMargin(self.parameter, self.unit, nominal, gain, (lo, hi), *found["stable"], *found["any"])
+    def to_dict(self) -> dict:
+        """Plain data: ``values``, ``branches`` (each: ``index``, ``parameter``, ``amplitude``, ``frequency``,
+        ``stability``, ``value_index`` as lists, ``start``, ``end``, ``kind``), ``events`` (their fields), the
+        windows, ``parameter``, ``unit``, ``amplitude_name``, ``amplitude_unit`` and ``notes``. The solver's
+        cycles at each value are in ``cycles`` (``[c.to_dict() for c in result.cycles]``)."""
+        from dataclasses import asdict
+
+        from .export import plain
+
+        branches = [dict(plain({k: getattr(b, k) for k in ("index", "parameter", "amplitude", "frequency",
+                                                             "stability", "value_index", "start", "end")}),
+                         kind=b.kind) for b in self.branches]
+        return {"values": plain(self.values), "branches": branches,
+                "events": [plain(asdict(e)) for e in self.events],
+                "amplitude_window": plain(self.amplitude_window), "omega_window": plain(self.omega_window),
+                "parameter": self.parameter, "unit": self.unit, "amplitude_name": self.amplitude_name,
+                "amplitude_unit": self.amplitude_unit, "notes": list(self.notes)}
 
     def to_csv(self, path) -> None:
         """Write every branch point: branch, parameter, amplitude, frequency (rad/s), stability, and what

@@ -106,6 +106,25 @@ class ExactCycle:
             return None
         return float(np.max(np.abs(_nontrivial(self.multipliers)), initial=0.0))
 
+    def to_dict(self) -> dict:
+        """Plain data keyed by the attribute names (arrays as lists, complex harmonics and multipliers as
+        Python complex; ``extra`` left out), plus ``distortion`` and ``largest_multiplier``."""
+        from .export import plain
+
+        names = ("success", "message", "predicted", "method", "amplitude", "frequency", "period", "t", "x", "y",
+                 "switching_times", "harmonics", "multipliers", "stable", "amplitude_error", "frequency_error",
+                 "residual", "iterations", "distortion", "largest_multiplier")
+        return {name: plain(getattr(self, name)) for name in names}
+
+    def to_csv(self, path) -> None:
+        """Write the orbit's period, one row per sample: ``t`` (s), ``x`` and ``y`` (ValueError without an orbit)."""
+        from .export import write_csv
+
+        if not self.success:
+            raise ValueError(f"this ExactCycle has no orbit to write ({self.message})")
+        write_csv(path, ({"t": t, "x": x, "y": y} for t, x, y in zip(self.t.tolist(), self.x.tolist(),
+                                                                      self.y.tolist())))
+
     def plot(self, ax=None, *, unit: str = ""):
         """Draw x over one period with the switching (or impact) instants:
         :func:`dfloop.plot.orbit.plot_exact_cycle` (``unit``: x's unit for the axis label). Returns a
@@ -117,11 +136,12 @@ class ExactCycle:
     def __repr__(self) -> str:
         A0, w0 = self.predicted
         if not self.success:
-            return f"ExactCycle(no orbit: {self.message}; predicted A={A0:.6g}, w={w0:.6g} rad/s; {self.method})"
-        return (f"ExactCycle(A={self.amplitude:.8g}, omega={self.frequency:.8g} rad/s, "
+            return (f"ExactCycle(not found: {self.message}; predicted amplitude={A0:.6g}, frequency={w0:.6g} rad/s; "
+                    f"{self.method})")
+        return (f"ExactCycle(amplitude={self.amplitude:.8g}, frequency={self.frequency:.8g} rad/s, "
                 f"{'stable' if self.stable else 'unstable'} (largest non-trivial |multiplier| "
-                f"{self.largest_multiplier:.4g}); DF error: A {100 * self.amplitude_error:+.3g} %, "
-                f"omega {100 * self.frequency_error:+.3g} %; {self.switching_times.size} switches/period, "
+                f"{self.largest_multiplier:.4g}); DF error: amplitude {100 * self.amplitude_error:+.3g} %, "
+                f"frequency {100 * self.frequency_error:+.3g} %; {self.switching_times.size} switches/period, "
                 f"residual {self.residual:.1e}; {self.method})")
 
 

@@ -10,6 +10,11 @@ One small protocol: a *progress sink* is a context manager with ``update(n=1, st
 
 ``enabled=None`` (the default) means "on when the work is long enough to matter": the first line appears only
 after ``delay`` seconds, so quick calls print nothing.
+
+The estimate of the time left counts work, not start-up: the rate is measured from the first completed unit on,
+so a one-time cost before it (numba compiling the impact kernels on first use, loading a cache) does not inflate
+the per-unit time. Such a cost is announced instead, once, by :func:`announce` (e.g. ``compiling once for this
+installation, about 16 s``), when :func:`compile_pending` says the compiled code is not cached yet.
 """
 from __future__ import annotations
 
@@ -18,7 +23,7 @@ import sys
 import time
 from typing import TextIO
 
-__all__ = ["progress_bar", "ProgressSink", "NullProgress"]
+__all__ = ["progress_bar", "ProgressSink", "NullProgress", "announce", "compile_pending"]
 
 
 class NullProgress:
@@ -48,6 +53,7 @@ class ProgressSink(NullProgress):
         self.delay, self.interval = delay, interval
         self.n, self.stage = 0, None
         self.t0 = time.monotonic()
+        self._first = None   # (time, count) at the first completed unit: the rate is measured from there on
         self._last = None
 
     def set_total(self, total: int | None) -> None:
@@ -57,8 +63,10 @@ class ProgressSink(NullProgress):
         elapsed = time.monotonic() - self.t0
         count = f"{self.n}/{self.total}" if self.total else f"{self.n}"
         left = ""
-        if self.total and 0 < self.n < self.total:
-            left = f", ~{elapsed * (self.total - self.n) / self.n:.0f} s left"
+        if self.total and 0 < self.n < self.total and self._first is not None:
+            t1, n1 = self._first
+            if self.n > n1:  # per-unit time from the units done after the first one (start-up excluded)
+                left = f", ~{(time.monotonic() - t1) * (self.total - self.n) / (self.n - n1):.0f} s left"
         stage = f" ({self.stage})" if self.stage else ""
         return f"{self.label}: {count}{stage}, {elapsed:.0f} s elapsed{left}"
 
@@ -67,6 +75,8 @@ class ProgressSink(NullProgress):
         if stage is not None:
             self.stage = stage
         now = time.monotonic()
+        if self._first is None and self.n > 0:
+            self._first = (now, self.n)
         if now - self.t0 < self.delay:
             return
         if self._last is None or now - self._last >= self.interval:
@@ -87,6 +97,7 @@ class _TqdmSink(NullProgress):
         from tqdm.auto import tqdm
 
         self.bar = tqdm(total=total, desc=label, file=stream, delay=delay, leave=False, dynamic_ncols=True)
+        self._started = False
 
     def set_total(self, total: int | None) -> None:
         self.bar.total = total
@@ -95,6 +106,14 @@ class _TqdmSink(NullProgress):
     def update(self, n: int = 1, stage: str | None = None) -> None:
         if stage is not None:
             self.bar.set_postfix_str(stage, refresh=False)
+        if not self._started and n > 0:
+            # tqdm's rate starts at the bar's creation: restart its clock at the first completed unit so the
+            # time left excludes start-up (compilation); the elapsed time shown is then the work's
+            self._started = True
+            self.bar.reset(self.bar.total)   # new clock and rate (tqdm's own method), then the units done
+            self.bar.n = self.bar.last_print_n = n
+            self.bar.refresh()
+            return
         self.bar.update(n)
 
     def close(self) -> None:
@@ -128,3 +147,34 @@ def progress_bar(label: str, total: int | None = None, *, enabled: bool | None =
     if getattr(stream, "isatty", lambda: False)():
         return _TqdmSink(label, total, stream, delay)
     return ProgressSink(label, total, stream, delay)
+
+
+def announce(message: str, *, enabled: bool | None = None, stream: TextIO | None = None) -> None:
+    """Print one line about a one-time cost before it is paid (e.g. first-use compilation).
+
+    Follows the same switches as :func:`progress_bar`: nothing when ``enabled`` is False or
+    ``DFLOOP_PROGRESS=0``; ``stream`` is ``sys.stderr`` by default.
+    """
+    if enabled is False or os.environ.get("DFLOOP_PROGRESS", "1") == "0":
+        return
+    print(message, file=sys.stderr if stream is None else stream, flush=True)
+
+
+def compile_pending(*dispatchers) -> bool | None:
+    """Whether calling these numba functions (``@njit(cache=True)``) will compile them first.
+
+    True when one of them has neither a compiled signature in this process nor an entry in numba's on-disk
+    cache (a fresh installation, or sources changed since), False when all are ready, None when numba's cache
+    cannot be inspected (an unknown numba version): say nothing then.
+    """
+    try:
+        for d in dispatchers:
+            if d.signatures:
+                continue
+            cache = getattr(d, "_cache", None)
+            index = cache._cache_file._load_index()  # numba's cache index: {(signature, target): file}
+            if not index:
+                return True
+        return False
+    except Exception:  # noqa: BLE001 - numba internals differ between versions: unknown, not an error
+        return None

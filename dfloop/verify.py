@@ -100,7 +100,7 @@ class Verification:
         (a run ends farther from it than it started), or ``"inconclusive"``.
     message : str
         What the runs found, in words: where they settled (amplitude, frequency, how periodic), or that they
-        diverged or decayed to rest.
+        diverged or came to rest (and where: x at rest).
     method : str
         How the loop was simulated (exact flow, DOP853, fixed step, impact engine).
     runs : (LoopSimulation, LoopSimulation) or None
@@ -125,6 +125,24 @@ class Verification:
     def stable(self) -> bool:
         return self.verdict == "stable"
 
+    def to_dict(self) -> dict:
+        """One flat row: ``amplitude``, ``frequency``, ``verdict``, ``perturbation``, ``message``, ``method`` and
+        each run's steady state as ``inside_amplitude``, ``inside_frequency``, ``inside_periodicity``,
+        ``inside_n_periods``, ``inside_oscillating`` (``outside_...`` likewise)."""
+        from dataclasses import asdict
+
+        from .export import flat
+
+        return flat({"amplitude": self.amplitude, "frequency": self.frequency, "verdict": self.verdict,
+                     "perturbation": self.perturbation, "message": self.message, "method": self.method,
+                     "inside": asdict(self.inside), "outside": asdict(self.outside)})
+
+    def to_csv(self, path) -> None:
+        """Write :meth:`to_dict` as a one-row CSV file."""
+        from .export import write_csv
+
+        write_csv(path, [self.to_dict()])
+
     def plot(self, ax=None, *, unit: str = "", periods: float | None = 20):
         """The two runs x(t) over the band of the predicted (and exact) amplitude:
         :func:`dfloop.plot.orbit.plot_verification`. Returns a :class:`control.ControlPlot`."""
@@ -133,19 +151,30 @@ class Verification:
         return plot_verification(self, ax, unit=unit, periods=periods)
 
     def __repr__(self) -> str:
-        return (f"Verification({self.verdict}: predicted A={self.amplitude:.4g}, w={self.frequency:.4g}; "
-                f"from inside -> A={self.inside.amplitude:.4g}, w={self.inside.frequency:.4g}; "
-                f"from outside -> A={self.outside.amplitude:.4g}, w={self.outside.frequency:.4g}"
-                + (f"; {self.message}" if self.message else "") + ")")
+        # one readable line per fact: the verdict, the prediction, then each run's outcome once (``message``)
+        words = self.message or (f"from inside: amplitude={self.inside.amplitude:.4g}; from outside: "
+                                 f"amplitude={self.outside.amplitude:.4g}")
+        return (f"Verification({self.verdict}: predicted amplitude={self.amplitude:.4g}, "
+                f"frequency={self.frequency:.4g} rad/s; {words}" + (f"; {self.method}" if self.method else "") + ")")
 
 
-def _describe(run: SteadyState, diverged: bool, A0: float, w: float, d: float) -> str:
-    if diverged:
-        return "diverged"
+def _describe(run: SteadyState, sim: LoopSimulation, A0: float, d: float) -> str:
+    """One run's outcome in words (what the signal did, not what a model of it would say)."""
+    if sim.diverged:
+        return f"diverged (|x| beyond {_DIVERGED:.0e} times the start amplitude)"
     if not run.oscillating:
-        return f"decayed to rest (|x| <= {run.amplitude:.3g})"
-    where = "near the prediction" if abs(run.amplitude - A0) < d * A0 / 2 else "elsewhere"
-    return (f"settled {where}: A={run.amplitude:.4g}, w={run.frequency:.4g} rad/s "
+        # no zero crossing left: say where x ended and whether it still moves; a backlash or dead-zone loop rests
+        # anywhere in the element's dead band (output 0), not at x = 0
+        tail = sim.x[-max(sim.x.size // 10, 1):]
+        x_end, y_end = float(sim.x[-1]), float(sim.y[-1])
+        if float(np.max(np.abs(tail - x_end))) <= 1e-9 * max(A0, abs(x_end)):
+            where = f"came to rest at x = {x_end:.4g}"
+            if y_end == 0.0 and x_end != 0.0:
+                where += " (element output 0 there: inside its play or dead band)"
+            return where
+        return f"stopped oscillating (no zero crossing in the last tenth of the run), x = {x_end:.4g} at the end"
+    where = "near the prediction" if abs(run.amplitude - A0) < d * A0 / 2 else "away from the prediction"
+    return (f"settled {where}: amplitude={run.amplitude:.4g}, frequency={run.frequency:.4g} rad/s "
             f"({'periodic' if run.periodicity < 1e-3 else f'periodicity {run.periodicity:.2g}'})")
 
 
@@ -184,7 +213,7 @@ def verify_cycle(G, N, cycle, *, perturbation: float = 0.3, periods: float = 80,
             runs.append(SteadyState(float(np.max(np.abs(sim.x))), 0.0, 0.0, 0, False))
         else:
             runs.append(steady_state(sim.t, sim.x, measure_periods))
-        words.append(_describe(runs[-1], sim.diverged, A0, w, d))
+        words.append(_describe(runs[-1], sim, A0, d))
     offset = d * A0
     errors = [abs(r.amplitude - A0) for r in runs]
     if all(e < offset / 2 for e in errors):

@@ -5,6 +5,9 @@ Y1 sin(w t + phi1); N(A, w) = (Y1 / A) exp(j phi1). Amplitudes are amplitudes of
 """
 from __future__ import annotations
 
+import difflib
+import functools
+import inspect
 from abc import ABC, abstractmethod
 
 import numpy as np
@@ -13,6 +16,36 @@ from .._checks import amplitude_array, frequency_array
 from ..errors import DfloopError
 
 __all__ = ["DescribingFunction", "negative_inverse"]
+
+#: Names a newcomer tries for an element's parameter, and the parameter dfloop uses (docs/design.md, vocabulary):
+#: the slope or gain of every linear part is ``k``, a clearance ``h``, a dead band's half-width ``delta``
+#: (``dead_zone`` for a relay), a relay's output level ``M``, a saturation's input breakpoint ``limit``.
+PARAMETER_SYNONYMS = {"slope": "k", "gain": "k", "stiffness": "k", "clearance": "h", "gap": "h", "play": "h",
+                      "backlash": "h", "width": "delta", "deadband": "delta", "dead_band": "delta",
+                      "deadzone": "dead_zone", "level": "M", "hyst": "hysteresis",
+                      "saturation": "limit", "lim": "limit", "ub": "limit"}
+
+
+class UnknownParameterError(DfloopError, TypeError):
+    """An element built with a keyword it does not have: a ``TypeError`` like Python's own for an unexpected
+    keyword, and a :class:`~dfloop.DfloopError` (``ValueError``) like every other bad input to dfloop."""
+
+
+def _parameter_hint(cls: type, init, kwargs: dict) -> str | None:
+    """Why ``cls(**kwargs)`` cannot bind: each unknown keyword with the parameter it probably means."""
+    params = [p for p in inspect.signature(init).parameters if p != "self"]
+    unknown = [k for k in kwargs if k not in params]
+    if not unknown:
+        return None
+    hints = []
+    for name in unknown:
+        guess = PARAMETER_SYNONYMS.get(name.lower())
+        if guess not in params:
+            close = difflib.get_close_matches(name, params, n=1, cutoff=0.6)
+            guess = close[0] if close else None
+        hints.append(f"{name!r} (did you mean {guess!r}?)" if guess else repr(name))
+    return (f"{cls.__name__} has no parameter {', '.join(hints)}; its parameters are "
+            f"{', '.join(params)} (docs/elements.md)")
 
 
 class DescribingFunction(ABC):
@@ -44,6 +77,27 @@ class DescribingFunction(ABC):
     frequency_dependent: bool = False
     input_name: str = "A"
     input_unit: str = ""
+
+    def __init_subclass__(cls, **kwargs):
+        # an unknown keyword (Saturation(limit=1, slope=2)) names the parameter meant (k), not only Python's
+        # "unexpected keyword argument"; the wrapped __init__ keeps its signature (inspect follows __wrapped__)
+        super().__init_subclass__(**kwargs)
+        init = cls.__dict__.get("__init__")
+        if init is None or getattr(init, "_names_parameters", False):
+            return
+
+        @functools.wraps(init)
+        def __init__(self, *args, **kw):
+            try:
+                init(self, *args, **kw)
+            except TypeError as err:
+                hint = _parameter_hint(type(self), init, kw)
+                if hint is None:
+                    raise
+                raise UnknownParameterError(hint) from err
+
+        __init__._names_parameters = True
+        cls.__init__ = __init__
 
     def __call__(self, A, omega=None) -> np.ndarray:
         """Evaluate N(A, omega).

@@ -125,6 +125,10 @@ class _RigidMass:
     def __call__(self, s):
         return 1.0 / (self.mass * s * s)
 
+    def state_space(self):
+        """(A, B, C) of 1 / (m s^2): state (position, velocity), input force, output position."""
+        return np.array([[0.0, 1.0], [0.0, 0.0]]), np.array([0.0, 1.0 / self.mass]), np.array([1.0, 0.0])
+
     def __repr__(self) -> str:
         return f"1/({self.mass:g} s^2)"
 

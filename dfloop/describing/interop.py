@@ -22,21 +22,55 @@ a callable f(x) without one                                :class:`~dfloop.Numer
 A plain callable is treated as a static map y = f(x) unless it has memory: ``hysteretic=True``, an object
 whose ``_isstatic()`` (python-control's convention) is False and whose outputs differ between rising and
 falling input sweeps (probed over amplitudes 1e-6 ... 1e6), is wrapped as a rate-independent hysteretic operator.
+
+The other direction, in one call, is :func:`to_control` (dfloop element -> python-control object), and
+:func:`control_loop` builds the closed loop of the paper's Fig. 1 as a python-control ``nlsys`` for
+``control.input_output_response``. The two calling conventions differ, which is why a conversion is needed:
+python-control calls a nonlinearity as its time-domain map y = F(x) (``describing_function(..., try_method=False)``,
+its simulations), a dfloop element's call is its describing function N(A, w).
+
+=====================================================  =========================================================
+dfloop element                                         :func:`to_control` gives
+=====================================================  =========================================================
+static (Saturation, DeadZone, Relay without             ``ControlNonlinearity``: ``F(x)`` the static map,
+hysteresis, CubicStiffness, NumericDF of a function,   ``_isstatic()`` True, ``describing_function(A)`` dfloop's
+...)                                                   N(A); ``to_nlsys()`` a static ``nlsys``
+hysteretic (Backlash, Relay with hysteresis,           ``ControlNonlinearity``: ``F(x)`` the stateful operator from
+hysteretic NumericDF)                                  rest (python-control's own convention for its
+                                                       friction_backlash_nonlinearity), ``_isstatic()`` False;
+                                                       ``to_nlsys(dt)`` a discrete-time ``nlsys`` whose state is
+                                                       the play (Backlash, Relay only)
+dynamic (LinearThenStatic, MassBacklash)               a continuous-time ``nlsys``: the linear block's states and
+                                                       the static part's play
+DynamicBacklash                                        ``ValueError``: impacts (velocity jumps) are no ``nlsys``;
+                                                       :func:`dfloop.verify.simulate_loop` runs its loop exactly
+=====================================================  =========================================================
+
+Backlash and relays share one state model: the play operator c = clip(c, x - a, x + a) of half-width a (a = h/2
+for backlash, output k c; a = the hysteresis for a relay, output M [c > d] - M [c < -d] with d its dead zone,
+which switches on at x = d + a and off at d - a exactly as :class:`~dfloop.Relay`). In continuous time the play
+moves with the input's rate when engaged, dc/dt = dx/dt if |x - c| >= a and x moves outward, else 0; inside
+:func:`control_loop` that rate is known from the plant's state (x = r - C z, dx/dt = -C (A z + B y) for a
+constant r), so the loop is an ordinary ``nlsys``. The output uses clip(c, x - a, x + a), so the integration
+error of c never shows as a violation of the play.
 """
 from __future__ import annotations
 
 import copy
+import functools
 import sys
 from typing import Any
 
 import numpy as np
 
 from .._checks import finite, nonnegative, positive
+from ..errors import DfloopError
 from .base import DescribingFunction
+from .composition import LinearThenStatic
 from .numeric import NumericDF
-from .static import Backlash, Relay, Saturation
+from .static import Backlash, Relay, Saturation, StaticElement
 
-__all__ = ["as_element", "ControlDescribingFunction"]
+__all__ = ["as_element", "ControlDescribingFunction", "to_control", "control_loop", "control_initial_state"]
 
 _PROBE_SCALES = 10.0 ** np.arange(-6, 7)  # input scales at which a callable is probed for memory
 _SWEEP = np.arange(-8, 9) / 8.0  # exact binary fractions: rising and falling sweeps visit identical inputs
@@ -240,3 +274,371 @@ def as_element(obj, *, hysteretic: bool | None = None) -> DescribingFunction:
     if hysteretic:
         return NumericDF(obj, hysteretic=True)
     return NumericDF(_vectorised(obj), hysteretic=False)
+
+
+# ------------------------------------------------------------------------- dfloop -> python-control
+class _StaticModel:
+    """y = f(x), no state."""
+
+    nstates = 0
+    needs_rate = False
+
+    def __init__(self, f):
+        self.f = f
+
+    def output(self, s, u: float) -> float:
+        return float(np.asarray(self.f(np.array([u], dtype=float)), dtype=float).reshape(-1)[0])
+
+    def rate(self, s, u: float, udot: float) -> np.ndarray:
+        return np.empty(0)
+
+    def step(self, s, u: float) -> np.ndarray:
+        return np.empty(0)
+
+    def initial(self, X: complex, w: float) -> np.ndarray:
+        return np.empty(0)
+
+
+class _PlayModel:
+    """A play of half-width ``a`` (state c, the driven side) followed by ``out(c)``."""
+
+    nstates = 1
+    needs_rate = True
+
+    def __init__(self, a: float, out):
+        self.a, self.out = a, out
+
+    def _engaged(self, c: float, u: float) -> float:
+        return min(max(c, u - self.a), u + self.a)
+
+    def output(self, s, u: float) -> float:
+        return float(self.out(self._engaged(float(s[0]), u)))
+
+    def rate(self, s, u: float, udot: float) -> np.ndarray:
+        gap = u - float(s[0])
+        moving = (gap >= self.a and udot > 0.0) or (gap <= -self.a and udot < 0.0)
+        return np.array([udot if moving else 0.0])
+
+    def step(self, s, u: float) -> np.ndarray:
+        return np.array([self._engaged(float(s[0]), u)])
+
+    def initial(self, X: complex, w: float) -> np.ndarray:
+        # the play at t = 0 in the periodic regime of x = Im(X e^{jwt}): since the last extremum -/+|X| it was
+        # held at -|X| + a (+|X| - a) until dragged along at x -/+ a; at rest (c = 0) if |X| <= a
+        amp, x0 = abs(X), X.imag
+        if amp <= self.a:
+            return np.array([0.0])
+        rising = X.real >= 0.0          # dx/dt(0) = w Re(X)
+        return np.array([max(self.a - amp, x0 - self.a) if rising else min(amp - self.a, x0 + self.a)])
+
+
+class _LinearModel:
+    """A strictly proper linear block (A, B, C) followed by an element model (input C z)."""
+
+    needs_rate = False
+
+    def __init__(self, A, B, C, inner):
+        self.A, self.B, self.C, self.inner = A, B, C, inner
+        self.n = A.shape[0]
+        self.nstates = self.n + inner.nstates
+
+    def output(self, s, u: float) -> float:
+        return self.inner.output(s[self.n:], float(self.C @ s[:self.n]))
+
+    def rate(self, s, u: float, udot: float) -> np.ndarray:
+        z = s[:self.n]
+        zdot = self.A @ z + self.B * u
+        return np.concatenate([zdot, self.inner.rate(s[self.n:], float(self.C @ z), float(self.C @ zdot))])
+
+    def step(self, s, u: float) -> np.ndarray:
+        raise ValueError("a linear block has no discrete-time model here: use the continuous-time system")
+
+    def initial(self, X: complex, w: float) -> np.ndarray:
+        Z = np.linalg.solve(1j * w * np.eye(self.n) - self.A, self.B) * X   # the block's periodic state phasor
+        return np.concatenate([Z.imag, self.inner.initial(complex(self.C @ Z), w)])
+
+
+def _relay_output(M: float, d: float):
+    return lambda c: M * (float(c > d) - float(c < -d))
+
+
+def _ss_matrices(G, name: str, *, proper_only: bool = True):
+    """(A, B, C) of a SISO python-control tf/ss (``ValueError`` naming ``name`` otherwise)."""
+    import control as ct
+
+    if not isinstance(G, (ct.TransferFunction, ct.StateSpace)) or G.ninputs != 1 or G.noutputs != 1:
+        raise ValueError(f"{name} must be a SISO python-control tf or ss system, got {type(G).__name__}: {G!r}")
+    if not G.isctime():
+        raise ValueError(f"{name} must be a continuous-time system, got dt = {G.dt!r}")
+    s = ct.ss(G)
+    if proper_only and np.any(np.asarray(s.D) != 0):
+        raise ValueError(f"{name} must be strictly proper (D = 0: a direct feedthrough closes an algebraic loop "
+                         f"through the element), got D = {float(np.asarray(s.D).ravel()[0])!r}")
+    return np.asarray(s.A, float), np.asarray(s.B, float)[:, 0], np.asarray(s.C, float)[0]
+
+
+def _model(N):
+    """The state model of an element for python-control systems, or None (no model: say why at the caller)."""
+    if isinstance(N, StaticElement):
+        return _StaticModel(N.output)
+    if type(N) is Backlash:
+        k = N.k
+        return _PlayModel(0.5 * N.h, lambda c: k * c)
+    if type(N) is Relay:
+        out = _relay_output(N.M, N.dead_zone)
+        return _StaticModel(np.vectorize(out, otypes=[float])) if N.hysteresis == 0.0 else _PlayModel(N.hysteresis, out)
+    if isinstance(N, NumericDF) and not N.hysteretic:
+        return _StaticModel(N.element)
+    if isinstance(N, ControlDescribingFunction):
+        f = N.nonlinearity
+        static = getattr(f, "_isstatic", None)
+        return _StaticModel(_vectorised(f)) if callable(f) and callable(static) and static() else None
+    if isinstance(N, LinearThenStatic):
+        ct = sys.modules.get("control")
+        inner = _model(N.static)
+        if inner is None:
+            return None
+        if callable(getattr(N.linear, "state_space", None)):   # dfloop's own blocks (MassBacklash's rigid mass)
+            return _LinearModel(*N.linear.state_space(), inner)
+        if ct is None or not isinstance(N.linear, ct.LTI):
+            return None
+        return _LinearModel(*_ss_matrices(N.linear, "the element's linear block"), inner)
+    return None
+
+
+def _no_model(N) -> ValueError:
+    why = ("its impacts (velocity jumps) are no python-control nlsys; dfloop.verify.simulate_loop(G, N, "
+           "amplitude, frequency) runs its closed loop on the exact impact engine"
+           if hasattr(N, "simulate_loop") else
+           "it has no state model here (a hysteretic NumericDF keeps its state inside its operator; a LinearThenStatic "
+           "needs a python-control tf/ss linear block)")
+    return ValueError(f"N = {N!r} cannot be converted to a python-control system: {why}")
+
+
+def _fresh_operator(N):
+    """The element's time-domain operator at rest (None for a static map)."""
+    if isinstance(N, NumericDF):
+        return copy.deepcopy(N.element) if N.hysteretic else None
+    if isinstance(N, StaticElement) or (type(N) is Relay and N.hysteresis == 0.0):
+        return None
+    if isinstance(N, ControlDescribingFunction):
+        static = getattr(N.nonlinearity, "_isstatic", None)
+        return None if callable(static) and static() else copy.deepcopy(N.nonlinearity)
+    return N.operator()
+
+
+@functools.lru_cache(maxsize=1)
+def _nonlinearity_class():
+    import control as ct
+
+    class ControlNonlinearity(ct.DescribingFunctionNonlinearity):
+        """A dfloop element as a python-control nonlinearity (made by :func:`dfloop.to_control`).
+
+        ``F(x)`` is the element's time-domain map (scalar or array input, applied in order for a hysteretic
+        element, whose state starts at rest; :meth:`reset` puts it back), ``describing_function(A)`` is dfloop's
+        N(A) (python-control's convention: ``ValueError`` "cannot evaluate describing function for A < 0"),
+        ``_isstatic()`` says whether F has memory, and ``element`` is the dfloop element.
+        """
+
+        def __init__(self, element):
+            super().__init__()
+            self.element = element
+            self._static_map = None
+            self.reset()
+            if self._op is None:
+                model = _model(element)
+                self._static_map = model.f if model is not None else element.output
+
+        def reset(self) -> None:
+            """Put a hysteretic element's state back at rest (no effect for a static map)."""
+            self._op = _fresh_operator(self.element)
+
+        def __call__(self, x):
+            if self._op is None:
+                y = np.asarray(self._static_map(np.asarray(x, dtype=float)), dtype=float)
+                return float(y) if y.ndim == 0 else y
+            arr = np.asarray(x, dtype=float)
+            if arr.ndim == 0:
+                return float(self._op(float(arr)))
+            return np.array([float(self._op(float(v))) for v in arr.ravel()]).reshape(arr.shape)
+
+        def describing_function(self, A):
+            a = float(A)
+            if not a >= 0.0:
+                raise ValueError(f"cannot evaluate describing function for A < 0 (got A = {A!r})")
+            try:
+                return complex(self.element(a))
+            except DfloopError:
+                if a == 0.0:  # no limit at A = 0 (a numeric DF): python-control then computes it from F
+                    raise NotImplementedError("no describing-function value at A = 0 for this element") from None
+                raise
+
+        def _isstatic(self) -> bool:
+            return self._op is None
+
+        def to_nlsys(self, dt: float | None = None, name: str | None = None):
+            """The element as a python-control ``nlsys`` (input ``x``, output ``y``).
+
+            A static element gives a static ``nlsys`` (no state). Backlash and relays with hysteresis give a
+            discrete-time ``nlsys`` with sampling period ``dt`` (s, > 0) whose state is the play (the exact
+            operator at the samples); in continuous time the play needs its input's rate, which only a closed
+            loop provides: :func:`dfloop.control_loop`.
+            """
+            model = _model(self.element)
+            if model is None:
+                raise _no_model(self.element)
+            if model.nstates == 0:
+                return ct.nlsys(None, lambda t, s, u, p: np.array([model.output(s, float(np.ravel(u)[0]))]), inputs=["x"],
+                                outputs=["y"], name=name)
+            if dt is None:
+                raise ValueError(f"dt is required for {self.element!r}: its play needs the input's rate in continuous "
+                                 "time; give a sampling period dt > 0 (discrete-time nlsys), or build the closed "
+                                 "loop with dfloop.control_loop(G, element)")
+            dt = positive("dt", dt)
+            return ct.nlsys(lambda t, s, u, p: model.step(s, float(np.ravel(u)[0])),
+                            lambda t, s, u, p: np.array([model.output(s, float(np.ravel(u)[0]))]),
+                            inputs=["x"], outputs=["y"], states=model.nstates, dt=dt, name=name)
+
+        def __repr__(self) -> str:
+            return f"to_control({self.element!r})"
+
+    return ControlNonlinearity
+
+
+def to_control(element):
+    """A dfloop element as a python-control object, in one call.
+
+    Amplitude-only elements give a ``control.DescribingFunctionNonlinearity`` whose call ``F(x)`` is the
+    element's time-domain map (the static function, or the hysteretic operator starting at rest) and whose
+    ``describing_function(A)`` is dfloop's N(A): it goes into ``control.describing_function`` (with or without
+    ``try_method``), ``describing_function_response`` and ``describing_function_plot``. Its ``to_nlsys()`` is
+    the element as a ``control.nlsys``. Frequency-dependent elements with a state model (a linear block followed
+    by a static element, e.g. :class:`~dfloop.MassBacklash`) give a continuous-time ``control.nlsys`` (input
+    ``x``, output ``y``; its ``element`` attribute is the dfloop element). The table at the top of
+    :mod:`dfloop.describing.interop` lists every case.
+
+    Parameters
+    ----------
+    element : DescribingFunction or anything :func:`as_element` accepts
+
+    Returns
+    -------
+    control.DescribingFunctionNonlinearity or control.NonlinearIOSystem
+
+    Raises
+    ------
+    ValueError
+        For an element without a python-control form (the dynamic backlash: impacts), saying what to use.
+
+    Examples
+    --------
+    >>> import control as ct, dfloop as df
+    >>> F = df.to_control(df.Backlash(h=2.0))
+    >>> [F(x) for x in (0.5, 2.0, 1.5)]          # the play: dragged at 2.0, held on the way back
+    [0.0, 1.0, 1.0]
+    """
+    import control as ct
+
+    N = as_element(element)
+    if not N.frequency_dependent:
+        return _nonlinearity_class()(N)
+    model = _model(N)
+    if model is None:
+        raise _no_model(N)
+
+    def rhs(t, s, u, p):
+        return model.rate(s, float(np.ravel(u)[0]), 0.0)
+
+    out = ct.nlsys(rhs, lambda t, s, u, p: np.array([model.output(s, float(np.ravel(u)[0]))]), inputs=["x"], outputs=["y"],
+                   states=model.nstates, name=f"{type(N).__name__}")
+    out.element = N
+    return out
+
+
+def _cycle_pair(cycle) -> tuple[float, float]:
+    if hasattr(cycle, "amplitude") and hasattr(cycle, "frequency"):
+        return positive("cycle amplitude", cycle.amplitude), positive("cycle frequency", cycle.frequency)
+    try:
+        A0, w = cycle
+    except (TypeError, ValueError):
+        raise ValueError(f"cycle must be a LimitCycle or an (amplitude, frequency) pair, got {cycle!r}") from None
+    return positive("cycle amplitude", A0), positive("cycle frequency", w)
+
+
+def control_initial_state(G, N, cycle) -> np.ndarray:
+    """State of :func:`control_loop` (G, N) on the harmonic-balance orbit of a cycle, at t = 0 (x = 0, rising).
+
+    The plant state is Im((jw I - A)^-1 B N(A0, w) A0) (the steady state of G driven by the element output's
+    fundamental); the element's state is the one a full period of x = A0 sin(w t) leaves (the play; a linear
+    block's steady state). Use it as ``X0`` of ``control.input_output_response``.
+
+    Parameters
+    ----------
+    cycle : LimitCycle or (amplitude, frequency)
+        Amplitude in N's input unit, frequency in rad/s.
+    """
+    N = as_element(N)
+    A, B, _ = _ss_matrices(G, "G")
+    A0, w = _cycle_pair(cycle)
+    model = _model(N)
+    if model is None:
+        raise _no_model(N)
+    n_val = complex(N(A0, w) if N.frequency_dependent else N(A0))
+    X = np.linalg.solve(1j * w * np.eye(A.shape[0]) - A, B) * n_val * A0
+    return np.concatenate([X.imag, model.initial(complex(A0), w)])
+
+
+def control_loop(G, N, *, name: str = "dfloop_loop"):
+    """The closed loop of the paper's Fig. 1 as a python-control ``nlsys`` for ``control.input_output_response``.
+
+    Reference r (the input, 0 for the autonomous loop), element input x = r - c, element output y, plant output
+    c = G y. States: the plant's (``control.ss(G)``) then the element's (the play of backlash and hysteretic
+    relays; a linear block's states). Outputs ``x`` and ``y``. The element's time-domain map is dfloop's own
+    (see the module notes for the play in continuous time).
+
+    Parameters
+    ----------
+    G : control.TransferFunction or control.StateSpace
+        SISO, continuous-time, strictly proper (D = 0).
+    N : DescribingFunction or anything :func:`as_element` accepts
+        Any element with a state model (all but the dynamic backlash and hysteretic ``NumericDF``).
+
+    Returns
+    -------
+    control.NonlinearIOSystem
+        With inputs ``["r"]``, outputs ``["x", "y"]``; its ``initial_state(cycle)`` gives
+        :func:`control_initial_state` for this loop.
+
+    Examples
+    --------
+    >>> import control as ct, numpy as np, dfloop as df
+    >>> G, N = ct.tf([8], [1, 2, 2, 1]), df.Saturation(1.0)
+    >>> loop = df.control_loop(G, N)
+    >>> c = df.predict_limit_cycles(G, N)[0]
+    >>> T = np.linspace(0, 40 * c.period, 4001)
+    >>> resp = ct.input_output_response(loop, T, 0.0, loop.initial_state(c))
+    """
+    import control as ct
+
+    N = as_element(N)
+    A, B, C = _ss_matrices(G, "G")
+    model = _model(N)
+    if model is None:
+        raise _no_model(N)
+    n = A.shape[0]
+
+    def update(t, z, u, p):
+        zp, s = z[:n], z[n:]
+        x = float(np.ravel(u)[0]) - float(C @ zp)
+        y = model.output(s, x)
+        zdot = A @ zp + B * y
+        return np.concatenate([zdot, model.rate(s, x, -float(C @ zdot))])
+
+    def output(t, z, u, p):
+        x = float(np.ravel(u)[0]) - float(C @ z[:n])
+        return np.array([x, model.output(z[n:], x)])
+
+    loop = ct.nlsys(update, output, inputs=["r"], outputs=["x", "y"], states=n + model.nstates, name=name)
+    loop.initial_state = lambda cycle: control_initial_state(G, N, cycle)
+    loop.element = N
+    return loop

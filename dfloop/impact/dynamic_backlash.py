@@ -20,6 +20,7 @@ nothing.
 from __future__ import annotations
 
 import math
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
@@ -31,6 +32,7 @@ from .. import _checks
 from ..errors import DfloopError
 from ..describing.base import DescribingFunction
 from ..describing.time_model import Impact
+from ..progress import compile_pending
 from ..tables import Table1D, Table2D, TableSettings, TableStore, TableValues, settings_dict
 from .limits import BETA_NO_IMPACT
 from .model import DEFAULT_CHATTER_TOL
@@ -42,6 +44,16 @@ U_START = math.log(BETA_NO_IMPACT) + 1e-9      # first table point (ln beta), ju
 _MIN_Y_WINDOW = 0.25                           # 2-D tables: narrowest ln w range built (two lines at least)
 _BLOCK_BASE_INTERVALS = 8                      # a canonical block holds 8 base intervals
 _PRIOR_SIMULATIONS_PER_BLOCK = 60              # progress estimate (per start) before the first block is done
+_COMPILE_SECONDS = 16                          # first-use compilation of the table driver (docs/impact.md, JIT row)
+_EFFECTS_COMPILE_SECONDS = 15                  # first-use compilation of the effects engine (fresh numba cache)
+_MOTIONS = {"simulated": 0}                    # motions simulated by every DynamicBacklash in this process
+_MOTIONS_LOCK = threading.Lock()
+
+
+def motions_simulated() -> int:
+    """Motions simulated for tables by every :class:`DynamicBacklash` in this process so far (a scene run
+    reports the difference over the run: what the run actually simulated, whichever elements did it)."""
+    return _MOTIONS["simulated"]
 
 
 def _effects_tuple(effects) -> tuple:
@@ -269,13 +281,33 @@ class DynamicBacklash(DescribingFunction):
         """Run ``extend(progress, checkpoint)`` through the store (progress bar, save after every unit), with
         the sampler ticking the bar once per simulation."""
         def run(progress, checkpoint, tick):
-            self.sampler.tick = tick
+            def counted():
+                tick()
+                with _MOTIONS_LOCK:
+                    _MOTIONS["simulated"] += 1
+
+            self.sampler.tick = counted
             try:
                 extend(progress, checkpoint)
             finally:
                 self.sampler.tick = None
 
-        self.store.build(run, n_units, _PRIOR_SIMULATIONS_PER_BLOCK * (1 + self.starts))
+        self.store.build(run, n_units, _PRIOR_SIMULATIONS_PER_BLOCK * (1 + self.starts),
+                         first_use=self._first_use())
+
+    def _first_use(self) -> str | None:
+        """What to announce before the first sample: numba compiling the table driver (once per installation)."""
+        if self.effects:
+            from . import _effects_core
+
+            pending, seconds = compile_pending(_effects_core.run_engine), _EFFECTS_COMPILE_SECONDS
+        else:
+            from . import _core
+
+            pending, seconds = compile_pending(_core.adaptive_batch), _COMPILE_SECONDS
+        if not pending:
+            return None
+        return f"compiling once for this installation, about {seconds} s (later runs load the compiled code)"
 
     def _check_beta(self, beta_hi: float) -> None:
         if beta_hi > self.beta_max:

@@ -12,13 +12,50 @@ from typing import Iterable
 
 from ..errors import DfloopError
 
-__all__ = ["SceneError", "Problem", "closest", "dotted"]
+__all__ = ["SceneError", "Problem", "closest", "dotted", "validator_message"]
 
 
 def closest(name: str, valid: Iterable[str]) -> str | None:
-    """The valid name closest to ``name`` (difflib ratio >= 0.6), or None."""
-    matches = difflib.get_close_matches(str(name), [str(v) for v in valid], n=1, cutoff=0.6)
+    """The valid name closest to ``name``: a known synonym (``slope`` -> ``k``, see
+    :data:`dfloop.describing.base.PARAMETER_SYNONYMS`) when it is valid, else by spelling (difflib ratio >= 0.6),
+    or None."""
+    from ..describing.base import PARAMETER_SYNONYMS
+
+    valid = [str(v) for v in valid]
+    synonym = PARAMETER_SYNONYMS.get(str(name).lower())
+    if synonym in valid:
+        return synonym
+    matches = difflib.get_close_matches(str(name), valid, n=1, cutoff=0.6)
     return matches[0] if matches else None
+
+
+def _items(n: int) -> str:
+    return f"{n} value{'s' if n != 1 else ''}"
+
+
+def validator_message(kind: str, ctx: dict | None, value) -> str:
+    """A schema validator's complaint in the project's words (never the validator library's phrasing).
+
+    ``kind`` is the validator's error type (``too_short``, ``greater_than_equal``, ...), ``ctx`` its limits,
+    ``value`` the offending input. Kinds without a wording of their own become ``invalid value ...``.
+    """
+    ctx = ctx or {}
+    size = len(value) if isinstance(value, (list, tuple, str)) else None
+    if kind == "too_short" and size is not None:
+        return f"needs at least {_items(ctx.get('min_length', 0))}, got {_items(size)}: {value!r}"
+    if kind == "too_long" and size is not None:
+        return f"takes at most {_items(ctx.get('max_length', 0))}, got {_items(size)}: {value!r}"
+    bounds = {"greater_than": (">", "gt"), "greater_than_equal": (">=", "ge"), "less_than": ("<", "lt"),
+              "less_than_equal": ("<=", "le"), "multiple_of": ("a multiple of", "multiple_of")}
+    if kind in bounds:
+        words, key = bounds[kind]
+        return f"must be {words} {ctx.get(key)!r}, got {value!r}"
+    if kind == "finite_number":
+        return f"must be a finite number, got {value!r}"
+    if kind in ("string_too_short", "string_too_long"):
+        limit = ctx.get("min_length", ctx.get("max_length"))
+        return f"must have {'at least' if kind == 'string_too_short' else 'at most'} {limit} character(s), got {value!r}"
+    return f"invalid value {value!r}"
 
 
 def dotted(loc: Iterable) -> str:

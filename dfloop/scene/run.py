@@ -136,6 +136,14 @@ def _save(fig: Any, path: Path) -> Path:
     return path
 
 
+def _motions_simulated() -> int:
+    """Motions simulated for tables in this process so far (0 when no tabulated element was ever built)."""
+    import sys
+
+    module = sys.modules.get("dfloop.impact.dynamic_backlash")
+    return 0 if module is None else module.motions_simulated()
+
+
 def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], None] = print,
               progress: bool | None = None) -> SceneReport:
     """Run a scene's stages: predict cycles, verify them if asked, sweep if asked, draw the plots asked for,
@@ -170,6 +178,7 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
     plots = scene.plots if predict else ()
     planned = predict + len(plots) + (scene.sweep is not None) + (figure is not None)
 
+    motions_before = _motions_simulated()
     with progress_bar(scene.name, planned, enabled=progress) as bar:
 
         def stage(name: str, fn: Callable[[], Any]) -> Any:
@@ -184,11 +193,6 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
         if predict:
             report.cycles = stage("predict limit cycles", lambda: predict_cycles(scene))
             log(repr(report.cycles))
-        simulations = getattr(scene.element, "n_simulations", None)
-        if simulations is not None:  # tabulated elements: how much of the table this run had to simulate
-            report.notes.append(f"{type(scene.element).__name__}: {simulations} motions simulated in this run "
-                                f"({'table served from the cache' if simulations == 0 else 'table built and cached'})")
-            log(f"[{scene.name}] {report.notes[-1]}")
         if scene.verify and predict:
             from dfloop.verify import verify_cycle
 
@@ -237,6 +241,13 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
                 return _save(fig, out / f"{scene.name}_residual.png")
 
             report.files.append(stage("plot residual map", residual))
+    # counted after every stage (prediction, verification, sweep, figure: each may build tables, and a figure
+    # builds one per curve family), so the note says what this run did, not what it had done so far
+    simulations = _motions_simulated() - motions_before
+    if hasattr(scene.element, "n_simulations") or simulations:
+        report.notes.append(f"{type(scene.element).__name__}: {simulations} motions simulated in this run "
+                            f"({'tables served from the cache' if simulations == 0 else 'tables built and cached'})")
+        log(f"[{scene.name}] {report.notes[-1]}")
     path = out / f"{scene.name}_report.md"
     path.write_text(report.to_markdown())
     report.files.append(path)

@@ -17,7 +17,7 @@ from typing import Annotated, Any, Literal, Union
 from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Field, Tag, TypeAdapter, ValidationError,
                       model_validator)
 
-from .errors import Problem, closest, dotted
+from .errors import Problem, closest, dotted, validator_message
 
 __all__ = ["SceneFile", "SceneMeta", "TfPlant", "ZpkPlant", "SsPlant", "Analysis", "Sweep", "SweepRange", "Chart", "ChartAxis",
            "Figure",
@@ -370,7 +370,7 @@ def _problem(error: dict) -> Problem:
         return Problem(key, f"wrong type: got {type(value).__name__} {value!r}", None, expected)
     if kind == "value_error":
         return Problem(key, error["msg"].removeprefix("Value error, "), None, None)
-    return Problem(key, f"{error['msg'][0].lower()}{error['msg'][1:]}, got {value!r}", None, expected)
+    return Problem(key, validator_message(kind, error.get("ctx"), value), None, expected)
 
 
 @lru_cache(maxsize=1)

@@ -6,6 +6,24 @@ from dataclasses import dataclass, field
 __all__ = ["LimitCycle", "LimitCycles", "JumpCrossing", "GridReport"]
 
 
+def exact_words(ex, long: bool = False) -> str:
+    """What the exact-orbit search established, in the project's words.
+
+    ``exact: amplitude=..., frequency=... rad/s, stable`` for an orbit found; for none, ``exact: artefact (...)``
+    only when the search classified the DF cycle as an artefact (``classification == "artefact"``: evidence
+    that no orbit exists there), otherwise ``exact: not found (reason)``, since a failed search alone does not
+    prove that no orbit exists. ``long`` keeps the whole reason (``str(cycle)``); the table shortens it.
+    """
+    if ex.success:
+        return (f"exact: amplitude={ex.amplitude:.6g}, frequency={ex.frequency:.6g} rad/s, "
+                f"{'stable' if ex.stable else 'unstable'}")
+    reason = str(ex.message)
+    if not long and len(reason) > 60:
+        reason = reason[:57].rstrip() + "..."
+    kind = getattr(ex, "classification", None)
+    return f"exact: artefact ({reason})" if kind == "artefact" else f"exact: not found ({reason})"
+
+
 @dataclass(frozen=True)
 class LimitCycle:
     """One predicted limit cycle, a root of 1 + G(jw) N(A, w) = 0.
@@ -85,18 +103,48 @@ class LimitCycle:
 
         return 2 * math.pi / self.frequency
 
+    def to_dict(self) -> dict:
+        """The cycle as one flat row of plain data (``pandas.DataFrame([c.to_dict() for c in cycles])``).
+
+        Keys: the attribute names (``amplitude``, ``frequency``, ``stability``, ``residual``, ...; complex ``G``
+        and ``N`` as ``G_real``/``G_imag``, ``N_real``/``N_imag``), the confidence as ``confidence_distortion``,
+        ``confidence_amplitude_error``, ``confidence_frequency_error``, ``confidence_available``,
+        ``confidence_reliable``, and with ``exact`` attached ``exact_success``, ``exact_amplitude``,
+        ``exact_frequency``, ``exact_stable``, ``exact_message`` (see :mod:`dfloop.export`).
+        """
+        from ..export import flat
+
+        fields = {name: getattr(self, name) for name in (
+            "amplitude", "frequency", "stability", "residual", "relative_residual", "loeb_determinant",
+            "loeb_conditioning", "G", "N", "on_edge", "valid", "n_error")}
+        conf = self.confidence
+        if conf is not None:
+            fields["confidence"] = {"available": conf.available, "reliable": conf.reliable,
+                                    "distortion": conf.distortion, "amplitude_error": conf.amplitude_error,
+                                    "frequency_error": conf.frequency_error}
+        if self.exact is not None:
+            ex = self.exact
+            fields["exact"] = {"success": ex.success, "amplitude": ex.amplitude, "frequency": ex.frequency,
+                               "stable": ex.stable, "message": ex.message}
+        return flat(fields)
+
+    def to_csv(self, path) -> None:
+        """Write :meth:`to_dict` as a one-row CSV file (header = its keys)."""
+        from ..export import write_csv
+
+        write_csv(path, [self.to_dict()])
+
     def __str__(self) -> str:
         flags = ("" if self.valid else " [N not valid here: an average over irregular motion]")
         flags += " [on window edge]" if self.on_edge else ""
         conf = self.confidence
         if conf is not None and getattr(conf, "available", False):
-            flags += (f" [distortion {100 * conf.distortion:.2g} %, est. DF error A {100 * conf.amplitude_error:+.2g} %, "
-                      f"omega {100 * conf.frequency_error:+.2g} %]")
+            flags += (f" [distortion {100 * conf.distortion:.2g} %, est. DF error: amplitude "
+                      f"{100 * conf.amplitude_error:+.2g} %, frequency {100 * conf.frequency_error:+.2g} %]")
         if self.exact is not None:
             ex = self.exact
-            flags += (f" [exact: A={ex.amplitude:.6g}, omega={ex.frequency:.6g} rad/s, {'stable' if ex.stable else 'unstable'}]"
-                      if ex.success else f" [exact: no orbit ({ex.message})]")
-        return (f"LimitCycle(A={self.amplitude:.6g}, omega={self.frequency:.6g} rad/s, {self.stability}, "
+            flags += f" [{exact_words(ex, long=True)}]"
+        return (f"LimitCycle(amplitude={self.amplitude:.6g}, frequency={self.frequency:.6g} rad/s, {self.stability}, "
                 f"|1+GN|={self.residual:.1e}{flags})")
 
 
@@ -130,7 +178,7 @@ class JumpCrossing:
 
     def __str__(self) -> str:
         lo, hi = self.N_sides
-        return (f"JumpCrossing(A={self.amplitude:.6g}, omega={self.frequency:.6g} rad/s, N jumps "
+        return (f"JumpCrossing(amplitude={self.amplitude:.6g}, frequency={self.frequency:.6g} rad/s, N jumps "
                 f"{lo:.4g} -> {hi:.4g}, winding {self.winding:+d})")
 
 
@@ -217,7 +265,7 @@ class LimitCycles(list):
                  + [f"  {j}" for j in self.jump_crossings]) if self.jump_crossings else []
         if not self:
             return "\n".join([head] + jumps)
-        rows = [f"{'#':>3} {'amplitude':>12} {'omega [rad/s]':>14} {'stability':>10} {'|1+GN|':>9} "
+        rows = [f"{'#':>3} {'amplitude':>12} {'frequency [rad/s]':>18} {'stability':>10} {'|1+GN|':>9} "
                 f"{'Loeb det':>10} {'Re G':>11} {'Im G':>11} {'distortion':>10}  notes"]
         for i, c in enumerate(self):
             conf = c.confidence
@@ -228,15 +276,50 @@ class LimitCycles(list):
                                                ("DF unreliable (distortion > 5 %)", available and not conf.reliable))
                               if on)
             if c.exact is not None:
-                ex = c.exact
-                notes += ("; " if notes else "") + (
-                    f"exact A={ex.amplitude:.6g}, omega={ex.frequency:.6g}, {'stable' if ex.stable else 'unstable'}"
-                    if ex.success else "exact: no orbit")
-            rows.append(f"{i:>3} {c.amplitude:>12.6g} {c.frequency:>14.6g} {c.stability:>10} {c.residual:>9.1e} "
+                notes += ("; " if notes else "") + exact_words(c.exact)
+            rows.append(f"{i:>3} {c.amplitude:>12.6g} {c.frequency:>18.6g} {c.stability:>10} {c.residual:>9.1e} "
                         f"{c.loeb_determinant:>10.3g} {c.G.real:>11.4g} {c.G.imag:>11.4g} {distortion:>10}  {notes}")
         return "\n".join([head] + rows + jumps)
 
     __str__ = __repr__
+
+    def to_dict(self) -> dict:
+        """Plain data: ``cycles`` (a list of :meth:`LimitCycle.to_dict` rows, DataFrame-ready), the windows,
+        ``window_source``, ``grid_shape``, ``n_evaluations``, ``jump_crossings`` (rows of their fields) and
+        ``grid_report`` (its fields, or None)."""
+        from dataclasses import asdict
+
+        from ..export import flat, plain
+
+        return {"cycles": [c.to_dict() for c in self],
+                "amplitude_window": plain(self.amplitude_window), "omega_window": plain(self.omega_window),
+                "window_source": plain(self.window_source), "grid_shape": plain(self.grid_shape),
+                "n_evaluations": plain(self.n_evaluations),
+                "jump_crossings": [flat({"amplitude": j.amplitude, "frequency": j.frequency,
+                                         "resolution": j.resolution, "winding": j.winding, "G": j.G,
+                                         "N_low": j.N_sides[0], "N_high": j.N_sides[1]})
+                                   for j in self.jump_crossings],
+                "grid_report": None if self.grid_report is None else plain(asdict(self.grid_report))}
+
+    def to_csv(self, path) -> None:
+        """Write one row per cycle (the keys of :meth:`LimitCycle.to_dict`) to ``path``."""
+        from ..export import write_csv
+
+        write_csv(path, [c.to_dict() for c in self])
+
+    def to_control(self):
+        """The closed loop these cycles come from as a python-control ``nlsys`` (:func:`dfloop.control_loop`).
+
+        Simulate it with ``control.input_output_response(loop, T, 0.0, loop.initial_state(cycles[i]))``: the
+        start lies on the harmonic-balance orbit of cycle i. The plant must be a python-control tf/ss.
+        """
+        from ..describing.interop import control_loop
+
+        G, N = getattr(self, "plant", None), getattr(self, "element", None)
+        if G is None or N is None:
+            raise ValueError("these cycles do not record the plant and element they came from: use "
+                             "dfloop.control_loop(G, N)")
+        return control_loop(G, N)
 
     @property
     def plant_response(self):

@@ -16,7 +16,7 @@ import threading
 from pathlib import Path
 from typing import Any, Callable
 
-from ..progress import progress_bar
+from ..progress import announce, progress_bar
 from . import cache as _cache
 from .table1d import Table1D
 from .table2d import Table2D
@@ -92,18 +92,21 @@ class TableStore:
         self.loaded_from_cache = True
 
     def build(self, extend: Callable[[Callable | None, Callable[[], None], Callable[[], None]], None],
-              n_units: int, prior_per_unit: int) -> None:
+              n_units: int, prior_per_unit: int, *, first_use: str | None = None) -> None:
         """Run ``extend(progress, checkpoint, tick)`` with a progress bar (time left), saving at every checkpoint.
 
         ``extend`` grows :attr:`table`; it calls ``tick()`` once per sample computed (from any thread) and
         ``checkpoint()`` after each of the ``n_units`` blocks or lines it completes. The bar starts from a prior
         of ``prior_per_unit`` samples per unit and corrects its total from the units done. ``progress`` is the
-        user's callable (or None), to be passed to the table's own build.
+        user's callable (or None), to be passed to the table's own build. ``first_use`` (if given) is announced
+        on the progress channel before any sample: a one-time cost such as a first-use compilation.
         """
         user = self.progress if callable(self.progress) else None
         enabled = None if self.progress is None else (False if user is not None else bool(self.progress))
         lock = threading.Lock()
         count = {"samples": 0, "units": 0}
+        if first_use:
+            announce(f"{self.label}: {first_use}", enabled=enabled)
         with progress_bar(self.label, n_units * prior_per_unit, enabled=enabled) as bar:
             def tick():
                 with lock:
