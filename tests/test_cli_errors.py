@@ -39,7 +39,7 @@ def one_line_error(err: str, *fragments: str) -> None:
 @pytest.fixture
 def cache(tmp_path, monkeypatch):
     """A cache directory with 3 tables of the current code version and 2 of an old one, and a foreign file."""
-    import dfloop.impact.cache as c
+    import dfloop.tables.cache as c
 
     directory = tmp_path / "cache"
     monkeypatch.setenv("DFLOOP_CACHE_DIR", str(directory))

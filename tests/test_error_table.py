@@ -456,7 +456,7 @@ def _a_file() -> Path:
 
 def _full_cache() -> str:
     """A cache directory holding one table (of the current code version)."""
-    from dfloop.impact.cache import save_table
+    from dfloop.tables.cache import save_table
 
     directory = _SCRATCH / "cache"
     save_table(directory / "t.npz", {"x": np.arange(3.0)}, "k", {}, {})
