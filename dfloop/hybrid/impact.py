@@ -25,7 +25,7 @@ from ..impact import _engine
 from ..impact._effects_core import D, IMPACT_A, IMPACT_B, SEPARATION, U, V1, X1
 from ..impact.effects import effect_terms
 from ..impact.kernel import EventLimitError
-from .loop import Flow, HybridError, LoopModel
+from .loop import Flow, HybridError, LoopModel, saltation
 
 __all__ = ["ImpactLoop"]
 
@@ -211,8 +211,6 @@ class ImpactLoop(LoopModel):
             f_minus = A @ self._segment_end_state(run, i)
             J = self._reset_matrix(run, i + 1)
             f_plus = sysm.mats[run.slot[i + 1]] @ run.z0[i + 1]
-            r = self._event_row(run, i)
-            rf = r @ f_minus
-            S = J if rf == 0.0 else J + np.outer(f_plus - J @ f_minus, r) / rf
-            Phi = S @ Phi
+            S = saltation(J, f_minus, f_plus, self._event_row(run, i), grazing=0.0)
+            Phi = (J if S is None else S) @ Phi     # r . f- = 0 exactly: a reset without a moving surface
         return core.expm_taylor(sysm.mats[run.slot[last]] * (run.t_end - run.t0[last])) @ Phi

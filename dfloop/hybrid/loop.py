@@ -22,7 +22,7 @@ from scipy.linalg import expm
 from ..describing.time_model import OUT_OF_RANGE, PiecewiseAffine
 from ..impact._effects_core import admissible, propagate, rows_on_zero, scan_steps
 
-__all__ = ["HybridLoop", "Flow", "HybridError", "plant_matrices", "plant_system"]
+__all__ = ["LoopModel", "HybridLoop", "Flow", "HybridError", "plant_matrices", "plant_system", "saltation"]
 
 STEPS_PER_SCALE = 32
 _NEVER = -2                   # target of the dummy guard of a mode without guards (1 >= 0 always holds)
@@ -56,6 +56,19 @@ def plant_matrices(G, *, what: str = "the exact flow"):
         raise ValueError(f"G must be strictly proper (D = 0) for {what} (a direct feedthrough closes an "
                          f"algebraic loop through the element); got D = {D!r}")
     return A, B, C
+
+
+def saltation(R: np.ndarray, f_minus: np.ndarray, f_plus: np.ndarray, r: np.ndarray,
+              grazing: float = _GRAZING) -> np.ndarray | None:
+    """Saltation matrix S = R + (f+ - R f-) r^T / (r . f-) of a switch on the surface r . z = 0.
+
+    R is the Jacobian of the reset, f-/f+ the vector fields before and after. None when the flow grazes the
+    surface (|r . f-| <= ``grazing`` |r| |f-|): the jump of the flow map's derivative is then undefined.
+    """
+    denom = float(r @ f_minus)
+    if abs(denom) <= grazing * np.linalg.norm(r) * np.linalg.norm(f_minus):
+        return None
+    return R + np.outer(f_plus - R @ f_minus, r) / denom
 
 
 @dataclass
@@ -292,11 +305,10 @@ class HybridLoop(LoopModel):
             A_new = self.matrices[target]
             f_plus = A_new @ z_plus
             if M is not None:
-                denom = float(r @ f_minus)
-                if abs(denom) <= _GRAZING * np.linalg.norm(r) * np.linalg.norm(f_minus):
+                S = saltation(R, f_minus, f_plus, r)
+                if S is None:
                     raise HybridError(f"grazing switch at t = {t:.6g} s (the guard is tangent to the flow): "
                                       "the monodromy is undefined there")
-                S = R + np.outer(f_plus - R @ f_minus, r) / denom
                 M = S @ (expm(A * (t - seg_t)) @ M)
             z = z_plus
             if not admissible(A_new, self.rows[target], z):

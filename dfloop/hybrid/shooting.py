@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..harmonics import upward_crossings
 from .loop import Flow, HybridError
 from .model import start_on_prediction
 
@@ -50,12 +51,8 @@ class Orbit:
 
 def detect_period(t: np.ndarray, x: np.ndarray) -> float | None:
     """Mean spacing (s) of the upward crossings of x through its mean level; None with fewer than 2 crossings."""
-    d = np.asarray(x, float) - float(np.mean(x))
-    k = np.flatnonzero((d[:-1] < 0) & (d[1:] >= 0))
-    if k.size < 2:
-        return None
-    tc = t[k] - d[k] * (t[k + 1] - t[k]) / (d[k + 1] - d[k])
-    return float((tc[-1] - tc[0]) / (tc.size - 1))
+    tc = upward_crossings(t, x, float(np.mean(x)))
+    return float((tc[-1] - tc[0]) / (tc.size - 1)) if tc.size >= 2 else None
 
 
 def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, max_iterations: int,
