@@ -25,7 +25,7 @@ from ..impact import _engine
 from ..impact._effects_core import D, IMPACT_A, IMPACT_B, SEPARATION, U, V1, X1
 from ..impact.effects import effect_terms
 from ..impact.kernel import EventLimitError
-from .loop import Flow, HybridError, LoopModel, saltation
+from .loop import Flow, HybridError, LoopModel, piecewise_fourier, saltation
 
 __all__ = ["ImpactLoop"]
 
@@ -139,15 +139,9 @@ class ImpactLoop(LoopModel):
     def fourier(self, flow: Flow, t_end: float, omega: float, harmonics: int) -> np.ndarray:
         """Exact (1/T) int_0^T x(t) e^{-j k w t} dt, k = 1..harmonics, T = t_end (Van Loan per segment)."""
         run = flow.run
-        starts = run.t0
-        ends = np.append(run.t0[1:], t_end)
-        keep = ends > starts
-        starts, ends = starts[keep], ends[keep]
-        out = np.zeros(harmonics, complex)
-        for k in range(1, harmonics + 1):
-            for c in np.flatnonzero(self.x_row[:-1]):
-                out[k - 1] += self.x_row[c] * np.sum(run.fourier_integrals(starts, ends, k * omega, int(c)))
-        return out / t_end
+        ends = np.append(flow.t0[1:], t_end)
+        pieces = ((self.system.mats[s], z0, t0, t1) for t0, z0, s, t1 in zip(flow.t0, flow.z0, run.slot, ends))
+        return piecewise_fourier(pieces, t_end, omega, harmonics, self.x_row)
 
     # -------------------------------------------------------------------------------------- monodromy
 

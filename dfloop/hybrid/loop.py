@@ -22,7 +22,8 @@ from scipy.linalg import expm
 from ..describing.time_model import OUT_OF_RANGE, PiecewiseAffine
 from ..impact._effects_core import admissible, propagate, rows_on_zero, scan_steps
 
-__all__ = ["LoopModel", "HybridLoop", "Flow", "HybridError", "plant_matrices", "plant_system", "saltation"]
+__all__ = ["LoopModel", "HybridLoop", "Flow", "HybridError", "plant_matrices", "plant_system", "saltation",
+           "piecewise_fourier"]
 
 STEPS_PER_SCALE = 32
 _NEVER = -2                   # target of the dummy guard of a mode without guards (1 >= 0 always holds)
@@ -69,6 +70,29 @@ def saltation(R: np.ndarray, f_minus: np.ndarray, f_plus: np.ndarray, r: np.ndar
     if abs(denom) <= grazing * np.linalg.norm(r) * np.linalg.norm(f_minus):
         return None
     return R + np.outer(f_plus - R @ f_minus, r) / denom
+
+
+def piecewise_fourier(pieces, t_end: float, omega: float, harmonics: int, row: np.ndarray) -> np.ndarray:
+    """Exact (1/T) int_0^T (row . z(t)) e^{-j k w t} dt, k = 1..harmonics, T = ``t_end``, of a piecewise-linear
+    trajectory: ``pieces`` yields (A, z0, t0, t1), z' = A z on [t0, t1) from z(t0) = z0.
+
+    Each piece's integral is one block exponential (Van Loan) per harmonic: for y = e^{-jkw s} z and Y' = y,
+    exp([[A - jkw I, 0], [I, 0]] tau) [z0, 0] = [y(tau), Y(tau)].
+    """
+    out = np.zeros(harmonics, complex)
+    big = None
+    for A, z0, t0, t1 in pieces:
+        if t1 <= t0:
+            continue
+        N = A.shape[0]
+        if big is None or big.shape[0] != 2 * N:
+            big = np.zeros((2 * N, 2 * N), complex)
+            big[N:, :N] = np.eye(N)
+        start = np.concatenate([z0, np.zeros(N)])
+        for k in range(1, harmonics + 1):
+            big[:N, :N] = A - 1j * k * omega * np.eye(N)
+            out[k - 1] += np.exp(-1j * k * omega * t0) * (row @ (expm(big * (t1 - t0)) @ start)[N:])
+    return out / t_end
 
 
 @dataclass
@@ -241,23 +265,10 @@ class HybridLoop(LoopModel):
         return out
 
     def fourier(self, flow: Flow, t_end: float, omega: float, harmonics: int) -> np.ndarray:
-        """Exact (1/T) int_0^T x(t) e^{-j k w t} dt for k = 1..harmonics, T = t_end (complex, (K,)).
-
-        Each segment's integral comes from one block exponential (Van Loan) per harmonic.
-        """
-        N = self.size
+        """Exact (1/T) int_0^T x(t) e^{-j k w t} dt for k = 1..harmonics, T = t_end (complex, (K,))."""
         ends = np.append(flow.t0[1:], t_end)
-        out = np.zeros((harmonics, N), complex)
-        big = np.zeros((2 * N, 2 * N), complex)
-        big[N:, :N] = np.eye(N)
-        for t0, z0, mode, t1 in zip(flow.t0, flow.z0, flow.modes, ends):
-            if t1 <= t0:
-                continue
-            for k in range(1, harmonics + 1):
-                big[:N, :N] = self.matrices[mode] - 1j * k * omega * np.eye(N)
-                y = expm(big * (t1 - t0)) @ np.concatenate([z0, np.zeros(N)])
-                out[k - 1] += np.exp(-1j * k * omega * t0) * y[N:]
-        return (out / t_end) @ self.x_row
+        pieces = ((self.matrices[mode], z0, t0, t1) for t0, z0, mode, t1 in zip(flow.t0, flow.z0, flow.modes, ends))
+        return piecewise_fourier(pieces, t_end, omega, harmonics, self.x_row)
 
     # -------------------------------------------------------------------------------------------- flow
 
