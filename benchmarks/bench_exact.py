@@ -11,7 +11,9 @@ functions). A third compares exact_cycle on the smooth (DOP853) path with a plai
 Jacobian) at the same accuracy, best of 5 runs each.
 
 Run: python benchmarks/bench_exact.py [--repeat N] [--write]   (--write also writes benchmarks/results/bench_exact.md;
---repeat N: the cost table takes the best of N runs of each call, steadier on a shared machine; default 1)
+--repeat N: the cost table takes the best of N runs of each call, steadier on a shared machine; default 1;
+--cpu: times are this process's CPU time (time.process_time) instead of wall time: on a machine shared with other
+jobs the wall time of a single-threaded call includes the time others run, its CPU time does not)
 """
 from __future__ import annotations
 
@@ -44,15 +46,16 @@ LOOPS = [
 
 
 REPEAT = int(sys.argv[sys.argv.index("--repeat") + 1]) if "--repeat" in sys.argv[1:] else 1
+CLOCK = time.process_time if "--cpu" in sys.argv[1:] else time.perf_counter
 
 
 def timed(fn, repeat: int = 1):
-    """(best wall time of ``repeat`` calls, the last result)."""
+    """(best time of ``repeat`` calls, the last result); wall time, or CPU time with --cpu."""
     best = float("inf")
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0 = CLOCK()
         out = fn()
-        best = min(best, time.perf_counter() - t0)
+        best = min(best, CLOCK() - t0)
     return best, out
 
 
@@ -140,7 +143,8 @@ def main() -> str:
             "Errors are (predicted - exact) / exact. Estimated: `cycle_confidence` (one two-term harmonic-balance "
             "step); within 2x: |true| <= 2 |estimated| for both amplitude and frequency (the bracket `Confidence.bracket` "
             "claims when the distortion is at most 5 %).\n\n" + "\n".join(acc)
-            + f"\n\nCost of all cycles of a loop, {'one run' if REPEAT == 1 else f'best of {REPEAT} runs'} each, as ratios to `predict_limit_cycles` on the same loop "
+            + f"\n\nCost of all cycles of a loop, {'one run' if REPEAT == 1 else f'best of {REPEAT} runs'} each"
+            + (" (CPU time)" if CLOCK is time.process_time else "") + ", as ratios to `predict_limit_cycles` on the same loop "
             "(timings on a shared machine vary ~2x between runs):\n\n" + "\n".join(cost) + "\n"
             + "\nSmooth element (DOP853 path): exact_cycle against a plain scipy shooting of the same loop (best of 5 "
             "runs each; the last column says both reach the same orbit):\n\n" + smooth_versus_scipy())
