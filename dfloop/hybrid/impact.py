@@ -50,6 +50,7 @@ class ImpactLoop(LoopModel):
 
     def __init__(self, A, B, C, D_, model: Impact, force_scale: float, frequency: float):
         self.model = model
+        self.plant = (A, B)
         self.nc = nc = A.shape[0]
         n = 5 + nc
         force2 = np.zeros(n)                      # force on M2 = -c = -(C s + D x1)

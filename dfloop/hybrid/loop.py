@@ -159,6 +159,7 @@ class HybridLoop(LoopModel):
     settle_periods = 0.0   # the predicted sinusoid sets the element's state: no transient needed before shooting
 
     def __init__(self, A, B, C, element: PiecewiseAffine, time_scale: float):
+        self.plant = (A, B)
         n = A.shape[0]
         self.n, self.element = n, element
         self.size = n + element.n_states + 1

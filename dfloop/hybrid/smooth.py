@@ -66,6 +66,7 @@ class SmoothLoop(LoopModel):
     def __init__(self, A, B, C, f: Callable, name: str, time_scale: float, slope: Callable | None = None):
         self.n = A.shape[0]
         self.size = self.n + 1
+        self.plant = (A, B)
         self.A, self.B, self.C, self.f, self.name = A, B, C, f, name
         self.x_row = np.append(-C, 0.0)
         self.max_step = time_scale / _MAX_STEPS_PER_SCALE
