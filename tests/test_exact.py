@@ -400,3 +400,18 @@ def test_smooth_orbit_harmonics_and_multiplier_against_an_independent_run():
         fd[:, j] = (run[0] - run[1]) / (2 * h)
     lam = np.linalg.eigvals(fd)
     assert np.min(np.abs(lam - mu)) < 1e-6 and np.min(np.abs(lam - 1.0)) < 1e-6
+
+
+@pytest.mark.parametrize("G,N", [(ct.tf([8], [1, 2, 2, 1]), df.Saturation(1.0)),
+                                 (ct.tf([2], [1, 3, 2, 0]), df.Relay(M=1.0, hysteresis=0.1)),
+                                 (ct.tf([1], [1, 3, 3, 1]), df.CubicStiffness(10.0, -1.0))], ids=["sat", "relay", "cubic"])
+def test_settling_first_finds_the_same_stable_orbit(G, N):
+    """settle_periods > 0: nodes on the motion settled from the prediction, period detected on it; the orbit is the
+    one found from the predicted sinusoid itself."""
+    c = df.predict_limit_cycles(G, N)[0]
+    direct = exact_cycle(G, N, c, settle_periods=0)
+    settled = exact_cycle(G, N, c, settle_periods=12.5)
+    assert direct.success and settled.success and settled.stable
+    assert settled.frequency == pytest.approx(direct.frequency, rel=1e-9)
+    assert settled.amplitude == pytest.approx(direct.amplitude, rel=1e-9)
+    np.testing.assert_allclose(np.abs(settled.multipliers), np.abs(direct.multipliers), atol=1e-7)
