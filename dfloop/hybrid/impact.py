@@ -73,10 +73,6 @@ class ImpactLoop(LoopModel):
         """Element input x = -c (N) for state(s) z (last axis)."""
         return np.asarray(z) @ self.x_row
 
-    def output(self, z, mode=0) -> np.ndarray:
-        """Element output x1 (m)."""
-        return np.asarray(z)[..., X1]
-
     def start(self, s0: np.ndarray, x_history=None) -> tuple[np.ndarray, int]:
         """Masses at rest with the gap centred, plant in state s0 (the model's initial state)."""
         z = np.concatenate([[0.0, 0.0, 0.5 * self.model.h, 0.0], s0, [1.0]])
