@@ -131,9 +131,11 @@ class LoopModel:
     batched = False        # flow_many does more than one flow per node
     switching = True       # flows switch modes (the shooting keeps its first node away from switches)
 
-    def flow_many(self, zs, modes, t_end: float, *, monodromy: bool = False, max_events: int = 10_000) -> list:
-        """The flows from every (zs[i], modes[i]) over [0, t_end]."""
-        return [self.flow(z, mo, t_end, monodromy=monodromy, max_events=max_events) for z, mo in zip(zs, modes)]
+    def flow_many(self, zs, modes, t_end, *, monodromy: bool = False, max_events: int = 10_000) -> list:
+        """The flows from every (zs[i], modes[i]) over [0, t_end] (a float, or one per node)."""
+        ends = np.broadcast_to(np.asarray(t_end, float), (len(zs),))
+        return [self.flow(z, mo, te, monodromy=monodromy, max_events=max_events)
+                for z, mo, te in zip(zs, modes, ends)]
 
     def join(self, flows: list, period: float, *, max_events: int = 10_000) -> "Flow":
         """The flow (with its monodromy) over one period from the first node of converged node flows."""
