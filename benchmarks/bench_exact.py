@@ -10,7 +10,10 @@ functions). A third compares exact_cycle on the smooth (DOP853) path with a plai
 (solve_ivp DOP853 + scipy.optimize.root on (s0, T) with the phase condition x(0) = 0, finite-difference
 Jacobian) at the same accuracy, best of 5 runs each.
 
-Run: python benchmarks/bench_exact.py [--write]   (--write also writes benchmarks/results/bench_exact.md)
+Run: python benchmarks/bench_exact.py [--repeat N] [--write]   (--write also writes benchmarks/results/bench_exact.md;
+--repeat N: the cost table takes the best of N runs of each call, steadier on a shared machine; default 1;
+--cpu: times are this process's CPU time (time.process_time) instead of wall time: on a machine shared with other
+jobs the wall time of a single-threaded call includes the time others run, its CPU time does not)
 """
 from __future__ import annotations
 
@@ -42,10 +45,18 @@ LOOPS = [
 ]
 
 
-def timed(fn):
-    t0 = time.perf_counter()
-    out = fn()
-    return time.perf_counter() - t0, out
+REPEAT = int(sys.argv[sys.argv.index("--repeat") + 1]) if "--repeat" in sys.argv[1:] else 1
+CLOCK = time.process_time if "--cpu" in sys.argv[1:] else time.perf_counter
+
+
+def timed(fn, repeat: int = 1):
+    """(best time of ``repeat`` calls, the last result); wall time, or CPU time with --cpu."""
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = CLOCK()
+        out = fn()
+        best = min(best, CLOCK() - t0)
+    return best, out
 
 
 def scipy_shooting(G, N, amplitude: float, frequency: float, rtol: float = 1e-12):
@@ -85,16 +96,9 @@ def smooth_versus_scipy() -> str:
     exact_cycle(G, N, c)
     scipy_shooting(G, N, c.amplitude, c.frequency)
 
-    def best(fn):
-        times = []
-        for _ in range(5):
-            dt, out = timed(fn)
-            times.append(dt)
-        return min(times), out
-
-    t_pred, _ = best(lambda: df.predict_limit_cycles(G, N))
-    t_ex, e = best(lambda: exact_cycle(G, N, c))
-    t_sp, (A_sp, w_sp) = best(lambda: scipy_shooting(G, N, c.amplitude, c.frequency))
+    t_pred, _ = timed(lambda: df.predict_limit_cycles(G, N), 5)
+    t_ex, e = timed(lambda: exact_cycle(G, N, c), 5)
+    t_sp, (A_sp, w_sp) = timed(lambda: scipy_shooting(G, N, c.amplitude, c.frequency), 5)
     return ("| loop | predict (ms) | exact_cycle / predict | scipy shooting / predict | exact_cycle / scipy "
             "| exact A, w | scipy - exact (relative) A, w |\n|---|---|---|---|---|---|---|\n"
             f"| {name} | {1e3 * t_pred:.1f} | {t_ex / t_pred:.1f} | {t_sp / t_pred:.1f} | {t_ex / t_sp:.2f} | "
@@ -110,13 +114,13 @@ def main() -> str:
         t_pred, cycles = timed(lambda: df.predict_limit_cycles(G, N))     # warm-up (JIT compilation, caches)
         cycle_confidence(G, N, cycles[0].amplitude, cycles[0].frequency)
         exact_cycle(G, N, cycles[0])
-        t_pred, cycles = timed(lambda: df.predict_limit_cycles(G, N))
+        t_pred, cycles = timed(lambda: df.predict_limit_cycles(G, N), REPEAT)
         t_conf = t_exact = 0.0
         method = ""
         for i, c in enumerate(cycles):
-            dt, conf = timed(lambda: cycle_confidence(G, N, c.amplitude, c.frequency))
+            dt, conf = timed(lambda: cycle_confidence(G, N, c.amplitude, c.frequency), REPEAT)
             t_conf += dt
-            dt, e = timed(lambda: exact_cycle(G, N, c))
+            dt, e = timed(lambda: exact_cycle(G, N, c), REPEAT)
             t_exact += dt
             method = e.method.split(" (")[0]
             pred = f"{c.amplitude:.5g}, {c.frequency:.5g}"
@@ -139,7 +143,8 @@ def main() -> str:
             "Errors are (predicted - exact) / exact. Estimated: `cycle_confidence` (one two-term harmonic-balance "
             "step); within 2x: |true| <= 2 |estimated| for both amplitude and frequency (the bracket `Confidence.bracket` "
             "claims when the distortion is at most 5 %).\n\n" + "\n".join(acc)
-            + "\n\nCost of all cycles of a loop, one run each, as ratios to `predict_limit_cycles` on the same loop "
+            + f"\n\nCost of all cycles of a loop, {'one run' if REPEAT == 1 else f'best of {REPEAT} runs'} each"
+            + (" (CPU time)" if CLOCK is time.process_time else "") + ", as ratios to `predict_limit_cycles` on the same loop "
             "(timings on a shared machine vary ~2x between runs):\n\n" + "\n".join(cost) + "\n"
             + "\nSmooth element (DOP853 path): exact_cycle against a plain scipy shooting of the same loop (best of 5 "
             "runs each; the last column says both reach the same orbit):\n\n" + smooth_versus_scipy())

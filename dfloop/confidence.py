@@ -26,7 +26,6 @@ __all__ = ["Confidence", "cycle_confidence"]
 
 _SAMPLES = 2048       # samples of one period
 _HARMONICS = 15       # harmonics carried through G
-_STEP = 1e-6          # relative step of the finite differences of the balance
 BRACKET = 2.0         # |true error| <= BRACKET |estimate| held on every reliable loop of benchmarks/bench_exact.py
 DISTORTION_LIMIT = 0.05   # above this distortion the filter hypothesis fails: estimates are indicators only
 
@@ -132,6 +131,7 @@ def cycle_confidence(G, N, amplitude: float, frequency: float | None = None, *, 
     """
     from ._checks import in_closed_interval
     from .solve.plant import as_plant
+    from .solve.roots import Residual
 
     N = as_element(N)
     if frequency is None:
@@ -166,13 +166,9 @@ def cycle_confidence(G, N, amplitude: float, frequency: float | None = None, *, 
     x2 = x1 + np.fft.irfft(spectrum, n=S)
     dN = (_fundamentals(response(x2), 1)[0] - Y[0]) / A
 
-    def residual(a, om):
-        n = complex(N(a))
-        return 1.0 + complex(plant(np.array(om))) * n
-
-    dA_, dw_ = _STEP * A, _STEP * w
-    R_A = (residual(A + dA_, w) - residual(A - dA_, w)) / (2 * dA_)
-    R_w = (residual(A, w + dw_) - residual(A, w - dw_)) / (2 * dw_)
+    # the solver's residual R = 1 + G N and its Jacobian in (ln A, ln w): R_A = dR/d(ln A) / A, R_w likewise
+    R_a, R_v = Residual(plant, N).jacobian(np.array([np.log(A)]), np.array([np.log(w)]))
+    R_A, R_w = complex(R_a[0]) / A, complex(R_v[0]) / w
     J = np.array([[R_A.real, R_w.real], [R_A.imag, R_w.imag]])
     rhs = -Gk[0] * dN
     try:

@@ -49,7 +49,8 @@ class ExactCycle:
         One period sampled uniformly from t = 0, the time origin chosen so that x's fundamental is
         ``amplitude`` sin(``frequency`` t): element input x and output y.
     switching_times : ndarray or None
-        The exact switching (or impact) instants in [0, period), in the same time frame.
+        The exact event instants in [0, period), in the same time frame: switches of a piecewise-affine element;
+        impacts, separations and friction stops of the dynamic backlash; none for a smooth element.
     harmonics : ndarray or None
         Complex amplitudes X_k of x, k = 1..K (x = mean + sum_k Im(X_k exp(j k w t))); ``harmonics[0]`` is real
         and equal to ``amplitude``.

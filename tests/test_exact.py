@@ -367,3 +367,51 @@ def test_a_user_element_with_its_own_time_model_runs_on_the_exact_engine():
     theirs = cycle_confidence(G, df.Relay(1.0), c.amplitude, c.frequency)
     # sign(0) = 0 on the one sample at x = 0, where dfloop's relay holds its output: 1 of 2048 samples differs
     assert mine.available and mine.distortion == pytest.approx(theirs.distortion, rel=1e-3)
+
+
+def test_smooth_orbit_harmonics_and_multiplier_against_an_independent_run():
+    """Cubic stiffness (DOP853 path, nodes integrated together, period joined from the node flows): the harmonics
+    against an FFT of a plain solve_ivp run settled on the orbit, the non-trivial multiplier against the decay
+    of an offset along its eigenvector in that run."""
+    G, N = ct.tf([1], [1, 3, 3, 1]), df.CubicStiffness(10.0, -1.0)
+    e = exact_cycle(G, N, df.predict_limit_cycles(G, N)[0])
+    assert e.success and 1 <= e.iterations and e.residual <= 1e-11
+    A, B, C = _ss(G)
+
+    def rhs(t, s):
+        return A @ s + B * N.output(-C @ s)
+
+    z0 = e.extra["z0"][:3]
+    sol = solve_ivp(rhs, (0, 30 * e.period), z0 * 1.01, method="DOP853", rtol=1e-12, atol=1e-14, dense_output=True)
+    t = 29 * e.period + np.arange(2048) * (e.period / 2048)
+    X = 2j * np.fft.fft(-C @ sol.sol(t))[1:16] / t.size
+    X = X * np.exp(-1j * np.arange(1, 16) * np.angle(X[0]))
+    np.testing.assert_allclose(X, e.harmonics, atol=1e-8 * e.amplitude)
+    # the slow multiplier (0.485): an offset along its eigenvector shrinks by it per period
+    mu = e.multipliers[np.argsort(np.abs(e.multipliers - 1))[1]]
+    assert abs(mu.imag) < 1e-12 and 0.3 < mu.real < 0.7
+    fd = np.empty((3, 3))
+    for j in range(3):                       # finite-difference monodromy of the independent integrator
+        h = 1e-6 * max(1.0, abs(z0[j]))
+        zp, zm = z0.copy(), z0.copy()
+        zp[j] += h
+        zm[j] -= h
+        run = [solve_ivp(rhs, (0, e.period), z, method="DOP853", rtol=1e-13, atol=1e-15).y[:, -1] for z in (zp, zm)]
+        fd[:, j] = (run[0] - run[1]) / (2 * h)
+    lam = np.linalg.eigvals(fd)
+    assert np.min(np.abs(lam - mu)) < 1e-6 and np.min(np.abs(lam - 1.0)) < 1e-6
+
+
+@pytest.mark.parametrize("G,N", [(ct.tf([8], [1, 2, 2, 1]), df.Saturation(1.0)),
+                                 (ct.tf([2], [1, 3, 2, 0]), df.Relay(M=1.0, hysteresis=0.1)),
+                                 (ct.tf([1], [1, 3, 3, 1]), df.CubicStiffness(10.0, -1.0))], ids=["sat", "relay", "cubic"])
+def test_settling_first_finds_the_same_stable_orbit(G, N):
+    """settle_periods > 0: nodes on the motion settled from the prediction, period detected on it; the orbit is the
+    one found from the predicted sinusoid itself."""
+    c = df.predict_limit_cycles(G, N)[0]
+    direct = exact_cycle(G, N, c, settle_periods=0)
+    settled = exact_cycle(G, N, c, settle_periods=12.5)
+    assert direct.success and settled.success and settled.stable
+    assert settled.frequency == pytest.approx(direct.frequency, rel=1e-9)
+    assert settled.amplitude == pytest.approx(direct.amplitude, rel=1e-9)
+    np.testing.assert_allclose(np.abs(settled.multipliers), np.abs(direct.multipliers), atol=1e-7)

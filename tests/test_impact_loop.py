@@ -276,3 +276,43 @@ def test_every_option_is_used_on_the_impact_loop(pd_orbit):
     assert short.harmonics.size == 3 and short.x.size == 64
     far = exact_cycle(PD, _Fixed(0.5, N_PD), (F0, W0), max_deviation=0.001)   # the orbit is 2 % away
     assert not far.success and "max_deviation" in far.message
+
+
+@pytest.mark.parametrize("eps,N", [(0.0, -5.2597e-06 + 6.4157e-04j), (0.2, -4.1141e-04 + 7.3077e-04j)])
+def test_orbits_at_other_restitutions_match_the_independent_run(eps, N):
+    """Plastic impacts with sticking (eps = 0) and low restitution with chatter (the former impact-map finder
+    stopped on an event-bound error at eps = 0.2): the shot orbit's period and fundamental against the independent
+    event-located run started 0.1 % off it."""
+    e = exact_cycle(PD, _Fixed(eps, N), (F0, W0))
+    assert e.success, e.message
+    z = e.extra["z0"].copy()
+    z[:-1] *= 1.001
+    z[2] = min(max(z[2], 0.0), 0.1)
+    T = e.period
+    events, x_of, _ = _reference(ct.ss(PD), eps, z[:-1], 25 * T, 0.0, full=True)
+    assert events.shape[0] >= 40
+    t = 23 * T + np.arange(4096) * (T / 4096)
+    x = x_of(t)
+    assert np.max(np.abs(x_of(t + T) - x)) < 1e-7 * np.max(np.abs(x))     # settled, and periodic with T
+    assert abs(2j * np.mean(x * np.exp(-2j * np.pi * t / T))) == pytest.approx(e.amplitude, rel=1e-6)
+
+
+@pytest.mark.parametrize("eps,gain", [(0.3, 1.5), (0.9, 1.5)])
+def test_orbits_of_stronger_loops_are_periodic_in_the_independent_run(eps, gain):
+    """Gain 1.5 on the PD loop: at eps = 0.3 an unstable orbit (a complex multiplier pair just outside the unit
+    circle, the settled motion turns around it), found with the nodes kept away from the impacts; at eps = 0.9 a
+    stable orbit at twice the predicted frequency (found with the period detected on the settled motion; beyond
+    the default max_deviation, which says so). Both return to their start after one period of the independent
+    event-located run."""
+    G = PD * gain
+    e = exact_cycle(G, _Fixed(eps, N_PD), (F0, W0), max_deviation=1.0)
+    assert e.success, e.message
+    z0 = e.extra["z0"]
+    _, _, z_end = _reference(ct.ss(G), eps, z0[:-1], e.period, 0.0, full=True)
+    assert np.max(np.abs(z_end - z0[:-1])) < 1e-7 * np.max(np.abs(z0[:-1]))
+    if eps == 0.3:
+        assert not e.stable and 1.0 < e.largest_multiplier < 1.2
+    else:
+        assert e.stable and e.frequency > 1.8 * W0
+        far = exact_cycle(G, _Fixed(eps, N_PD), (F0, W0))
+        assert not far.success and "max_deviation" in far.message

@@ -69,6 +69,7 @@ from .base import DescribingFunction
 from .composition import LinearThenStatic
 from .numeric import NumericDF
 from .static import Backlash, Relay, Saturation, StaticElement
+from .time_model import impact_model
 
 __all__ = ["as_element", "ControlDescribingFunction", "to_control", "control_loop", "control_initial_state"]
 
@@ -406,20 +407,10 @@ def _model(N):
     return None
 
 
-def _is_impact(N) -> bool:
-    """Whether N's time model is an impact model (two masses with a clearance: velocity jumps)."""
-    from .time_model import Impact
-
-    try:
-        return isinstance(N.time_model(1.0), Impact)
-    except (AttributeError, NotImplementedError, ValueError, TypeError):
-        return False
-
-
 def _no_model(N) -> ValueError:
     why = ("its impacts (velocity jumps) are no python-control nlsys; dfloop.verify.simulate_loop(G, N, "
            "amplitude, frequency) runs its closed loop on the exact impact engine"
-           if _is_impact(N) else
+           if impact_model(N) is not None else
            "it has no state model here (a hysteretic NumericDF keeps its state inside its operator; a LinearThenStatic "
            "needs a python-control tf/ss linear block)")
     return ValueError(f"N = {N!r} cannot be converted to a python-control system: {why}")

@@ -21,8 +21,8 @@ from .._checks import amplitude_array, in_closed_interval, integer_at_least
 from ..errors import DfloopError
 from ..progress import progress_bar
 from .base import DescribingFunction
-from .static import PlayOperator, RelayOperator, StaticElement
-from .time_model import Sampled, fresh_copy, play_model, relay_model, static_model
+from .static import StaticElement
+from .time_model import Sampled, fresh_copy, static_model
 
 __all__ = ["NumericDF"]
 
@@ -315,17 +315,16 @@ class NumericDF(DescribingFunction):
         self.input_name, self.input_unit = input_name, input_unit
 
     def time_model(self, amplitude: float):
-        """A static f: piecewise affine between its breakpoints or smooth; a hysteretic relay or play operator:
-        its exact modes; any other operator: :class:`~dfloop.describing.time_model.Sampled` (fixed step)."""
+        """A static f: piecewise affine between its breakpoints or smooth; a hysteretic operator with its own
+        ``time_model`` (the relay and play operators): that; any other operator:
+        :class:`~dfloop.describing.time_model.Sampled` (fixed step)."""
         name = type(self).__name__
         if not self.hysteretic:
             return static_model(self.element, self.breakpoints, name, amplitude)
-        op = self.element
-        if type(op) is RelayOperator:
-            return relay_model(op.M, op.on, op.off, name, lambda: RelayOperator(op.M, op.on, op.off))
-        if type(op) is PlayOperator:
-            return play_model(op.h, op.k, name, lambda: PlayOperator(op.h, op.k))
-        return Sampled(name, fresh_copy(op))
+        own = getattr(self.element, "time_model", None)
+        if callable(own):
+            return own(amplitude, name)
+        return Sampled(name, fresh_copy(self.element))
 
     # ------------------------------------------------------------------------------------ evaluation
 

@@ -150,6 +150,11 @@ class PlayOperator:
         new.__dict__.update(self.__dict__)  # floats only: a shallow copy is a deep copy
         return new
 
+    def time_model(self, amplitude: float = 1.0, name: str = "PlayOperator"):
+        """The play operator's exact modes (free, engaged rising, engaged falling)."""
+        h, k = self.h, self.k
+        return play_model(h, k, name, lambda: PlayOperator(h, k))
+
     def __repr__(self) -> str:
         return f"PlayOperator(h={self.h!r}, k={self.k!r}, center={self.center!r})"
 
@@ -206,7 +211,7 @@ class Backlash(DescribingFunction):
 
     def time_model(self, amplitude: float):
         """The play operator as three modes (free, engaged rising, engaged falling)."""
-        return play_model(self.h, self.k, type(self).__name__, self.operator)
+        return self.operator().time_model(amplitude, type(self).__name__)
 
 
 # ------------------------------------------------------------------------------------ saturation, dead zone
@@ -322,6 +327,11 @@ class RelayOperator:
         new.__dict__.update(self.__dict__)  # numbers only: a shallow copy is a deep copy
         return new
 
+    def time_model(self, amplitude: float = 1.0, name: str = "RelayOperator"):
+        """The relay's exact modes (-M, 0, +M) switched by its levels."""
+        M, on, off = self.M, self.on, self.off
+        return relay_model(M, on, off, name, lambda: RelayOperator(M, on, off))
+
     def __repr__(self) -> str:
         return f"RelayOperator(M={self.M!r}, on={self.on!r}, off={self.off!r}, state={self.state})"
 
@@ -394,7 +404,7 @@ class Relay(DescribingFunction):
 
     def time_model(self, amplitude: float):
         """The relay as three modes (-M, 0, +M) switched by its levels."""
-        return relay_model(self.M, self.on_level, self.off_level, type(self).__name__, self.operator)
+        return self.operator().time_model(amplitude, type(self).__name__)
 
 
 # ------------------------------------------------------------------------------------- further elements

@@ -28,7 +28,7 @@ from typing import Callable
 import numpy as np
 
 __all__ = ["Guard", "Mode", "PiecewiseAffine", "Smooth", "Impact", "Sampled", "relay_model", "play_model",
-           "static_model", "OUT_OF_RANGE"]
+           "static_model", "impact_model", "fresh_copy", "OUT_OF_RANGE"]
 
 OUT_OF_RANGE = -1            # guard target: the input left the range the model covers (quantizer)
 _AFFINE_RTOL = 1e-12         # a static output counts as affine on an interval when 5 samples agree to this
@@ -273,3 +273,14 @@ def static_model(f: Callable, breakpoints, name: str, amplitude: float, *,
 def fresh_copy(operator) -> Callable:
     """A factory of independent copies of a stateful operator given at rest (for :class:`Sampled`)."""
     return lambda: copy.deepcopy(operator)
+
+
+def impact_model(N) -> Impact | None:
+    """The element's :class:`Impact` model (masses, clearance, restitution, effects) when it is an impact element
+    (the dynamic backlash, or a user's element with such a time model), else None: the test to use instead of a
+    type check on the element."""
+    try:
+        tm = N.time_model(1.0)
+    except (NotImplementedError, AttributeError):
+        return None
+    return tm if isinstance(tm, Impact) else None

@@ -25,7 +25,7 @@ from ..impact import _engine
 from ..impact._effects_core import D, IMPACT_A, IMPACT_B, SEPARATION, U, V1, X1
 from ..impact.effects import effect_terms
 from ..impact.kernel import EventLimitError
-from .loop import Flow, HybridError, LoopModel
+from .loop import Flow, HybridError, LoopModel, piecewise_fourier, saltation
 
 __all__ = ["ImpactLoop"]
 
@@ -50,6 +50,7 @@ class ImpactLoop(LoopModel):
 
     def __init__(self, A, B, C, D_, model: Impact, force_scale: float, frequency: float):
         self.model = model
+        self.plant = (A, B)
         self.nc = nc = A.shape[0]
         n = 5 + nc
         force2 = np.zeros(n)                      # force on M2 = -c = -(C s + D x1)
@@ -71,10 +72,6 @@ class ImpactLoop(LoopModel):
     def x(self, z) -> np.ndarray:
         """Element input x = -c (N) for state(s) z (last axis)."""
         return np.asarray(z) @ self.x_row
-
-    def output(self, z, mode=0) -> np.ndarray:
-        """Element output x1 (m)."""
-        return np.asarray(z)[..., X1]
 
     def start(self, s0: np.ndarray, x_history=None) -> tuple[np.ndarray, int]:
         """Masses at rest with the gap centred, plant in state s0 (the model's initial state)."""
@@ -139,15 +136,9 @@ class ImpactLoop(LoopModel):
     def fourier(self, flow: Flow, t_end: float, omega: float, harmonics: int) -> np.ndarray:
         """Exact (1/T) int_0^T x(t) e^{-j k w t} dt, k = 1..harmonics, T = t_end (Van Loan per segment)."""
         run = flow.run
-        starts = run.t0
-        ends = np.append(run.t0[1:], t_end)
-        keep = ends > starts
-        starts, ends = starts[keep], ends[keep]
-        out = np.zeros(harmonics, complex)
-        for k in range(1, harmonics + 1):
-            for c in np.flatnonzero(self.x_row[:-1]):
-                out[k - 1] += self.x_row[c] * np.sum(run.fourier_integrals(starts, ends, k * omega, int(c)))
-        return out / t_end
+        ends = np.append(flow.t0[1:], t_end)
+        pieces = ((self.system.mats[s], z0, t0, t1) for t0, z0, s, t1 in zip(flow.t0, flow.z0, run.slot, ends))
+        return piecewise_fourier(pieces, t_end, omega, harmonics, self.x_row)
 
     # -------------------------------------------------------------------------------------- monodromy
 
@@ -211,8 +202,6 @@ class ImpactLoop(LoopModel):
             f_minus = A @ self._segment_end_state(run, i)
             J = self._reset_matrix(run, i + 1)
             f_plus = sysm.mats[run.slot[i + 1]] @ run.z0[i + 1]
-            r = self._event_row(run, i)
-            rf = r @ f_minus
-            S = J if rf == 0.0 else J + np.outer(f_plus - J @ f_minus, r) / rf
-            Phi = S @ Phi
+            S = saltation(J, f_minus, f_plus, self._event_row(run, i), grazing=0.0)
+            Phi = (J if S is None else S) @ Phi     # r . f- = 0 exactly: a reset without a moving surface
         return core.expm_taylor(sysm.mats[run.slot[last]] * (run.t_end - run.t0[last])) @ Phi

@@ -22,7 +22,8 @@ from scipy.linalg import expm
 from ..describing.time_model import OUT_OF_RANGE, PiecewiseAffine
 from ..impact._effects_core import admissible, propagate, rows_on_zero, scan_steps
 
-__all__ = ["HybridLoop", "Flow", "HybridError", "plant_matrices", "plant_system"]
+__all__ = ["LoopModel", "HybridLoop", "Flow", "HybridError", "plant_matrices", "plant_system", "saltation",
+           "piecewise_fourier"]
 
 STEPS_PER_SCALE = 32
 _NEVER = -2                   # target of the dummy guard of a mode without guards (1 >= 0 always holds)
@@ -56,6 +57,42 @@ def plant_matrices(G, *, what: str = "the exact flow"):
         raise ValueError(f"G must be strictly proper (D = 0) for {what} (a direct feedthrough closes an "
                          f"algebraic loop through the element); got D = {D!r}")
     return A, B, C
+
+
+def saltation(R: np.ndarray, f_minus: np.ndarray, f_plus: np.ndarray, r: np.ndarray,
+              grazing: float = _GRAZING) -> np.ndarray | None:
+    """Saltation matrix S = R + (f+ - R f-) r^T / (r . f-) of a switch on the surface r . z = 0.
+
+    R is the Jacobian of the reset, f-/f+ the vector fields before and after. None when the flow grazes the
+    surface (|r . f-| <= ``grazing`` |r| |f-|): the jump of the flow map's derivative is then undefined.
+    """
+    denom = float(r @ f_minus)
+    if abs(denom) <= grazing * np.linalg.norm(r) * np.linalg.norm(f_minus):
+        return None
+    return R + np.outer(f_plus - R @ f_minus, r) / denom
+
+
+def piecewise_fourier(pieces, t_end: float, omega: float, harmonics: int, row: np.ndarray) -> np.ndarray:
+    """Exact (1/T) int_0^T (row . z(t)) e^{-j k w t} dt, k = 1..harmonics, T = ``t_end``, of a piecewise-linear
+    trajectory: ``pieces`` yields (A, z0, t0, t1), z' = A z on [t0, t1) from z(t0) = z0.
+
+    Each piece's integral is one block exponential (Van Loan) per harmonic: for y = e^{-jkw s} z and Y' = y,
+    exp([[A - jkw I, 0], [I, 0]] tau) [z0, 0] = [y(tau), Y(tau)].
+    """
+    out = np.zeros(harmonics, complex)
+    big = None
+    for A, z0, t0, t1 in pieces:
+        if t1 <= t0:
+            continue
+        N = A.shape[0]
+        if big is None or big.shape[0] != 2 * N:
+            big = np.zeros((2 * N, 2 * N), complex)
+            big[N:, :N] = np.eye(N)
+        start = np.concatenate([z0, np.zeros(N)])
+        for k in range(1, harmonics + 1):
+            big[:N, :N] = A - 1j * k * omega * np.eye(N)
+            out[k - 1] += np.exp(-1j * k * omega * t0) * (row @ (expm(big * (t1 - t0)) @ start)[N:])
+    return out / t_end
 
 
 @dataclass
@@ -94,9 +131,11 @@ class LoopModel:
     batched = False        # flow_many does more than one flow per node
     switching = True       # flows switch modes (the shooting keeps its first node away from switches)
 
-    def flow_many(self, zs, modes, t_end: float, *, monodromy: bool = False, max_events: int = 10_000) -> list:
-        """The flows from every (zs[i], modes[i]) over [0, t_end]."""
-        return [self.flow(z, mo, t_end, monodromy=monodromy, max_events=max_events) for z, mo in zip(zs, modes)]
+    def flow_many(self, zs, modes, t_end, *, monodromy: bool = False, max_events: int = 10_000) -> list:
+        """The flows from every (zs[i], modes[i]) over [0, t_end] (a float, or one per node)."""
+        ends = np.broadcast_to(np.asarray(t_end, float), (len(zs),))
+        return [self.flow(z, mo, te, monodromy=monodromy, max_events=max_events)
+                for z, mo, te in zip(zs, modes, ends)]
 
     def join(self, flows: list, period: float, *, max_events: int = 10_000) -> "Flow":
         """The flow (with its monodromy) over one period from the first node of converged node flows."""
@@ -122,6 +161,7 @@ class HybridLoop(LoopModel):
     settle_periods = 0.0   # the predicted sinusoid sets the element's state: no transient needed before shooting
 
     def __init__(self, A, B, C, element: PiecewiseAffine, time_scale: float):
+        self.plant = (A, B)
         n = A.shape[0]
         self.n, self.element = n, element
         self.size = n + element.n_states + 1
@@ -228,23 +268,10 @@ class HybridLoop(LoopModel):
         return out
 
     def fourier(self, flow: Flow, t_end: float, omega: float, harmonics: int) -> np.ndarray:
-        """Exact (1/T) int_0^T x(t) e^{-j k w t} dt for k = 1..harmonics, T = t_end (complex, (K,)).
-
-        Each segment's integral comes from one block exponential (Van Loan) per harmonic.
-        """
-        N = self.size
+        """Exact (1/T) int_0^T x(t) e^{-j k w t} dt for k = 1..harmonics, T = t_end (complex, (K,))."""
         ends = np.append(flow.t0[1:], t_end)
-        out = np.zeros((harmonics, N), complex)
-        big = np.zeros((2 * N, 2 * N), complex)
-        big[N:, :N] = np.eye(N)
-        for t0, z0, mode, t1 in zip(flow.t0, flow.z0, flow.modes, ends):
-            if t1 <= t0:
-                continue
-            for k in range(1, harmonics + 1):
-                big[:N, :N] = self.matrices[mode] - 1j * k * omega * np.eye(N)
-                y = expm(big * (t1 - t0)) @ np.concatenate([z0, np.zeros(N)])
-                out[k - 1] += np.exp(-1j * k * omega * t0) * y[N:]
-        return (out / t_end) @ self.x_row
+        pieces = ((self.matrices[mode], z0, t0, t1) for t0, z0, mode, t1 in zip(flow.t0, flow.z0, flow.modes, ends))
+        return piecewise_fourier(pieces, t_end, omega, harmonics, self.x_row)
 
     # -------------------------------------------------------------------------------------------- flow
 
@@ -292,11 +319,10 @@ class HybridLoop(LoopModel):
             A_new = self.matrices[target]
             f_plus = A_new @ z_plus
             if M is not None:
-                denom = float(r @ f_minus)
-                if abs(denom) <= _GRAZING * np.linalg.norm(r) * np.linalg.norm(f_minus):
+                S = saltation(R, f_minus, f_plus, r)
+                if S is None:
                     raise HybridError(f"grazing switch at t = {t:.6g} s (the guard is tangent to the flow): "
                                       "the monodromy is undefined there")
-                S = R + np.outer(f_plus - R @ f_minus, r) / denom
                 M = S @ (expm(A * (t - seg_t)) @ M)
             z = z_plus
             if not admissible(A_new, self.rows[target], z):

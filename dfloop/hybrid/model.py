@@ -48,20 +48,19 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
     time_scale = 2.0 * math.pi / frequency
     if isinstance(tm, Impact):
         A, B, C, D = plant_system(G, what=what)
-        plant = ImpactLoop(A, B, C, D, tm, amplitude, frequency)
+        model = ImpactLoop(A, B, C, D, tm, amplitude, frequency)
     else:
         A, B, C = plant_matrices(G, what=what)
         if isinstance(tm, PiecewiseAffine):
-            plant = HybridLoop(A, B, C, tm, time_scale)
+            model = HybridLoop(A, B, C, tm, time_scale)
         elif isinstance(tm, Smooth):
-            plant = SmoothLoop(A, B, C, tm.f, tm.name, time_scale, tm.slope)
+            model = SmoothLoop(A, B, C, tm.f, tm.name, time_scale, tm.slope)
         elif isinstance(tm, Sampled):
-            plant = SampledLoop(A, B, C, tm, time_scale / steps_per_period, steps_per_period)
+            model = SampledLoop(A, B, C, tm, time_scale / steps_per_period, steps_per_period)
         else:
             raise ValueError(f"N: {type(N).__name__}.time_model() returned {type(tm).__name__}, not one of "
                              "PiecewiseAffine, Smooth, Impact, Sampled (dfloop.describing.time_model)")
-    plant.plant = (A, B)
-    return plant
+    return model
 
 
 def harmonic_balance_state(loop, N, amplitude: float, frequency: float, t: float = 0.0) -> np.ndarray:

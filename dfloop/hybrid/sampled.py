@@ -38,9 +38,6 @@ class SampledLoop(LoopModel):
         self.method = (f"fixed step (zero-order hold, {steps_per_period} steps per period; {model.name} has only "
                        "an operator)")
 
-    def x(self, z) -> np.ndarray:
-        return np.asarray(z) @ self.x_row
-
     def start(self, s0: np.ndarray, x_history: np.ndarray):
         """Plant state s0; the operator driven by the input history; the previous input one step back."""
         op = self.model.make_operator()

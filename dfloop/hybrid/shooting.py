@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..harmonics import upward_crossings
 from .loop import Flow, HybridError
 from .model import start_on_prediction
 
@@ -25,6 +26,7 @@ LINE_SEARCH = 8    # step halvings per Newton iteration
 FLOOR = 1e-9       # a residual below this that stops decreasing is the rounding floor: accepted
 _DETECT_PERIODS = 8   # settled periods over which the period is detected
 DIVERGED = 1e6        # |x| beyond this many predicted amplitudes while settling: the motion diverges
+_PLAUSIBLE = math.log(8.0)   # a detected period within a factor 8 of the predicted one is used
 
 
 class ShootingError(RuntimeError):
@@ -50,12 +52,8 @@ class Orbit:
 
 def detect_period(t: np.ndarray, x: np.ndarray) -> float | None:
     """Mean spacing (s) of the upward crossings of x through its mean level; None with fewer than 2 crossings."""
-    d = np.asarray(x, float) - float(np.mean(x))
-    k = np.flatnonzero((d[:-1] < 0) & (d[1:] >= 0))
-    if k.size < 2:
-        return None
-    tc = t[k] - d[k] * (t[k + 1] - t[k]) / (d[k + 1] - d[k])
-    return float((tc[-1] - tc[0]) / (tc.size - 1))
+    tc = upward_crossings(t, x, float(np.mean(x)))
+    return float((tc[-1] - tc[0]) / (tc.size - 1)) if tc.size >= 2 else None
 
 
 def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, max_iterations: int,
@@ -88,9 +86,11 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
     """
     T = 2.0 * math.pi / frequency
     m = nodes
+    c = np.full(m, 1.0 / m)            # node intervals as fractions of the period
     try:
         if settle_periods > 0:
-            zs, modes, T = _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events)
+            zs, modes, T, c = _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events)
+            m = len(zs)
         else:   # nodes on the predicted sinusoidal orbit itself (right for unstable cycles, which a flow leaves)
             t_first = 0.0
             if loop.switching:
@@ -111,7 +111,7 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
     for it in range(1, max_iterations + 1):
         try:
             if flows is None:
-                flows = loop.flow_many(zs, modes, T / m, monodromy=True, max_events=max_events)
+                flows = loop.flow_many(zs, modes, T * c, monodromy=True, max_events=max_events)
         except HybridError as exc:
             raise ShootingError(f"Newton iteration {it}: {exc}", residual, it) from None
         previous = residual
@@ -124,13 +124,13 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
                                 f"{residual:.2e} > tol = {tol:g}): no periodic orbit near the prediction, or a "
                                 "chaotic / quasi-periodic response; raise max_iterations or start elsewhere",
                                 residual, it)
-        J, F = _shooting_system(loop, flows, zs, modes, m, nx)
+        J, F = _shooting_system(loop, flows, zs, modes, c, nx)
         try:
             delta = np.linalg.solve(J, -F)
         except np.linalg.LinAlgError:
             raise ShootingError(f"singular shooting Jacobian at iteration {it} (a multiplier equal to 1 besides "
                                 "the trivial one: a marginal or non-isolated orbit)", residual, it) from None
-        found = _line_search(loop, zs, flows, T, delta, residual, m, nx, max_events)
+        found = _line_search(loop, zs, flows, T, c, delta, residual, nx, max_events)
         if found is None:
             raise ShootingError(f"Newton iteration {it}: no step reduces the residual {residual:.2e} (no periodic "
                                 "orbit near the prediction, or a chaotic / quasi-periodic response)", residual, it)
@@ -162,14 +162,20 @@ def _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events)
             raise HybridError(f"the motion diverged while settling: |x| passed {DIVERGED:g} times the predicted "
                               f"amplitude in period {p + 1} of {settle_periods:g}")
     detected = detect_period(np.concatenate(tail_t), np.concatenate(tail_x))
-    if detected is not None and abs(math.log(detected / T)) < 0.7:
+    if detected is not None and abs(math.log(detected / T)) < _PLAUSIBLE:
         T = detected
     fl = loop.flow(z, mode, T, max_events=max_events)
     _, mode, t_mid = _section_point(fl, T, T)
     fl = loop.flow(loop.states(fl, t_mid)[0], mode, T, max_events=max_events)
     t = np.arange(m) * (T / m)
+    if loop.switching:   # each node away from the switches: within the middle half of its segment
+        bounds = np.append(fl.t0, T)
+        k = np.clip(np.searchsorted(bounds, t, side="right") - 1, 0, bounds.size - 2)
+        margin = 0.25 * (bounds[k + 1] - bounds[k])
+        t[1:] = np.clip(t, bounds[k] + margin, bounds[k + 1] - margin)[1:]
+        t = np.unique(t)
     seg = np.clip(np.searchsorted(fl.t0, t, side="right") - 1, 0, fl.t0.size - 1)
-    return list(loop.states(fl, t)), [int(fl.modes[k]) for k in seg], T
+    return list(loop.states(fl, t)), [int(fl.modes[k]) for k in seg], T, np.diff(np.append(t, T)) / T
 
 
 def _section_point(fl, t_end: float, T: float):
@@ -189,9 +195,10 @@ def _defect(flows, zs, nx) -> float:
     return float(np.linalg.norm(d)) / scale
 
 
-def _shooting_system(loop, flows, zs, modes, m, nx):
-    """Jacobian and defects of multiple shooting in (z_0..z_{m-1}, T); last row: correction orthogonal to
-    the flow at z_0."""
+def _shooting_system(loop, flows, zs, modes, c, nx):
+    """Jacobian and defects of multiple shooting in (z_0..z_{m-1}, T), node i flowing c_i T; last row: the
+    correction orthogonal to the flow at z_0."""
+    m = len(zs)
     n = m * nx + 1
     J = np.zeros((n, n))
     F = np.zeros(n)
@@ -200,17 +207,18 @@ def _shooting_system(loop, flows, zs, modes, m, nx):
         j = (i + 1) % m
         J[r, r] += flows[i].monodromy[:nx, :nx]
         J[r, j * nx:(j + 1) * nx] -= np.eye(nx)
-        J[r, -1] = loop.field(flows[i].z, flows[i].mode)[:nx] / m
+        J[r, -1] = loop.field(flows[i].z, flows[i].mode)[:nx] * c[i]
         F[r] = flows[i].z[:nx] - zs[j][:nx]
     J[-1, :nx] = loop.field(zs[0], modes[0])[:nx]
     return J, F
 
 
-def _line_search(loop, zs, flows, T, delta, residual, m, nx, max_events):
+def _line_search(loop, zs, flows, T, c, delta, residual, nx, max_events):
     """Damped Newton step (halvings bounded by LINE_SEARCH) on nodes and period; node modes follow the flows.
 
     Returns (nodes, modes, period, flows): the flows are the trial's own, with monodromy, when the model runs
     all nodes at once (reused by the next iteration), else None."""
+    m = len(zs)
     step = 1.0
     for _ in range(LINE_SEARCH + 1):
         T_new = T + step * delta[-1]
@@ -224,7 +232,7 @@ def _line_search(loop, zs, flows, T, delta, residual, m, nx, max_events):
                         zi, mi = loop.admissible_mode(zi, _mode_reaching(flows, i))
                         new_z.append(zi)
                         new_modes.append(mi)
-                    trial = loop.flow_many(new_z, new_modes, T_new / m, monodromy=True, max_events=max_events)
+                    trial = loop.flow_many(new_z, new_modes, T_new * c, monodromy=True, max_events=max_events)
                 else:
                     # node modes follow the trial flows in turn (a hysteretic element's mode is not a function of
                     # the state: a node moved across a switch takes the mode the flow reaching it ends in)
@@ -234,7 +242,7 @@ def _line_search(loop, zs, flows, T, delta, residual, m, nx, max_events):
                         zi, mi = loop.admissible_mode(zi, trial[-1].mode if trial else flows[-1].mode)
                         new_z.append(zi)
                         new_modes.append(mi)
-                        trial.append(loop.flow(zi, mi, T_new / m, max_events=max_events))
+                        trial.append(loop.flow(zi, mi, T_new * c[i], max_events=max_events))
                 if _defect(trial, new_z, nx) < residual or residual < FLOOR:
                     return new_z, new_modes, T_new, (trial if loop.batched else None)
             except HybridError:

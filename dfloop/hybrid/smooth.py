@@ -66,6 +66,7 @@ class SmoothLoop(LoopModel):
     def __init__(self, A, B, C, f: Callable, name: str, time_scale: float, slope: Callable | None = None):
         self.n = A.shape[0]
         self.size = self.n + 1
+        self.plant = (A, B)
         self.A, self.B, self.C, self.f, self.name = A, B, C, f, name
         self.x_row = np.append(-C, 0.0)
         self.max_step = time_scale / _MAX_STEPS_PER_SCALE
@@ -95,12 +96,16 @@ class SmoothLoop(LoopModel):
     def flow(self, z0, mode0: int, t_end: float, *, monodromy: bool = False, max_events: int = 0) -> Flow:
         return self.flow_many([z0], [mode0], t_end, monodromy=monodromy)[0]
 
-    def flow_many(self, zs, modes, t_end: float, *, monodromy: bool = False, max_events: int = 0) -> list:
+    def flow_many(self, zs, modes, t_end, *, monodromy: bool = False, max_events: int = 0) -> list:
         """Flows of every start state in ``zs`` over [0, t_end], as one DOP853 run.
 
         Flows with ``monodromy`` (the shooting's Newton steps) carry no dense output (it costs a third of the
         step); :meth:`join` integrates the converged nodes once more, without the variational equation, for it.
         """
+        ends = np.broadcast_to(np.asarray(t_end, float), (len(zs),))
+        if np.ptp(ends) > 0:       # different spans: one run each
+            return [self.flow_many([z], [0], te, monodromy=monodromy)[0] for z, te in zip(zs, ends)]
+        t_end = float(ends[0])
         n, m = self.n, len(zs)
         width = n + n * n if monodromy else n
         S0 = np.array([np.asarray(z, float)[:n] for z in zs])

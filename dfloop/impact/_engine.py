@@ -1,7 +1,7 @@
 """The exact linear-mode engine of the two-mass clearance system: mode matrices, runs and trajectories.
 
 Between events the masses, the optional effects (:mod:`dfloop.impact.effects`) and the ``extra`` states (the
-forcing oscillator of the open-loop runs, or the plant of a closed loop, :mod:`dfloop.impact.loop`) obey one
+forcing oscillator of the open-loop runs, or the plant of a closed loop, :mod:`dfloop.hybrid.impact`) obey one
 linear ODE z' = A z per mode, z = [x1, v1, d, u, extra..., 1] (d: gap from the wall of the last impact, u =
 v2 - v1). :class:`LinearModeSystem` builds the matrices of every mode (contact free / stuck on side A or B x
 the ground mode of a friction mass) from the forces, their constraint rows and step exponentials; :func:`run`
