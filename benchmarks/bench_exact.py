@@ -2,7 +2,7 @@
 
 For each loop (relays, saturation, dead zone, backlash, cubic stiffness, an open-loop-unstable plant) the table
 gives the DF prediction, the exact cycle (:func:`dfloop.exact_cycle`), the true relative errors of the
-prediction, the confidence's estimated errors (:func:`dfloop.confidence.cycle_confidence`) with the ratio
+prediction, the confidence's estimated errors (:func:`dfloop.solve.confidence.cycle_confidence`) with the ratio
 true / estimate, whether the bracket (2x the estimate) holds, and the distortion at the element's input. A
 second table gives the cost of the confidence and of exact_cycle as ratios to the cost of
 predict_limit_cycles for the same loop (one run each, after a warm-up run of all three that compiles the JIT
@@ -27,7 +27,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import root
 
 import dfloop as df
-from dfloop.confidence import BRACKET, cycle_confidence
+from dfloop.solve.confidence import BRACKET, cycle_confidence
 from dfloop.exact import exact_cycle
 
 LOOPS = [

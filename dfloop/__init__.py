@@ -28,7 +28,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     "dfloop.solve": ("predict_limit_cycles", "LimitCycle", "LimitCycles", "ContinuumError"),
     "dfloop.exact": ("ExactCycle", "exact_cycle"),
     "dfloop.verify": ("simulate_loop", "Verification", "verify_cycle"),
-    "dfloop.confidence": ("Confidence", "cycle_confidence"),
+    "dfloop.solve.confidence": ("Confidence", "cycle_confidence"),
     # many loops: a parameter sweep, a batch
     "dfloop.continuation": ("sweep", "SweepResult"),
     "dfloop.batch": ("predict_many",),

@@ -1,7 +1,7 @@
 """Plain-data forms of dfloop's results: ``to_dict()`` and CSV files.
 
 Every result object (:class:`~dfloop.solve.result.LimitCycle`, :class:`~dfloop.solve.result.LimitCycles`,
-:class:`~dfloop.exact.ExactCycle`, :class:`~dfloop.verify.Verification`, :class:`~dfloop.confidence.Confidence`,
+:class:`~dfloop.exact.ExactCycle`, :class:`~dfloop.verify.Verification`, :class:`~dfloop.solve.confidence.Confidence`,
 :class:`~dfloop.continuation.SweepResult`) has ``to_dict()`` (Python numbers, strings, lists and dicts, keyed by
 the attribute names: the names its repr prints) and ``to_csv(path)``. The conventions, shared by all of them:
 

@@ -187,7 +187,7 @@ def test_verify_cycle(N, cycle, periods, perturbation):
 @given(amplitude=st.one_of(scalars, st.just(1.0)), frequency=st.one_of(st.none(), scalars, st.just(1.0)),
        N=st.one_of(st.none(), scalars, st.just(df.Saturation(1.0))))
 def test_cycle_confidence(amplitude, frequency, N):
-    from dfloop.confidence import cycle_confidence
+    from dfloop.solve.confidence import cycle_confidence
 
     try:
         c = cycle_confidence(G, N, amplitude, frequency)

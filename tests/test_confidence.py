@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import dfloop as df
-from dfloop.confidence import BRACKET, cycle_confidence
+from dfloop.solve.confidence import BRACKET, cycle_confidence
 from dfloop.exact import exact_cycle
 
 LOOPS = {

@@ -34,7 +34,7 @@ from dfloop.impact import (ImpactParameters, beta_of, impact_describing_function
                            lower_limit_frequency, no_impact_frequency, prepare_many, simulate_impacts)
 from dfloop.solve import as_plant, graphical_stability
 from dfloop import cli, harmonics
-from dfloop.confidence import cycle_confidence
+from dfloop.solve.confidence import cycle_confidence
 from dfloop.errors import DfloopError
 from dfloop.impact.kernel import simulate
 from dfloop.plot.impact import plot_collision_map, plot_time_response

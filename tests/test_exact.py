@@ -334,7 +334,7 @@ def test_discontinuous_static_elements_map_to_the_exact_engine():
 def test_a_user_element_with_its_own_time_model_runs_on_the_exact_engine():
     """An element defined outside dfloop by its DF and a hand-built two-mode time model (an ideal relay M sign x)
     gets the closed-form relay cycle from exact_cycle, and its confidence from the model's response."""
-    from dfloop.confidence import cycle_confidence
+    from dfloop.solve.confidence import cycle_confidence
     from dfloop.describing.base import DescribingFunction
     from dfloop.describing.time_model import Guard, Mode, PiecewiseAffine
 

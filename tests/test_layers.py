@@ -21,26 +21,16 @@ LAYERS = (
     ("tables", ("dfloop.tables",)),
     ("impact", ("dfloop.impact",)),
     ("solve", ("dfloop.solve",)),
-    ("exact", ("dfloop.hybrid", "dfloop.exact", "dfloop.verify", "dfloop.confidence", "dfloop.impact.loop")),
+    ("exact", ("dfloop.hybrid", "dfloop.exact", "dfloop.verify")),
     ("many", ("dfloop.continuation", "dfloop.batch", "dfloop.chart")),
     ("plot", ("dfloop.plot",)),
     ("application", ("dfloop.scene", "dfloop.cli", "dfloop.cache_admin")),
 )
 
-# upward imports and private names still in modules that issue 15's exact-engine and plotting work rewrites
-# (result plotting through dfloop.plot, the time-model protocol, N.simulate_loop); remove entries as they go
-KNOWN_UPWARD = {
-    ("dfloop.exact", "dfloop.plot._labels"),
-    ("dfloop.verify", "dfloop.plot._labels"),
-    ("dfloop.solve.result", "dfloop.plot.nyquist"),
-    ("dfloop.solve.predict", "dfloop.exact"),
-    ("dfloop.solve.predict", "dfloop.confidence"),
-}
-KNOWN_PRIVATE = {
-    ("dfloop.plot.loci", "dfloop.plot.nyquist", "_control_plot"),
-    ("dfloop.verify", "dfloop.exact", "_history"),
-    ("dfloop.verify", "dfloop.exact", "_harmonic_balance_state"),
-}
+# the one upward import left, by design: predict_limit_cycles(..., exact=True) attaches each cycle's exact orbit,
+# imported inside that branch (the solver itself never needs the engine)
+KNOWN_UPWARD = {("dfloop.solve.predict", "dfloop.exact")}
+KNOWN_PRIVATE: set = set()
 
 
 def _module_name(path: Path) -> str:

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import dfloop as df
-from dfloop.confidence import Confidence
+from dfloop.solve.confidence import Confidence
 from dfloop.export import read_csv
 from dfloop.exact import ExactCycle
 from dfloop.verify import Verification, verify_cycle

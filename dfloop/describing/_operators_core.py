@@ -1,4 +1,4 @@
-"""Compiled responses of the relay and play operators to sampled inputs (used by :mod:`dfloop.confidence`).
+"""Compiled responses of the relay and play operators to sampled inputs (used by :mod:`dfloop.solve.confidence`).
 
 Same switching rules as :class:`dfloop.describing.static.RelayOperator` and
 :class:`dfloop.describing.static.PlayOperator`; one warm-up pass over the samples, then the recorded pass.

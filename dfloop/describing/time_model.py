@@ -16,7 +16,7 @@ model and build the loop from what it returns, one of:
   fixed step (not exact; no periodic-orbit shooting).
 
 Every model also gives ``response(x)``: the element's output over one period of periodic input samples (after
-one warm-up period), which :mod:`dfloop.confidence` uses (None for :class:`Impact`, whose response depends on
+one warm-up period), which :mod:`dfloop.solve.confidence` uses (None for :class:`Impact`, whose response depends on
 frequency). A user-defined element implements ``time_model(amplitude)`` returning one of these.
 """
 from __future__ import annotations

@@ -286,7 +286,7 @@ def _attach_confidence(G, N, cycles: list[LimitCycle], exact: bool) -> list[Limi
 
 def _confidence(G, N, amplitude: float, frequency: float):
     """cycle_confidence, or an unavailable Confidence that says why it could not be computed."""
-    from ..confidence import cycle_confidence, unavailable
+    from .confidence import cycle_confidence, unavailable
 
     try:
         return cycle_confidence(G, N, amplitude, frequency)

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._checks import positive, show
-from .describing.interop import as_element
+from .._checks import positive, show
+from ..describing.interop import as_element
 
 __all__ = ["Confidence", "cycle_confidence"]
 
@@ -75,7 +75,7 @@ class Confidence:
     def to_dict(self) -> dict:
         """Plain data: ``distortion``, ``amplitude_error``, ``frequency_error``, ``available``, ``reliable``,
         ``note`` and ``harmonics`` (a list of complex, or None)."""
-        from .export import plain
+        from ..export import plain
 
         return {"distortion": plain(self.distortion), "amplitude_error": plain(self.amplitude_error),
                 "frequency_error": plain(self.frequency_error), "available": self.available,
@@ -83,7 +83,7 @@ class Confidence:
 
     def to_csv(self, path) -> None:
         """Write the scalars of :meth:`to_dict` as a one-row CSV file (the harmonics are in ``to_dict``)."""
-        from .export import flat, write_csv
+        from ..export import flat, write_csv
 
         write_csv(path, [flat(self.to_dict())])
 
@@ -129,9 +129,9 @@ def cycle_confidence(G, N, amplitude: float, frequency: float | None = None, *, 
     -------
     Confidence
     """
-    from ._checks import in_closed_interval
-    from .solve.plant import as_plant
-    from .solve.roots import Residual
+    from .._checks import in_closed_interval
+    from .plant import as_plant
+    from .roots import Residual
 
     N = as_element(N)
     if frequency is None:
