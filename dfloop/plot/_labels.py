@@ -87,10 +87,13 @@ def plain_log_ticks(axis) -> None:
     axis.set_minor_formatter(NullFormatter())
 
 
-def legend(ax, **kwargs):
-    """A legend with one entry per distinct label (the first handle drawn with it); None if no labels."""
+def legend(ax, skip=(), **kwargs):
+    """A legend with one entry per distinct label (the first handle drawn with it, leaving out the artists in
+    ``skip``); None if no labels."""
     seen = {}
     for handle, label in zip(*ax.get_legend_handles_labels()):
+        if any(handle is h for h in skip):
+            continue
         seen.setdefault(label, handle)
     if not seen:
         return None
