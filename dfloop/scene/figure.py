@@ -104,13 +104,19 @@ def _elements(scene, spec) -> list[tuple[float | None, Any]]:
     return [(float(v), loop_at(v)[1]) for v in spec.values]
 
 
-def _impact_element(scene, spec, element) -> Any:
-    from dfloop.impact.dynamic_backlash import DynamicBacklash
+_IMPACT_SYSTEM = ("m1", "m2", "h", "restitution", "effects")  # what the impact kinds simulate with
 
-    if not isinstance(element, DynamicBacklash):
+
+def _impact_element(scene, spec, element) -> Any:
+    """The element, when it describes the two-mass impact system (it carries masses m1, m2 in kg, clearance h
+    in m, restitution and effects: the dynamic backlash); no switch on its type, so any element that carries
+    these parameters can be studied."""
+    missing = [name for name in _IMPACT_SYSTEM if not hasattr(element, name)]
+    if missing:
         raise SceneError(scene.source, Problem("figure.kind", f"kind = {spec.kind!r} simulates the "
-                                               f"two-mass impact system: the element must be DynamicBacklash, "
-                                               f"got {type(element).__name__}"))
+                                               f"two-mass impact system: the element must carry its parameters "
+                                               f"({', '.join(_IMPACT_SYSTEM)}; e.g. DynamicBacklash), "
+                                               f"{type(element).__name__} has no {', '.join(missing)}"))
     return element
 
 
