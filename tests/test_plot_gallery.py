@@ -200,3 +200,24 @@ def test_scene_figure_study(kind):
     if legend is not None:  # what every curve shares is said once, not on every entry
         assert not any("50 N" in t.get_text() for t in legend.get_texts())
     assert math.isfinite(len(cplt.lines))
+
+
+# every public plot function of dfloop.plot and where the gallery renders it (a new one must be added here)
+GALLERY = {"plot_nyquist": test_nyquist_pictures, "plot_residual_map": test_frequency_dependent_family_and_residual_map,
+           "plot_loci": test_frequency_dependent_family_and_residual_map, "plot_exact_cycle": test_time_domain_pictures,
+           "plot_verification": test_time_domain_pictures, "plot_time_response": test_time_domain_pictures,
+           "plot_sweep": test_sweep_and_collision_map, "plot_collision_map": test_sweep_and_collision_map,
+           "plot_element_study": test_scene_figure_study}
+
+
+def test_the_gallery_covers_every_plot_function():
+    import importlib
+    import pkgutil
+
+    import dfloop.plot
+
+    found = set()
+    for info in pkgutil.iter_modules(dfloop.plot.__path__):
+        module = importlib.import_module(f"dfloop.plot.{info.name}")
+        found |= {n for n in getattr(module, "__all__", ()) if n.startswith("plot_")}
+    assert found == set(GALLERY), f"not in the gallery: {found - set(GALLERY)}"
