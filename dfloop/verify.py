@@ -10,7 +10,7 @@ input extrapolated to the middle of the step (second order in the step); the res
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import expm
@@ -188,7 +188,7 @@ class Verification:
     verdict: str
     message: str = ""
     method: str = ""
-    runs: tuple | None = None
+    runs: tuple | None = field(default=None, compare=False, repr=False)
     exact_amplitude: float | None = None
 
     @property
