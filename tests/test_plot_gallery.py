@@ -119,6 +119,13 @@ def test_nyquist_pictures(servo):
     text = "\n".join(t.get_text() for a in [ax, *ax.child_axes] for t in a.texts)
     for c in relay:
         assert text.count(f"A={c.amplitude:.3g}, ω={c.frequency:.3g} rad/s") == 1
+    # a cycle listed beside the plot (crowded) is marked on it by its number, at its own marker
+    listed = re.findall(r"^#(\d+): ", text, re.M)
+    tags = {t.get_text(): t for a in [ax, *ax.child_axes] for t in a.texts if re.fullmatch(r"#\d+", t.get_text())}
+    assert set(tags) == {f"#{k}" for k in listed}
+    for k in listed:
+        c = relay[int(k)]
+        assert complex(*tags[f"#{k}"].xy) == pytest.approx(c.G)
     # the backlash servo's legend explains filled, hollow, the star and -1
     labels = [t.get_text() for t in figs["backlash servo"].axes[0].get_legend().get_texts()]
     assert {"stable cycle (filled)", "unstable cycle (hollow)", "-1 (critical point)"} <= set(labels)

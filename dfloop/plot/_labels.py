@@ -158,7 +158,7 @@ def _crosses(box, points) -> bool:
 
 
 def place_labels(ax, anchors, texts, colors=None, *, fontsize: float = 8.0, avoid=(), curves=(), keep_clear=(),
-                 overflow_at=(1.02, 1.0), unplaced=None):
+                 overflow_at=(1.02, 1.0), unplaced=None, tags=None):
     """Annotate each anchor point (data coordinates) with its text where it overlaps no other label.
 
     Offsets are tried from close to far in eight directions (a thin leader line joins distant labels to
@@ -170,7 +170,8 @@ def place_labels(ax, anchors, texts, colors=None, *, fontsize: float = 8.0, avoi
     inset's axes) no label may cover. Labels that find no free place are listed in one block outside the
     axes at ``overflow_at`` (axes fraction of its upper-left corner; never drawn on top of each other), or,
     when a list is given as ``unplaced``, appended to it (one text per label, on one line) for the caller to
-    list.
+    list. ``tags`` gives a short tag per label (e.g. ``"#3"``): a label that finds no place is replaced on the
+    plot by its tag, and listed as ``"#3: <label>"``, so every point stays identifiable.
 
     Returns
     -------
@@ -191,8 +192,9 @@ def place_labels(ax, anchors, texts, colors=None, *, fontsize: float = 8.0, avoi
     lines = _curve_points(ax, curves, frame)
     drawn, overflow = [], []
     colors = ["black"] * len(texts) if colors is None else list(colors)
-    for (x, y), text, color in zip(anchors, texts, colors):
-        placed = None
+    tags = [None] * len(texts) if tags is None else list(tags)
+
+    def attempt(x, y, text, color):
         for strict in (True, False):  # first clear of every curve, then clear of labels and markers only
             for r in _RADII:
                 for ang in _ANGLES:
@@ -209,21 +211,24 @@ def place_labels(ax, anchors, texts, colors=None, *, fontsize: float = 8.0, avoi
                     if frame.x0 <= box.x0 and box.x1 <= frame.x1 and frame.y0 <= box.y0 and box.y1 <= frame.y1 \
                             and not _overlaps(box, taken) and not (strict and _crosses(box, lines)):
                         taken.append(box)
-                        placed = ann
-                        break
+                        return ann
                     ann.remove()
-                if placed is not None:
-                    break
+        return None
+
+    for (x, y), text, color, tag in zip(anchors, texts, colors, tags):
+        placed = attempt(x, y, text, color)
+        if placed is None and tag:  # crowded: a short tag on the plot, the full label in the list
+            placed = attempt(x, y, tag, color)
             if placed is not None:
-                break
-        if placed is None:
+                overflow.append(f"{tag}: " + text.replace("\n", " "))
+        elif placed is None:
             overflow.append(text.replace("\n", " "))
-        else:
+        if placed is not None:
             drawn.append(placed)
     if unplaced is not None:
         unplaced.extend(overflow)
     elif overflow:
-        drawn.append(ax.annotate("not labelled (crowded):\n" + "\n".join(overflow), overflow_at,
+        drawn.append(ax.annotate("crowded:\n" + "\n".join(overflow), overflow_at,
                                  xycoords="axes fraction", va="bottom" if overflow_at[1] < 0.5 else "top",
                                  ha="left", fontsize=fontsize - 1))
     return drawn

@@ -244,6 +244,7 @@ def plot_nyquist(cycles, ax=None, *, omega=None, amplitude=None, n_loci: int = 5
     anchors = [c.G for c in cycles] + [j.G for j in jumps]
     texts = _label_texts(cycles, jumps, N)
     colors = ["black"] * len(cycles) + ["C1"] * len(jumps)
+    tags = [f"#{i}" for i in range(len(cycles))] + [f"j{i}" for i in range(len(jumps))]
     keys = np.array(anchors + list(g_exact) + [-1.0 + 0j], dtype=complex)
     group = _crowded_group(keys, max(xlim[1] - xlim[0], ylim[1] - ylim[0])) if inset else np.empty(0, int)
     crowd = group[group < len(anchors)]  # the labelled points of the crowded group
@@ -266,17 +267,18 @@ def plot_nyquist(cycles, ax=None, *, omega=None, amplitude=None, n_loci: int = 5
         inside = set(crowd.tolist())
         place_labels(axins, [(anchors[i].real, anchors[i].imag) for i in crowd], [texts[i] for i in crowd],
                      [colors[i] for i in crowd], fontsize=6.5, avoid=[(p.real, p.imag) for p in g_exact],
-                     curves=curves, unplaced=unplaced)
+                     curves=curves, unplaced=unplaced, tags=[tags[i] for i in crowd])
         rest = [i for i in range(len(anchors)) if i not in inside]
         place_labels(ax, [(anchors[i].real, anchors[i].imag) for i in rest], [texts[i] for i in rest],
                      [colors[i] for i in rest], avoid=[(p.real, p.imag) for p in g_exact]
                      + [(anchors[i].real, anchors[i].imag) for i in crowd], curves=curves,
-                     keep_clear=[axins], unplaced=unplaced)
+                     keep_clear=[axins], unplaced=unplaced, tags=[tags[i] for i in rest])
     else:
         place_labels(ax, [(p.real, p.imag) for p in anchors], texts, colors,
-                     avoid=[(p.real, p.imag) for p in g_exact], curves=curves, unplaced=unplaced)
+                     avoid=[(p.real, p.imag) for p in g_exact], curves=curves, unplaced=unplaced, tags=tags)
     if unplaced:
-        ax.annotate("not labelled (crowded):\n" + "\n".join(unplaced), (1.02, 0.0), xycoords="axes fraction",
+        ax.annotate("crowded (# on the plot = cycle number):\n" + "\n".join(unplaced), (1.02, 0.0),
+                    xycoords="axes fraction",
                     va="bottom", ha="left", fontsize=7)
     return control_plot(groups, ax, leg)
 
