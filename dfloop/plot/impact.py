@@ -101,8 +101,6 @@ def plot_collision_map(omega, runs, regular=None, labels=None, *, side: str = "A
     control.ControlPlot
         ``lines[0]``: the curves (one Line2D per case), ``lines[1]``: the irregular-point markers.
     """
-    import matplotlib.pyplot as plt
-
     if side not in ("A", "B"):
         raise ValueError(f"side must be 'A' or 'B', got {side!r}")
     w = np.asarray(omega, dtype=float).ravel()
