@@ -104,8 +104,9 @@ def test_cycle_table_holds_the_runs_numbers(run):
     stable = next(i for i, c in enumerate(report.cycles) if c.stable)
     row = rows[stable]
     assert "stable" in row[9] and row[11] == "stable"
-    settled = float(re.search(r"A=([0-9.]+)", row[12]).group(1))
+    settled = float(re.search(r"X=([0-9.]+)", row[12]).group(1))  # Backlash: the input is X [m]
     assert settled == pytest.approx(report.cycles[stable].exact.amplitude, rel=1e-3)
+    assert page.cells["cycles"][1][0] == "X [m]"  # amplitudes named and measured as the element's input
     assert {"settings", "timings"} <= set(page.cells)
     timed = {r[0] for r in page.cells["timings"][1:-1]}
     assert timed == {name for name, _ in report.stages}

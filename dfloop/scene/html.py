@@ -17,7 +17,7 @@ __all__ = ["report_html", "write_report_html"]
 
 _STYLE = """
 body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 0 auto; padding: 1em 1.5em;
-       max-width: 1100px; color: #222; line-height: 1.4; }
+       max-width: 1200px; color: #222; line-height: 1.4; }
 h1 { font-size: 1.5em; margin-bottom: 0.2em; } h2 { font-size: 1.2em; margin-top: 1.6em;
      border-bottom: 1px solid #ddd; }
 .source { color: #666; font-size: 0.9em; overflow-wrap: anywhere; }
@@ -54,12 +54,22 @@ def _png(path_or_fig) -> str:
     return "data:image/png;base64," + base64.b64encode(data).decode("ascii")
 
 
+def _shown(path) -> str:
+    """A scene's path as the reader typed it: relative to the working folder when inside it."""
+    if path is None:
+        return ""
+    try:
+        return str(Path(path).resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
+
+
 def _word(stability: str | None) -> str:
     return "-" if not stability else f'<span class="{_e(stability)}">{_e(stability)}</span>'
 
 
 def _pct(value: float | None) -> str:
-    return "-" if value is None else f"{100 * value:+.3g} %"
+    return "-" if value is None else f"{100 * value:+.3g}\u00a0%"  # no break between number and %
 
 
 def _verification_for(cycle, verifications):
@@ -69,25 +79,27 @@ def _verification_for(cycle, verifications):
     return None
 
 
-def _settled(run) -> str:
-    return f"settles at A={run.amplitude:.4g}, ω={run.frequency:.4g}" if run.oscillating else "comes to rest"
+def _settled(run, name: str = "A") -> str:
+    return f"settles at {name}={run.amplitude:.4g}, ω={run.frequency:.4g}" if run.oscillating else "comes to rest"
 
 
-def cycle_table(cycles, verifications=(), unit: str = "") -> str:
-    """The HTML table: one row per cycle, predicted | confidence | exact orbit | closed-loop verification."""
+def cycle_table(cycles, verifications=(), unit: str = "", name: str = "A") -> str:
+    """The HTML table: one row per cycle, predicted | confidence | exact orbit | closed-loop verification.
+    Amplitudes are named and measured as the element's input (``name`` [``unit``], e.g. X [m])."""
     u = f" [{_e(unit)}]" if unit else ""
+    a = _e(name)
     head = ('<tr class="group"><th rowspan="2">#</th><th colspan="3">predicted (describing function)</th>'
             '<th colspan="3">confidence</th><th colspan="4">exact periodic orbit</th>'
             '<th colspan="3">closed-loop verification</th></tr>'
-            f'<tr><th>A{u}</th><th>ω [rad/s]</th><th>Loeb stability</th>'
-            '<th>distortion</th><th>est. error A</th><th>est. error ω</th>'
-            f'<th>A{u}</th><th>ω [rad/s]</th><th>Floquet stability (max |μ|)</th><th>DF error A, ω</th>'
+            f'<tr><th>{a}{u}</th><th>ω [rad/s]</th><th>Loeb stability</th>'
+            f'<th>distortion</th><th>est. error {a}</th><th>est. error ω</th>'
+            f'<th>{a}{u}</th><th>ω [rad/s]</th><th>Floquet stability (max |μ|)</th><th>DF error {a}, ω</th>'
             '<th>verdict</th><th>from inside</th><th>from outside</th></tr>')
     rows, footnotes = [], []
     for i, c in enumerate(cycles):
         conf = getattr(c, "confidence", None)
         if conf is not None and getattr(conf, "available", False):
-            confidence = [f"{100 * conf.distortion:.3g} %", _pct(conf.amplitude_error), _pct(conf.frequency_error)]
+            confidence = [f"{100 * conf.distortion:.3g}\u00a0%", _pct(conf.amplitude_error), _pct(conf.frequency_error)]
         else:
             confidence = ["unavailable", "-", "-"]
         ex = getattr(c, "exact", None)
@@ -101,7 +113,8 @@ def cycle_table(cycles, verifications=(), unit: str = "") -> str:
                      f"{_word('stable' if ex.stable else 'unstable')} ({ex.largest_multiplier:.3g})",
                      f"{_pct(ex.amplitude_error)}, {_pct(ex.frequency_error)}"]
         v = _verification_for(c, verifications)
-        verified = ["not run", "-", "-"] if v is None else [_word(v.verdict), _settled(v.inside), _settled(v.outside)]
+        verified = ["not run", "-", "-"] if v is None else [_word(v.verdict), _settled(v.inside, a),
+                                                                  _settled(v.outside, a)]
         cells = [str(i), f"{c.amplitude:.6g}", f"{c.frequency:.6g}", _word(c.stability), *confidence, *exact,
                  *verified]
         rows.append("<tr>" + "".join(x if x.startswith("<td") else f"<td>{x}</td>" for x in cells) + "</tr>")
@@ -149,7 +162,7 @@ def report_html(report) -> str:
     scene = report.scene
     unit = getattr(scene.element, "input_unit", "")
     parts = [f"<h1>{_e(scene.title)}</h1>",
-             f'<p class="source">dfloop scene <code>{_e(scene.name)}</code> ({_e(scene.source)})</p>']
+             f'<p class="source">dfloop scene <code>{_e(scene.name)}</code> ({_e(_shown(scene.source))})</p>']
     if report.cycles is not None:
         n = len(report.cycles)
         parts += ["<h2>Limit cycles</h2>",
@@ -157,7 +170,8 @@ def report_html(report) -> str:
                   + (f"; {len(report.cycles.jump_crossings)} jump crossing(s) of N (not cycles)"
                      if getattr(report.cycles, "jump_crossings", None) else "") + ".</p>"]
         if n:
-            parts.append(cycle_table(report.cycles, report.verifications, unit))
+            parts.append(cycle_table(report.cycles, report.verifications, unit,
+                                     getattr(scene.element, "input_name", "A") or "A"))
     figures = []
     for path in report.files:
         if path.suffix == ".png":
