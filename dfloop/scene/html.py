@@ -124,7 +124,7 @@ def cycle_table(cycles, verifications=(), unit: str = "", name: str = "A") -> st
 
 def _settings(report) -> str:
     scene, cycles = report.scene, report.cycles
-    items = [("scene file", scene.source), ("element", repr(scene.element)), ("plant", repr(scene.plant))]
+    items = [("scene file", _shown(scene.source)), ("element", repr(scene.element)), ("plant", repr(scene.plant))]
     if cycles is not None:
         src = getattr(cycles, "window_source", {}) or {}
         items += [("amplitude window", f"[{cycles.amplitude_window[0]:.4g}, {cycles.amplitude_window[1]:.4g}] "
