@@ -158,7 +158,7 @@ def _crosses(box, points) -> bool:
 
 
 def place_labels(ax, anchors, texts, colors=None, *, fontsize: float = 8.0, avoid=(), curves=(), keep_clear=(),
-                 overflow_at=(1.02, 1.0), unplaced=None, tags=None):
+                 overflow_at=(1.02, 1.0), unplaced=None, tags=None, angles=None):
     """Annotate each anchor point (data coordinates) with its text where it overlaps no other label.
 
     Offsets are tried from close to far in eight directions (a thin leader line joins distant labels to
@@ -171,7 +171,8 @@ def place_labels(ax, anchors, texts, colors=None, *, fontsize: float = 8.0, avoi
     axes at ``overflow_at`` (axes fraction of its upper-left corner; never drawn on top of each other), or,
     when a list is given as ``unplaced``, appended to it (one text per label, on one line) for the caller to
     list. ``tags`` gives a short tag per label (e.g. ``"#3"``): a label that finds no place is replaced on the
-    plot by its tag, and listed as ``"#3: <label>"``, so every point stays identifiable.
+    plot by its tag, and listed as ``"#3: <label>"``, so every point stays identifiable. ``angles`` (degrees)
+    overrides the order in which directions are tried (default: the diagonals first).
 
     Returns
     -------
@@ -194,10 +195,10 @@ def place_labels(ax, anchors, texts, colors=None, *, fontsize: float = 8.0, avoi
     colors = ["black"] * len(texts) if colors is None else list(colors)
     tags = [None] * len(texts) if tags is None else list(tags)
 
-    def attempt(x, y, text, color):
-        for strict in (True, False):  # first clear of every curve, then clear of labels and markers only
+    def attempt(x, y, text, color, passes=(True, False), angles=_ANGLES if angles is None else tuple(angles)):
+        for strict in passes:  # first clear of every curve, then clear of labels and markers only
             for r in _RADII:
-                for ang in _ANGLES:
+                for ang in angles:
                     dx, dy = r * math.cos(math.radians(ang)), r * math.sin(math.radians(ang))
                     ann = ax.annotate(
                         text, (x, y), xytext=(dx, dy), textcoords="offset points", fontsize=fontsize, color=color,
@@ -218,7 +219,9 @@ def place_labels(ax, anchors, texts, colors=None, *, fontsize: float = 8.0, avoi
     for (x, y), text, color, tag in zip(anchors, texts, colors, tags):
         placed = attempt(x, y, text, color)
         if placed is None and tag:  # crowded: a short tag on the plot, the full label in the list
-            placed = attempt(x, y, tag, color)
+            # a tag is short: as close as labels allow, straight above or below its point first (beside it, it
+            # could be read as its neighbour's on a row of markers)
+            placed = attempt(x, y, tag, color, passes=(False,), angles=(90.0, -90.0) + _ANGLES[:4] + (0.0, 180.0))
             if placed is not None:
                 overflow.append(f"{tag}: " + text.replace("\n", " "))
         elif placed is None:

@@ -265,9 +265,16 @@ def plot_nyquist(cycles, ax=None, *, omega=None, amplitude=None, n_loci: int = 5
         axins.set_title("zoom", fontsize=7, pad=2)
         ax.indicate_inset_zoom(axins, edgecolor="0.4")
         inside = set(crowd.tolist())
-        place_labels(axins, [(anchors[i].real, anchors[i].imag) for i in crowd], [texts[i] for i in crowd],
-                     [colors[i] for i in crowd], fontsize=6.5, avoid=[(p.real, p.imag) for p in g_exact],
-                     curves=curves, unplaced=unplaced, tags=[tags[i] for i in crowd])
+        inset_points = [(anchors[i].real, anchors[i].imag) for i in crowd]
+        inset_avoid = [(p.real, p.imag) for p in g_exact]
+        if crowd.size <= 2:  # room for full labels (a number, and the label listed, where there is not)
+            place_labels(axins, inset_points, [texts[i] for i in crowd], [colors[i] for i in crowd], fontsize=6.5,
+                         avoid=inset_avoid, curves=curves, unplaced=unplaced, tags=[tags[i] for i in crowd])
+        else:  # several points: each carries its number only (right above or below it, over the curves), the
+            # full labels are listed beside the axes (long labels in a small inset would cross each other)
+            place_labels(axins, inset_points, [tags[i] for i in crowd], [colors[i] for i in crowd], fontsize=7,
+                         avoid=inset_avoid, unplaced=unplaced, angles=(90.0, -90.0, 45.0, 135.0, -45.0, -135.0))
+            unplaced += [f"{tags[i]}: " + texts[i].replace("\n", " ") for i in crowd]
         rest = [i for i in range(len(anchors)) if i not in inside]
         place_labels(ax, [(anchors[i].real, anchors[i].imag) for i in rest], [texts[i] for i in rest],
                      [colors[i] for i in rest], avoid=[(p.real, p.imag) for p in g_exact]
@@ -277,7 +284,7 @@ def plot_nyquist(cycles, ax=None, *, omega=None, amplitude=None, n_loci: int = 5
         place_labels(ax, [(p.real, p.imag) for p in anchors], texts, colors,
                      avoid=[(p.real, p.imag) for p in g_exact], curves=curves, unplaced=unplaced, tags=tags)
     if unplaced:
-        ax.annotate("crowded (# on the plot = cycle number):\n" + "\n".join(unplaced), (1.02, 0.0),
+        ax.annotate("crowded cycles, by their number (#) on the plot:\n" + "\n".join(unplaced), (1.02, 0.0),
                     xycoords="axes fraction",
                     va="bottom", ha="left", fontsize=7)
     return control_plot(groups, ax, leg)
