@@ -183,15 +183,17 @@ def _study(kind):
     for k, eps in enumerate(np.linspace(0.1, 0.9, 9)):
         if kind == "collisions":
             y, x = np.full(w.size, 10.0 + k), w
-        elif kind == "time_response":
-            x = np.linspace(0.0, 1.0, 200)
-            y = np.sin(25.0 * x) * (1 + 0.1 * k)
+        elif kind == "time_response":  # the motion itself, as the scene keeps it
+            traj = simulate(1.0, 1.0, 0.1, float(eps), 50.0, 25.0, 1.0) if k < 3 else None
+            x = np.linspace(0.5, 1.0, 200)
+            y = traj.evaluate(x)["v1"] if traj is not None else x
         else:
             x = w
             y = -(50.0 / (0.1 * (1 + eps))) * np.exp(-1j * (w / 45.0 + 0.1 * k))
         curves.append(Curve(50.0, float(eps), x, y, np.arange(x.size) % 7 != 0,
                             omega=25.0 if kind == "time_response" else None,
-                            note="period 1" if kind == "time_response" else ""))
+                            note="period 1" if kind == "time_response" else "",
+                            trajectory=traj if kind == "time_response" else None))
     if kind == "time_response":
         curves = curves[:3]
     return FigureData(kind, "Paper Fig. N: dynamic backlash, F = 50 N", "element.restitution", curves, "F", "N")
@@ -203,6 +205,11 @@ def test_scene_figure_study(kind):
     cplt = plot_element_study(data)
     check_figure(cplt.figure, kind)
     legend = next((a.get_legend() for a in cplt.figure.axes if a.get_legend() is not None), None)
+    if kind == "time_response":  # drawn from the trajectory: the velocity's jumps at impacts are gaps, not lines
+        for line, curve in zip(cplt.lines[0], data.curves):
+            t = line.get_xdata()
+            assert np.count_nonzero(np.isnan(t)) == np.count_nonzero((curve.trajectory.t0 > t[0]) &
+                                                                     (curve.trajectory.t0 < np.nanmax(t)))
     if legend is not None:  # what every curve shares is said once, not on every entry: the varying quantity
         entries = [t.get_text() for t in legend.get_texts()]  # names the legend, its values are the entries
         assert not any("50 N" in t for t in entries)

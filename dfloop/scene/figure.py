@@ -48,6 +48,9 @@ class Curve:
         Forcing frequency (rad/s) of a ``time_response`` panel.
     note : str
         What the curve's motion is (period, irregular) and whether the paper's model applies.
+    trajectory : Trajectory or None
+        ``time_response``: the simulated motion (:func:`dfloop.impact.kernel.simulate`), drawn with its velocity
+        jumps at the impacts unbridged.
     """
 
     amplitude: float
@@ -57,6 +60,7 @@ class Curve:
     ok: np.ndarray
     omega: float | None = None
     note: str = ""
+    trajectory: Any = field(default=None, compare=False)
 
     def __repr__(self) -> str:
         return (f"Curve(A={self.amplitude:g}, value={self.value}, omega={self.omega}, points={self.x.size}, "
@@ -167,7 +171,7 @@ def _time_responses(scene, spec, elements) -> list[Curve]:
                     motion = "from rest, " + motion
                 limit = _lower_limit_note(el, F, w) if spec.mark_lower_limit else ""
                 curves.append(Curve(F, value, t, traj.evaluate(t)["v1"], np.full(t.size, df.regular), w,
-                                    "; ".join(s for s in (motion, limit) if s)))
+                                    "; ".join(s for s in (motion, limit) if s), traj))
     return curves
 
 
