@@ -195,12 +195,12 @@ class Verification:
     def stable(self) -> bool:
         return self.verdict == "stable"
 
-    def plot(self, ax=None, *, unit: str = "", periods: float | None = 20):
+    def plot(self, ax=None, *, unit: str = "", name: str = "A", periods: float | None = 20):
         """The two runs x(t) over the band of the predicted (and exact) amplitude:
         :func:`dfloop.plot.orbit.plot_verification`. Returns a :class:`control.ControlPlot`."""
         from .plot.orbit import plot_verification
 
-        return plot_verification(self, ax, unit=unit, periods=periods)
+        return plot_verification(self, ax, unit=unit, name=name, periods=periods)
 
     def __repr__(self) -> str:
         return (f"Verification({self.verdict}: predicted A={self.amplitude:.4g}, w={self.frequency:.4g}; "

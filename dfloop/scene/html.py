@@ -178,7 +178,7 @@ def report_html(report) -> str:
             kind = path.stem.rsplit("_", 1)[-1]
             figures.append((_png(path), _CAPTIONS.get(kind, path.name), path.name))
     for i, v in enumerate(report.verifications):
-        cplt = v.plot(unit=unit)
+        cplt = v.plot(unit=unit, name=getattr(scene.element, "input_name", "A") or "A")
         figures.append((_png(cplt.figure), f"Closed-loop verification of the cycle at ω = {v.frequency:.4g} rad/s: "
                         f"x(t) from inside and outside, predicted (and exact) ±A as bands; {v.verdict}.",
                         f"verification {i}"))
