@@ -12,7 +12,7 @@ for a zero-order-held y, the operator called once per step with the input extrap
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -118,7 +118,7 @@ class Verification:
     verdict: str
     message: str = ""
     method: str = ""
-    runs: tuple | None = None
+    runs: tuple | None = field(default=None, compare=False, repr=False)
     exact_amplitude: float | None = None
 
     @property
@@ -143,12 +143,12 @@ class Verification:
 
         write_csv(path, [self.to_dict()])
 
-    def plot(self, ax=None, *, unit: str = "", periods: float | None = 20):
+    def plot(self, ax=None, *, unit: str = "", name: str = "A", periods: float | None = 20):
         """The two runs x(t) over the band of the predicted (and exact) amplitude:
         :func:`dfloop.plot.orbit.plot_verification`. Returns a :class:`control.ControlPlot`."""
         from .plot.orbit import plot_verification
 
-        return plot_verification(self, ax, unit=unit, periods=periods)
+        return plot_verification(self, ax, unit=unit, name=name, periods=periods)
 
     def __repr__(self) -> str:
         # one readable line per fact: the verdict, the prediction, then each run's outcome once (``message``)

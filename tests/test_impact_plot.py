@@ -22,6 +22,30 @@ def test_time_response_draws_the_trajectory_with_jumps_unbridged():
     plt.close(fig)
 
 
+def test_time_response_jump_connectors_obey_the_impact_law():
+    """The dotted connectors join the two sides of each velocity jump: across an impact the momentum
+    m1 v1 + m2 v2 is conserved and the relative velocity reverses with factor eps (Newton's law, eqs. 6-7)."""
+    m1, m2, eps = 1.0, 1.0, 0.5
+    tr = simulate(m1, m2, 0.1, eps, 50.0, 25.0, 1.0)
+    cplt = plot_time_response(tr, "v1", samples=500)
+    (jumps,) = cplt.lines[1]
+    t, v1 = jumps.get_xdata().reshape(-1, 3)[:, :2], jumps.get_ydata().reshape(-1, 3)[:, :2]
+    assert np.all(t[:, 0] == t[:, 1]) and t.shape[0] == tr.t0.size - 1
+    before = tr.evaluate(np.nextafter(t[:, 0], -np.inf))
+    after = tr.evaluate(t[:, 0])
+    np.testing.assert_array_equal(v1[:, 0], before["v1"])
+    np.testing.assert_array_equal(v1[:, 1], after["v1"])
+    impacts = np.abs(after["v1"] - before["v1"]) > 1e-9  # events that are impacts (not stick / release)
+    assert np.count_nonzero(impacts) > 5
+    p_before = m1 * before["v1"] + m2 * before["v2"]
+    p_after = m1 * after["v1"] + m2 * after["v2"]
+    np.testing.assert_allclose(p_after[impacts], p_before[impacts], atol=1e-9)
+    rel_before = (before["v2"] - before["v1"])[impacts]
+    rel_after = (after["v2"] - after["v1"])[impacts]
+    np.testing.assert_allclose(rel_after, -eps * rel_before, rtol=1e-6, atol=1e-9)
+    plt.close("all")
+
+
 def test_time_response_rejects_bad_quantity_and_window():
     tr = simulate(1.0, 1.0, 0.1, 0.5, 50.0, 25.0, 0.5)
     with pytest.raises(ValueError, match="quantity"):

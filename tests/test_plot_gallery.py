@@ -4,7 +4,6 @@ label carries its unit in brackets.
 
 The checks use the rendered artists (renderer bounding boxes after ``canvas.draw()``), not the code's intent.
 """
-import math
 import re
 import warnings
 
@@ -119,6 +118,13 @@ def test_nyquist_pictures(servo):
     text = "\n".join(t.get_text() for a in [ax, *ax.child_axes] for t in a.texts)
     for c in relay:
         assert text.count(f"A={c.amplitude:.3g}, ω={c.frequency:.3g} rad/s") == 1
+    # a cycle listed beside the plot (crowded) is marked on it by its number, at its own marker
+    listed = re.findall(r"^#(\d+): ", text, re.M)
+    tags = {t.get_text(): t for a in [ax, *ax.child_axes] for t in a.texts if re.fullmatch(r"#\d+", t.get_text())}
+    assert set(tags) == {f"#{k}" for k in listed}
+    for k in listed:
+        c = relay[int(k)]
+        assert complex(*tags[f"#{k}"].xy) == pytest.approx(c.G)
     # the backlash servo's legend explains filled, hollow, the star and -1
     labels = [t.get_text() for t in figs["backlash servo"].axes[0].get_legend().get_texts()]
     assert {"stable cycle (filled)", "unstable cycle (hollow)", "-1 (critical point)"} <= set(labels)
@@ -177,15 +183,17 @@ def _study(kind):
     for k, eps in enumerate(np.linspace(0.1, 0.9, 9)):
         if kind == "collisions":
             y, x = np.full(w.size, 10.0 + k), w
-        elif kind == "time_response":
-            x = np.linspace(0.0, 1.0, 200)
-            y = np.sin(25.0 * x) * (1 + 0.1 * k)
+        elif kind == "time_response":  # the motion itself, as the scene keeps it
+            traj = simulate(1.0, 1.0, 0.1, float(eps), 50.0, 25.0, 1.0) if k < 3 else None
+            x = np.linspace(0.5, 1.0, 200)
+            y = traj.evaluate(x)["v1"] if traj is not None else x
         else:
             x = w
             y = -(50.0 / (0.1 * (1 + eps))) * np.exp(-1j * (w / 45.0 + 0.1 * k))
         curves.append(Curve(50.0, float(eps), x, y, np.arange(x.size) % 7 != 0,
                             omega=25.0 if kind == "time_response" else None,
-                            note="period 1" if kind == "time_response" else ""))
+                            note="period 1" if kind == "time_response" else "",
+                            trajectory=traj if kind == "time_response" else None))
     if kind == "time_response":
         curves = curves[:3]
     return FigureData(kind, "Paper Fig. N: dynamic backlash, F = 50 N", "element.restitution", curves, "F", "N")
@@ -197,6 +205,34 @@ def test_scene_figure_study(kind):
     cplt = plot_element_study(data)
     check_figure(cplt.figure, kind)
     legend = next((a.get_legend() for a in cplt.figure.axes if a.get_legend() is not None), None)
-    if legend is not None:  # what every curve shares is said once, not on every entry
-        assert not any("50 N" in t.get_text() for t in legend.get_texts())
-    assert math.isfinite(len(cplt.lines))
+    if kind == "time_response":  # drawn from the trajectory: the velocity's jumps at impacts are gaps, not lines
+        for line, curve in zip(cplt.lines[0], data.curves):
+            t = line.get_xdata()
+            assert np.count_nonzero(np.isnan(t)) == np.count_nonzero((curve.trajectory.t0 > t[0]) &
+                                                                     (curve.trajectory.t0 < np.nanmax(t)))
+    if legend is not None:  # what every curve shares is said once, not on every entry: the varying quantity
+        entries = [t.get_text() for t in legend.get_texts()]  # names the legend, its values are the entries
+        assert not any("50 N" in t for t in entries)
+        assert legend.get_title().get_text() == "restitution"
+        assert entries == [f"{e:g}" for e in np.linspace(0.1, 0.9, 9)]
+
+
+# every public plot function of dfloop.plot and where the gallery renders it (a new one must be added here)
+GALLERY = {"plot_nyquist": test_nyquist_pictures, "plot_residual_map": test_frequency_dependent_family_and_residual_map,
+           "plot_loci": test_frequency_dependent_family_and_residual_map, "plot_exact_cycle": test_time_domain_pictures,
+           "plot_verification": test_time_domain_pictures, "plot_time_response": test_time_domain_pictures,
+           "plot_sweep": test_sweep_and_collision_map, "plot_collision_map": test_sweep_and_collision_map,
+           "plot_element_study": test_scene_figure_study}
+
+
+def test_the_gallery_covers_every_plot_function():
+    import importlib
+    import pkgutil
+
+    import dfloop.plot
+
+    found = set()
+    for info in pkgutil.iter_modules(dfloop.plot.__path__):
+        module = importlib.import_module(f"dfloop.plot.{info.name}")
+        found |= {n for n in getattr(module, "__all__", ()) if n.startswith("plot_")}
+    assert found == set(GALLERY), f"not in the gallery: {found - set(GALLERY)}"

@@ -1,4 +1,6 @@
 """plot_nyquist / plot_residual_map: the drawn data are the plant response, the -1/N locus and the cycles."""
+import re
+
 import control as ct
 import matplotlib
 
@@ -45,7 +47,7 @@ def test_nyquist_draws_plant_locus_and_cycles_by_stability():
         np.testing.assert_allclose(np.ravel(m.get_data()), [c.G.real, c.G.imag])
         assert (m.get_markerfacecolor() != "none") == c.stable  # filled iff stable
     texts = [t.get_text() for t in ax.texts]
-    assert any(f"A={c.amplitude:.3g}" in t and c.stability in t for c in cycles for t in texts)
+    assert any(f"X={c.amplitude:.3g} m, ω={c.frequency:.3g} rad/s" in t and c.stability in t for c in cycles for t in texts)
 
 
 class _DelayedSaturation(DescribingFunction):
@@ -59,7 +61,17 @@ def test_frequency_dependent_locus_family_and_marginal_marker():
     Nf = _DelayedSaturation()
     cycles = df.predict_limit_cycles(ct.tf([2], [1, 2, 2, 1]), Nf, omega=(0.1, 10), amplitude=(1, 50))
     cplt = plot_nyquist(cycles, n_loci=4)
-    assert len(cplt.lines[1]) == 4 + len(cycles)  # one locus per frequency of the window and per cycle
+    # one locus over the frequency window per amplitude: 4 spanning the amplitude window (none within 10 % of a
+    # cycle's, which would duplicate its curve) and each cycle's amplitude
+    (c,) = cycles
+    grid = [a for a in np.geomspace(1, 50, 4) if abs(a / c.amplitude - 1) >= 0.1]
+    labels = [line.get_label() for line in cplt.lines[1]]
+    drawn = sorted(float(re.search(r"A=([0-9.e+-]+)", lab).group(1)) for lab in labels)
+    np.testing.assert_allclose(drawn, sorted(grid + [c.amplitude]), rtol=5e-3)  # labels carry 3 digits
+    # the cycle's locus -1/N(A*, w) passes through the cycle's point G(j w*) (1 + G N = 0 there)
+    (mine,) = [line for line in cplt.lines[1] if "a cycle's amplitude" in line.get_label()]
+    z = mine.get_xdata() + 1j * mine.get_ydata()
+    assert np.nanmin(np.abs(z - c.G)) < 1e-9 * abs(c.G)
     fig, ax2 = plt.subplots()
     touching = df.predict_limit_cycles(lambda w: -2 + 1j * (w - 1) ** 2, df.Relay(M=1.0), omega=(0.5, 2))
     cplt2 = plot_nyquist(touching, ax=ax2)

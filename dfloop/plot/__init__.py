@@ -1,8 +1,11 @@
-"""Plots: -1/N loci, Nyquist plots with predicted cycles, residual maps, impact time responses and maps.
+"""Plots: the one plotting layer of dfloop. Every result's ``.plot()`` delegates here.
 
-Every function takes ``ax=None`` (a new figure when None). The Nyquist-plane plots (``plot_nyquist``,
-``plot_loci``, ``plot_residual_map``) follow python-control's conventions and return a
-:class:`control.ControlPlot` (``lines``, ``axes``, ``figure``); the impact plots return the axes.
+Every function takes ``ax=None`` (a new figure when None), draws what it is given (results, computed data:
+nothing is solved or simulated here) and returns a :class:`control.ControlPlot` (``lines``, ``axes``,
+``figure``), python-control's convention. Modules: ``nyquist`` (``plot_nyquist``, ``plot_residual_map``: a
+``LimitCycles``), ``loci`` (``plot_loci``: an element), ``orbit`` (``plot_exact_cycle``, ``plot_verification``),
+``sweep`` (``plot_sweep``), ``study`` (``plot_element_study``: a scene's ``[figure]``), ``impact``
+(``plot_time_response``, ``plot_collision_map``), ``controlplot`` (``control_plot``, to build the return value).
 """
 from ._curves import curve_with_gaps
 from ._labels import case_labels

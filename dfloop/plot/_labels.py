@@ -87,10 +87,13 @@ def plain_log_ticks(axis) -> None:
     axis.set_minor_formatter(NullFormatter())
 
 
-def legend(ax, **kwargs):
-    """A legend with one entry per distinct label (the first handle drawn with it); None if no labels."""
+def legend(ax, skip=(), **kwargs):
+    """A legend with one entry per distinct label (the first handle drawn with it, leaving out the artists in
+    ``skip``); None if no labels."""
     seen = {}
     for handle, label in zip(*ax.get_legend_handles_labels()):
+        if any(handle is h for h in skip):
+            continue
         seen.setdefault(label, handle)
     if not seen:
         return None
@@ -155,7 +158,7 @@ def _crosses(box, points) -> bool:
 
 
 def place_labels(ax, anchors, texts, colors=None, *, fontsize: float = 8.0, avoid=(), curves=(), keep_clear=(),
-                 overflow_at=(1.02, 1.0), unplaced=None):
+                 overflow_at=(1.02, 1.0), unplaced=None, tags=None, angles=None):
     """Annotate each anchor point (data coordinates) with its text where it overlaps no other label.
 
     Offsets are tried from close to far in eight directions (a thin leader line joins distant labels to
@@ -167,7 +170,9 @@ def place_labels(ax, anchors, texts, colors=None, *, fontsize: float = 8.0, avoi
     inset's axes) no label may cover. Labels that find no free place are listed in one block outside the
     axes at ``overflow_at`` (axes fraction of its upper-left corner; never drawn on top of each other), or,
     when a list is given as ``unplaced``, appended to it (one text per label, on one line) for the caller to
-    list.
+    list. ``tags`` gives a short tag per label (e.g. ``"#3"``): a label that finds no place is replaced on the
+    plot by its tag, and listed as ``"#3: <label>"``, so every point stays identifiable. ``angles`` (degrees)
+    overrides the order in which directions are tried (default: the diagonals first).
 
     Returns
     -------
@@ -188,11 +193,12 @@ def place_labels(ax, anchors, texts, colors=None, *, fontsize: float = 8.0, avoi
     lines = _curve_points(ax, curves, frame)
     drawn, overflow = [], []
     colors = ["black"] * len(texts) if colors is None else list(colors)
-    for (x, y), text, color in zip(anchors, texts, colors):
-        placed = None
-        for strict in (True, False):  # first clear of every curve, then clear of labels and markers only
+    tags = [None] * len(texts) if tags is None else list(tags)
+
+    def attempt(x, y, text, color, passes=(True, False), angles=_ANGLES if angles is None else tuple(angles)):
+        for strict in passes:  # first clear of every curve, then clear of labels and markers only
             for r in _RADII:
-                for ang in _ANGLES:
+                for ang in angles:
                     dx, dy = r * math.cos(math.radians(ang)), r * math.sin(math.radians(ang))
                     ann = ax.annotate(
                         text, (x, y), xytext=(dx, dy), textcoords="offset points", fontsize=fontsize, color=color,
@@ -206,21 +212,26 @@ def place_labels(ax, anchors, texts, colors=None, *, fontsize: float = 8.0, avoi
                     if frame.x0 <= box.x0 and box.x1 <= frame.x1 and frame.y0 <= box.y0 and box.y1 <= frame.y1 \
                             and not _overlaps(box, taken) and not (strict and _crosses(box, lines)):
                         taken.append(box)
-                        placed = ann
-                        break
+                        return ann
                     ann.remove()
-                if placed is not None:
-                    break
+        return None
+
+    for (x, y), text, color, tag in zip(anchors, texts, colors, tags):
+        placed = attempt(x, y, text, color)
+        if placed is None and tag:  # crowded: a short tag on the plot, the full label in the list
+            # a tag is short: as close as labels allow, straight above or below its point first (beside it, it
+            # could be read as its neighbour's on a row of markers)
+            placed = attempt(x, y, tag, color, passes=(False,), angles=(90.0, -90.0) + _ANGLES[:4] + (0.0, 180.0))
             if placed is not None:
-                break
-        if placed is None:
+                overflow.append(f"{tag}: " + text.replace("\n", " "))
+        elif placed is None:
             overflow.append(text.replace("\n", " "))
-        else:
+        if placed is not None:
             drawn.append(placed)
     if unplaced is not None:
         unplaced.extend(overflow)
     elif overflow:
-        drawn.append(ax.annotate("not labelled (crowded):\n" + "\n".join(overflow), overflow_at,
+        drawn.append(ax.annotate("crowded:\n" + "\n".join(overflow), overflow_at,
                                  xycoords="axes fraction", va="bottom" if overflow_at[1] < 0.5 else "top",
                                  ha="left", fontsize=fontsize - 1))
     return drawn

@@ -19,7 +19,8 @@ def plot_time_response(traj, quantity: str = "v1", ax=None, t_range=None, sample
                        color=None):
     """Plot ``quantity`` ("x1", "x2", "v1", "v2" or "gap") of a trajectory against time.
 
-    Velocities jump at impacts: every segment is drawn separately, so jumps are not bridged by lines.
+    Velocities jump at impacts: every segment is drawn separately, so the curve never bridges a jump; a faint
+    dotted connector shows each jump.
 
     Parameters
     ----------
@@ -39,7 +40,8 @@ def plot_time_response(traj, quantity: str = "v1", ax=None, t_range=None, sample
     Returns
     -------
     control.ControlPlot
-        ``lines[0]``: the response (one Line2D, NaN-separated at the impacts).
+        ``lines[0]``: the response (one Line2D, NaN-separated at the impacts); ``lines[1]``: the jumps, as faint
+        dotted vertical connectors from the value just before each impact to the value just after.
     """
 
     if quantity not in _LABELS:
@@ -65,9 +67,16 @@ def plot_time_response(traj, quantity: str = "v1", ax=None, t_range=None, sample
     p = traj.params
     line = ax.plot(t_plot, y_plot, lw=0.8, color=color,
                    label=f"eps = {p.restitution:g}, ω = {p.omega:g} rad/s" if label is None else label)
+    # each jump as a faint dotted connector between its two sides, so the eye can follow the motion while the
+    # curve itself never bridges a discontinuity
+    y_left = y[is_break]  # the value just before each impact (t_start - 1 ulp), in time order
+    y_right = traj.evaluate(starts)[quantity]
+    jumps = ax.plot(np.column_stack([starts, starts, np.full(starts.size, np.nan)]).ravel(),
+                    np.column_stack([y_left, y_right, np.full(starts.size, np.nan)]).ravel(),
+                    ls=":", lw=0.6, color=line[0].get_color(), alpha=0.45)
     ax.set_xlabel(TIME)
     ax.set_ylabel(_LABELS[quantity])
-    return control_plot([line], ax)
+    return control_plot([line, jumps], ax)
 
 
 def plot_collision_map(omega, runs, regular=None, labels=None, *, side: str = "A", ax=None, title: str = "",
@@ -101,8 +110,6 @@ def plot_collision_map(omega, runs, regular=None, labels=None, *, side: str = "A
     control.ControlPlot
         ``lines[0]``: the curves (one Line2D per case), ``lines[1]``: the irregular-point markers.
     """
-    import matplotlib.pyplot as plt
-
     if side not in ("A", "B"):
         raise ValueError(f"side must be 'A' or 'B', got {side!r}")
     w = np.asarray(omega, dtype=float).ravel()

@@ -95,7 +95,14 @@ def _draw_curves(ax, g, loci, cycles, jumps, g_exact, *, labelled: bool):
     """Plant, loci, markers and -1 into ``ax``; returns the artists by group."""
     lab = (lambda s: s) if labelled else (lambda s: None)
     g_lines = ax.plot(g.real, g.imag, color="C0", label=lab("G(jω)"))
-    loc_lines = [ax.plot(z.real, z.imag, color=color, lw=1.1, label=lab(name))[0] for z, color, name in loci]
+    loc_lines = []
+    for z, ok, color, name in loci:
+        trusted = z if ok is None else np.where(ok, z, complex(np.nan, np.nan))
+        loc_lines += ax.plot(trusted.real, trusted.imag, color=color, lw=1.1, label=lab(name))
+    for z, ok, color, _ in loci:  # untrusted values (the element says its N is an average there): faint dots
+        if ok is not None and np.any(~ok & np.isfinite(z)):
+            bad = z[~ok & np.isfinite(z)]
+            loc_lines += ax.plot(bad.real, bad.imag, ls="none", marker=".", ms=2, color=color, alpha=0.4)
     seen = set()
     markers = []
     for c in cycles:
@@ -134,9 +141,12 @@ def _inset_corner(ax, curves, size: float, keep):
     return where, best < 10**9
 
 
-def _label_texts(cycles, jumps):
-    return ([f"A={c.amplitude:.3g}, ω={c.frequency:.3g} rad/s\n{c.stability}" for c in cycles]
-            + [f"jump of N at A={j.amplitude:.3g}, ω={j.frequency:.3g} rad/s\n(no cycle)" for j in jumps])
+def _label_texts(cycles, jumps, N):
+    """Cycle labels in the element's own amplitude name and unit (``X=1.01 m``, ``F=31.8 N``)."""
+    name = getattr(N, "input_name", "A") or "A"
+    unit = f" {N.input_unit}" if getattr(N, "input_unit", "") else ""
+    return ([f"{name}={c.amplitude:.3g}{unit}, ω={c.frequency:.3g} rad/s\n{c.stability}" for c in cycles]
+            + [f"jump of N at {name}={j.amplitude:.3g}{unit}, ω={j.frequency:.3g} rad/s\n(no cycle)" for j in jumps])
 
 
 def plot_nyquist(cycles, ax=None, *, omega=None, amplitude=None, n_loci: int = 5, inset: bool = True):
@@ -155,8 +165,11 @@ def plot_nyquist(cycles, ax=None, *, omega=None, amplitude=None, n_loci: int = 5
     omega, amplitude : (lo, hi), optional
         Windows to draw (default: those of ``cycles``); rad/s and the element's input unit.
     n_loci : int
-        For a frequency-dependent N, the -1/N(A, w) locus is drawn at this many frequencies of the window plus
-        at each cycle's frequency (a family of curves, one colour each, labelled with its frequency).
+        For a frequency-dependent N, the locus -1/N(A, w) over the frequency window is drawn at this many
+        amplitudes of the window (but none within 10 % of a cycle's) plus at each cycle's amplitude A* (G(jw)
+        meets that curve at the cycle, both at its frequency w*): a family of curves, one colour each from an ordered map, labelled with its amplitude,
+        with an arrow along increasing w; values the element does not trust (``validity`` False: irregular
+        motion, where N is an average) are drawn as faint dots of the curve's colour.
     inset : bool
         Frame the cycles, -1 and the origin; when some of them crowd into a small part of that view (markers
         within a few percent of it), add a zoomed inset around them and label them there.
@@ -164,7 +177,8 @@ def plot_nyquist(cycles, ax=None, *, omega=None, amplitude=None, n_loci: int = 5
     Returns
     -------
     control.ControlPlot
-        ``lines`` is a 1-D array of lists of Line2D: [G(jw)], [-1/N loci], [cycle markers],
+        ``lines`` is a 1-D array of lists of Line2D: [G(jw)], [-1/N loci (then their untrusted dots, if any)],
+        [cycle markers],
         [jump-crossing markers], [exact-cycle markers], [the -1 marker]; ``axes[0, 0]`` the axes (an inset, if
         drawn, is ``axes[0, 0].child_axes[0]``), ``figure`` the figure.
     """
@@ -187,35 +201,50 @@ def plot_nyquist(cycles, ax=None, *, omega=None, amplitude=None, n_loci: int = 5
                                   a_lo + (min(a_hi, 10 * a_lo) - a_lo) * np.geomspace(1e-9, 1.0, 400)]))
     loci = []
     if N.frequency_dependent:
-        freqs = np.unique(np.concatenate([np.geomspace(w_lo, w_hi, n_loci), [c.frequency for c in cycles]]))
-        colors = plt.cm.viridis(np.linspace(0.2, 0.85, freqs.size)) if freqs.size > 1 else ["C2"]
-        for wf, color in zip(freqs, colors):
-            _, loc = curve_with_gaps(lambda a, wf=wf: negative_inverse(N, a, wf), A)
-            loci.append((loc, color, f"-1/N(A, ω={wf:.3g} rad/s)"))
+        # one locus over the frequency window per amplitude: each cycle's (G(jw) meets -1/N(A*, w) at the cycle,
+        # both at w*) and n_loci amplitudes spanning the window; untrusted values (irregular motion) as dots
+        own_a = np.array([c.amplitude for c in cycles], dtype=float)
+        grid = np.geomspace(a_lo, a_hi, n_loci)
+        # a window amplitude within 10 % of a cycle's would draw a second, nearly identical curve: left out
+        grid = grid[[not np.any(np.abs(a / own_a - 1) < 0.1) for a in grid]] if own_a.size else grid
+        amps = np.unique(np.concatenate([grid, own_a]))
+        colors = plt.cm.viridis(np.linspace(0.05, 0.85, amps.size)) if amps.size > 1 else ["C2"]
+        own = {float(c.amplitude) for c in cycles}
+        unit = f" {N.input_unit}" if N.input_unit else ""
+        for a_f, color in zip(amps, colors):
+            w_f, loc = curve_with_gaps(lambda x, a_f=a_f: negative_inverse(N, a_f, x), w)
+            ok = np.zeros(w_f.size, bool)
+            fin = np.isfinite(w_f)
+            ok[fin] = np.asarray(N.validity(a_f, w_f[fin]), bool)
+            tag = " (a cycle's amplitude)" if float(a_f) in own else ""
+            loci.append((loc, ok, color, f"-1/N({N.input_name}={a_f:.3g}{unit}, ω){tag}"))
     else:
         _, loc = curve_with_gaps(lambda a: negative_inverse(N, a), A)
-        loci.append((loc, "C2", "-1/N(A)"))
+        loci.append((loc, None, "C2", "-1/N(A)"))
     jumps = list(getattr(cycles, "jump_crossings", ()))
     exact = [c.exact for c in cycles if getattr(c, "exact", None) is not None and c.exact.success]
     g_exact = plant(np.array([e.frequency for e in exact], dtype=float)) if exact else np.empty(0, complex)
     groups = _draw_curves(ax, g, loci, cycles, jumps, g_exact, labelled=True)
     marks = np.array([c.G for c in cycles] + [j.G for j in jumps] + list(g_exact), dtype=complex)
-    xlim, ylim = _view(np.concatenate([g] + [z for z, _, _ in loci]), marks)
+    xlim, ylim = _view(np.concatenate([g] + [z for z, _, _, _ in loci]), marks)
     ax.set_xlim(*xlim)
     ax.set_ylim(*ylim)
     plane_labels(ax, N)
-    curves = [g] + [z for z, _, _ in loci]
-    for line in groups[1]:  # a locus of the family that runs outside the view gets no legend entry
+    curves = [g] + [z for z, _, _, _ in loci]
+    hidden = []  # a locus of the family that runs outside the view gets no legend entry
+    for line in groups[1]:
         z = line.get_xdata() + 1j * line.get_ydata()
         if not np.any((z.real >= xlim[0]) & (z.real <= xlim[1]) & (z.imag >= ylim[0]) & (z.imag <= ylim[1])):
-            line.set_label("_outside the view")
+            hidden.append(line)
     add_direction_arrow(ax, g, "C0")
     for line in groups[1]:
-        add_direction_arrow(ax, line.get_xdata() + 1j * line.get_ydata(), line.get_color())
-    leg = legend(ax, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
+        if line.get_linestyle() not in ("None", "none", ""):
+            add_direction_arrow(ax, line.get_xdata() + 1j * line.get_ydata(), line.get_color())
+    leg = legend(ax, skip=hidden, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
     anchors = [c.G for c in cycles] + [j.G for j in jumps]
-    texts = _label_texts(cycles, jumps)
+    texts = _label_texts(cycles, jumps, N)
     colors = ["black"] * len(cycles) + ["C1"] * len(jumps)
+    tags = [f"#{i}" for i in range(len(cycles))] + [f"j{i}" for i in range(len(jumps))]
     keys = np.array(anchors + list(g_exact) + [-1.0 + 0j], dtype=complex)
     group = _crowded_group(keys, max(xlim[1] - xlim[0], ylim[1] - ylim[0])) if inset else np.empty(0, int)
     crowd = group[group < len(anchors)]  # the labelled points of the crowded group
@@ -223,7 +252,7 @@ def plot_nyquist(cycles, ax=None, *, omega=None, amplitude=None, n_loci: int = 5
     if crowd.size >= 1:
         sel = keys[group]
         cx, cy = 0.5 * (sel.real.min() + sel.real.max()), 0.5 * (sel.imag.min() + sel.imag.max())
-        half = 0.75 * max(np.ptp(sel.real), np.ptp(sel.imag), 0.02 * (xlim[1] - xlim[0]))
+        half = max(np.ptp(sel.real), np.ptp(sel.imag), 0.02 * (xlim[1] - xlim[0]))  # the group fills the middle half
         for size in (0.44, 0.38, 0.32):  # the largest inset that covers no marker
             (fx, fy), clear = _inset_corner(ax, curves, size, keys)
             if clear:
@@ -236,19 +265,27 @@ def plot_nyquist(cycles, ax=None, *, omega=None, amplitude=None, n_loci: int = 5
         axins.set_title("zoom", fontsize=7, pad=2)
         ax.indicate_inset_zoom(axins, edgecolor="0.4")
         inside = set(crowd.tolist())
-        place_labels(axins, [(anchors[i].real, anchors[i].imag) for i in crowd], [texts[i] for i in crowd],
-                     [colors[i] for i in crowd], fontsize=6.5, avoid=[(p.real, p.imag) for p in g_exact],
-                     curves=curves, unplaced=unplaced)
+        inset_points = [(anchors[i].real, anchors[i].imag) for i in crowd]
+        inset_avoid = [(p.real, p.imag) for p in g_exact]
+        if crowd.size <= 2:  # room for full labels (a number, and the label listed, where there is not)
+            place_labels(axins, inset_points, [texts[i] for i in crowd], [colors[i] for i in crowd], fontsize=6.5,
+                         avoid=inset_avoid, curves=curves, unplaced=unplaced, tags=[tags[i] for i in crowd])
+        else:  # several points: each carries its number only (right above or below it, over the curves), the
+            # full labels are listed beside the axes (long labels in a small inset would cross each other)
+            place_labels(axins, inset_points, [tags[i] for i in crowd], [colors[i] for i in crowd], fontsize=7,
+                         avoid=inset_avoid, unplaced=unplaced, angles=(90.0, -90.0, 45.0, 135.0, -45.0, -135.0))
+            unplaced += [f"{tags[i]}: " + texts[i].replace("\n", " ") for i in crowd]
         rest = [i for i in range(len(anchors)) if i not in inside]
         place_labels(ax, [(anchors[i].real, anchors[i].imag) for i in rest], [texts[i] for i in rest],
                      [colors[i] for i in rest], avoid=[(p.real, p.imag) for p in g_exact]
                      + [(anchors[i].real, anchors[i].imag) for i in crowd], curves=curves,
-                     keep_clear=[axins], unplaced=unplaced)
+                     keep_clear=[axins], unplaced=unplaced, tags=[tags[i] for i in rest])
     else:
         place_labels(ax, [(p.real, p.imag) for p in anchors], texts, colors,
-                     avoid=[(p.real, p.imag) for p in g_exact], curves=curves, unplaced=unplaced)
+                     avoid=[(p.real, p.imag) for p in g_exact], curves=curves, unplaced=unplaced, tags=tags)
     if unplaced:
-        ax.annotate("not labelled (crowded):\n" + "\n".join(unplaced), (1.02, 0.0), xycoords="axes fraction",
+        ax.annotate("crowded cycles, by their number (#) on the plot:\n" + "\n".join(unplaced), (1.02, 0.0),
+                    xycoords="axes fraction",
                     va="bottom", ha="left", fontsize=7)
     return control_plot(groups, ax, leg)
 

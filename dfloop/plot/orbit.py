@@ -53,15 +53,16 @@ def plot_exact_cycle(exact, ax=None, *, unit: str = "") -> Any:
     return control_plot([wave, switches], ax, legend(ax, fontsize=8))
 
 
-def _outcome(name: str, run, sim) -> str:
+def _outcome(side: str, run, sim, name: str) -> str:
     if sim is not None and sim.diverged:
-        return f"from {name}: diverged"
+        return f"from {side}: diverged"
     if not run.oscillating:
-        return f"from {name}: came to rest"
-    return f"from {name}: settled at A={run.amplitude:.4g}, ω={run.frequency:.4g} rad/s"
+        return f"from {side}: came to rest"
+    return f"from {side}: settled at {name}={run.amplitude:.4g}, ω={run.frequency:.4g} rad/s"
 
 
-def plot_verification(verification, ax=None, *, unit: str = "", periods: float | None = 20) -> Any:
+def plot_verification(verification, ax=None, *, unit: str = "", name: str = "A",
+                      periods: float | None = 20) -> Any:
     """The two closed-loop runs of a verification, x(t) from inside and from outside the predicted cycle, over
     the band |x| <= A of the predicted amplitude (and the exact orbit's amplitude, when the verified cycle
     carried one).
@@ -78,6 +79,8 @@ def plot_verification(verification, ax=None, *, unit: str = "", periods: float |
     ax : matplotlib Axes, optional
     unit : str
         The unit of x (the element's ``input_unit``) for the axis label.
+    name : str
+        The name of x's amplitude in the legend (the element's ``input_name``, e.g. ``"X"``, ``"F"``).
     periods : float or None
         Show the first this many predicted periods of the runs, where they converge or leave (default 20;
         None: the whole runs). The legend gives where each run settled at its end.
@@ -102,24 +105,25 @@ def plot_verification(verification, ax=None, *, unit: str = "", periods: float |
         if not (np.isfinite(periods) and periods > 0):
             raise ValueError(f"periods must be > 0 or None, got {periods!r}")
         t_end = min(t_end, float(periods) * T)
-    for name, run, sim, color in (("inside", v.inside, runs[0], "C0"), ("outside", v.outside, runs[1], "C1")):
+    for side, run, sim, color in (("inside", v.inside, runs[0], "C0"), ("outside", v.outside, runs[1], "C1")):
         keep = sim.t <= t_end
-        curves += ax.plot(sim.t[keep], sim.x[keep], color=color, lw=0.7, alpha=0.9, label=_outcome(name, run, sim))
+        curves += ax.plot(sim.t[keep], sim.x[keep], color=color, lw=0.7, alpha=0.9,
+                          label=_outcome(side, run, sim, name))
     edges = []
     ax.axhspan(-A, A, color="C3", alpha=0.07, lw=0)
     edges += ax.plot([t_start, t_end], [A, A], color="C3", ls="--", lw=1.2,
-                     label=f"predicted ±A, A={A:.4g}, ω={w:.4g} rad/s")
+                     label=f"predicted ±{name}, {name}={A:.4g}, ω={w:.4g} rad/s")
     edges += ax.plot([t_start, t_end], [-A, -A], color="C3", ls="--", lw=1.2)
     exact = getattr(v, "exact_amplitude", None)
     if exact is not None:
         edges += ax.plot([t_start, t_end], [exact, exact], color="C4", ls=":", lw=1.5,
-                         label=f"exact orbit ±A, A={exact:.4g}")
+                         label=f"exact orbit ±{name}, {name}={exact:.4g}")
         edges += ax.plot([t_start, t_end], [-exact, -exact], color="C4", ls=":", lw=1.5)
     ax.set_xlim(t_start, t_end)
     peak = max([np.max(np.abs(r.x[r.t <= t_end]), initial=0.0) for r in runs] + [A])
     ax.set_ylim(-1.15 * peak, 1.6 * peak)  # head room for the legend above the runs
     ax.set_xlabel(TIME)
     ax.set_ylabel(quantity("Element input x", unit or "-"))
-    ax.set_title(f"Verification: {v.verdict} (starts at (1 ∓ {v.perturbation:g}) A)", fontsize=9)
+    ax.set_title(f"Verification: {v.verdict} (starts at (1 ∓ {v.perturbation:g}) {name})", fontsize=9)
     leg = legend(ax, fontsize=7.5, loc="upper center", ncol=2)
     return control_plot([curves, edges], ax, leg)

@@ -15,7 +15,7 @@ import numpy as np
 
 from ._labels import FREQUENCY, TIME, case_labels, legend, ordered_colors, plain_log_ticks
 from .controlplot import control_plot
-from .impact import plot_collision_map
+from .impact import plot_collision_map, plot_time_response
 
 __all__ = ["plot_element_study", "study_labels"]
 
@@ -113,7 +113,12 @@ def _time(data, ax):
     name = data.parameter.rsplit(".", 1)[-1] if data.parameter else ""
     for curve, label in zip(data.curves, labels):
         a = ax[frequencies.index(curve.omega), values.index(curve.value)]
-        lines += a.plot(curve.x, curve.y, lw=0.8, color="C0", label=label)
+        traj = getattr(curve, "trajectory", None)
+        if traj is not None:  # the motion itself: velocity jumps at the impacts left unbridged
+            lines += plot_time_response(traj, "v1", ax=a, t_range=(float(curve.x[0]), float(curve.x[-1])),
+                                        samples=curve.x.size, label=label, color="C0").lines[0]
+        else:
+            lines += a.plot(curve.x, curve.y, lw=0.8, color="C0", label=label)
         head = f"ω={curve.omega:g} rad/s" + ("" if data.parameter is None else f", {name}={curve.value:g}")
         a.set_title(head + "\n" + curve.note, fontsize=7,
                     color="firebrick" if "not applicable" in curve.note else "black")
@@ -146,7 +151,8 @@ def plot_element_study(data, ax=None) -> Any:
     data : FigureData
         Its ``kind`` picks the picture: ``nyquist`` (-1/N curves on the plane, untrusted points as faint dots),
         ``loglog`` (|Re| and |Im| of -1/N against w, two axes), ``time_response`` (dx1/dt(t) panels: rows =
-        frequencies, columns = parameter values), ``collisions`` (:func:`plot_collision_map`).
+        frequencies, columns = parameter values; a curve that carries its ``trajectory`` is drawn by
+        :func:`plot_time_response`, jumps unbridged), ``collisions`` (:func:`plot_collision_map`).
     ax : matplotlib Axes, optional
         One axes (nyquist, collisions), two (loglog) or a 2-D array (time_response); new ones by default.
 

@@ -48,6 +48,9 @@ class Curve:
         Forcing frequency (rad/s) of a ``time_response`` panel.
     note : str
         What the curve's motion is (period, irregular) and whether the paper's model applies.
+    trajectory : Trajectory or None
+        ``time_response``: the simulated motion (:func:`dfloop.impact.kernel.simulate`), drawn with its velocity
+        jumps at the impacts unbridged.
     """
 
     amplitude: float
@@ -57,6 +60,7 @@ class Curve:
     ok: np.ndarray
     omega: float | None = None
     note: str = ""
+    trajectory: Any = field(default=None, compare=False)
 
     def __repr__(self) -> str:
         return (f"Curve(A={self.amplitude:g}, value={self.value}, omega={self.omega}, points={self.x.size}, "
@@ -104,13 +108,19 @@ def _elements(scene, spec) -> list[tuple[float | None, Any]]:
     return [(float(v), loop_at(v)[1]) for v in spec.values]
 
 
-def _impact_element(scene, spec, element) -> Any:
-    from dfloop.impact.dynamic_backlash import DynamicBacklash
+_IMPACT_SYSTEM = ("m1", "m2", "h", "restitution", "effects")  # what the impact kinds simulate with
 
-    if not isinstance(element, DynamicBacklash):
+
+def _impact_element(scene, spec, element) -> Any:
+    """The element, when it describes the two-mass impact system (it carries masses m1, m2 in kg, clearance h
+    in m, restitution and effects: the dynamic backlash); no switch on its type, so any element that carries
+    these parameters can be studied."""
+    missing = [name for name in _IMPACT_SYSTEM if not hasattr(element, name)]
+    if missing:
         raise SceneError(scene.source, Problem("figure.kind", f"kind = {spec.kind!r} simulates the "
-                                               f"two-mass impact system: the element must be DynamicBacklash, "
-                                               f"got {type(element).__name__}"))
+                                               f"two-mass impact system: the element must carry its parameters "
+                                               f"({', '.join(_IMPACT_SYSTEM)}; e.g. DynamicBacklash), "
+                                               f"{type(element).__name__} has no {', '.join(missing)}"))
     return element
 
 
@@ -161,7 +171,7 @@ def _time_responses(scene, spec, elements) -> list[Curve]:
                     motion = "from rest, " + motion
                 limit = _lower_limit_note(el, F, w) if spec.mark_lower_limit else ""
                 curves.append(Curve(F, value, t, traj.evaluate(t)["v1"], np.full(t.size, df.regular), w,
-                                    "; ".join(s for s in (motion, limit) if s)))
+                                    "; ".join(s for s in (motion, limit) if s), traj))
     return curves
 
 

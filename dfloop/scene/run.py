@@ -6,7 +6,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-
 from .load import Scene
 
 __all__ = ["SceneReport", "run_scene", "predict_cycles"]
@@ -154,7 +153,8 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
     scene : Scene
         From :func:`load_scene`.
     out_dir : str or Path
-        Where the plots, the CSV of a sweep and ``<name>_report.md`` go (created if needed).
+        Where the plots, the CSV of a sweep, ``<name>_report.md`` and ``<name>_report.html`` (one
+        self-contained page: :func:`dfloop.scene.html.report_html`) go (created if needed).
     log : callable
         Receives one line per stage and result (``print`` by default).
     progress : bool or None
@@ -251,5 +251,8 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
     path = out / f"{scene.name}_report.md"
     path.write_text(report.to_markdown())
     report.files.append(path)
-    log(f"[{scene.name}] report written to {path}")
+    from .html import write_report_html  # one self-contained page: tables and figures embedded
+
+    report.files.append(write_report_html(report, out / f"{scene.name}_report.html"))
+    log(f"[{scene.name}] report written to {path} and {report.files[-1].name}")
     return report
