@@ -39,7 +39,7 @@ _FD_FOLD = 1e-5  # outer difference step for the fold condition (itself a differ
 _XTOL = 1e-10
 _MAX_NEWTON = 10
 _COS_TURN = math.cos(math.radians(30))
-_EDGE_IN = 1e-12
+_EDGE_IN = 1e-15  # relative offset inside an element edge (see continuation._inside)
 _ROUNDS = 4  # completeness rounds (sweeps of unseparated sample pairs)
 _PAIRS_PER_ROUND = 24
 
@@ -395,7 +395,7 @@ class _Edge(_Condition):
     def amplitude(self, Z):
         v, ux, uy = Z
         level = self.plane.edge_level(self.kind, self.side, self.ref, math.exp(v), ux, uy)
-        return level * (1 + self.side * _EDGE_IN)
+        return level * (1 + self.side * max(_EDGE_IN, 8 * float(np.finfo(float).eps)))
 
     def F(self, Z):
         r = self.plane.residual(self.amplitude(Z), math.exp(Z[0]), Z[1], Z[2])

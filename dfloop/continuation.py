@@ -49,7 +49,7 @@ _MATCH = 1e-6  # a solver's cycle lies on a traced curve when within this (ln A,
 _MATCH_MARGINAL = 1e-3  # ... or within this for a cycle the solver called marginal (a double root)
 _SAME_Q = 1e-12  # a point this close to a given value (in q) lies on it
 _CACHE = 512  # loops kept per sweep (the corrector asks for the same parameter values repeatedly)
-_EDGE_IN = 1e-12  # an element edge is approached this far (relative) on the branch's side
+_EDGE_IN = 1e-15  # an element edge is approached this far (in ln A, at least 8 ulps) on the branch's side
 _MAX_BREAKPOINTS = 64  # breakpoints of a static element examined as possible edges
 _LIMIT_NEWTON = 40  # Newton iterations for a birth from infinity / zero amplitude
 
@@ -591,7 +591,7 @@ class _Family:
         side = 0 if edge is None else edge[1]
         for it in range(_MAX_NEWTON):
             if edge is not None:  # the edge's level at the current (w, q), and its slopes in ln w and q
-                X[0] = self._edge_level(edge[0], X) + side * _EDGE_IN
+                X[0] = _inside(self._edge_level(edge[0], X), side)
             if not self.admissible(X, side):
                 return None
             R, J = self.jacobian(X, side)
@@ -612,7 +612,7 @@ class _Family:
             X, prev = X + dx, step
             if step <= _XTOL:
                 if edge is not None:
-                    X[0] = self._edge_level(edge[0], X) + side * _EDGE_IN
+                    X[0] = _inside(self._edge_level(edge[0], X), side)
                 if not self.admissible(X, side):
                     return None
                 return _Point(X, self.jacobian(X, side)[1] if edge is not None else J, it + 1)
@@ -673,6 +673,13 @@ class _Family:
             if max(abs(d[0]), abs(d[1])) <= _XTOL:
                 return q, v
         return None
+
+
+def _inside(a_edge: float, side: int) -> float:
+    """ln A just inside an edge at ln A = a_edge, on ``side`` (+1 above): a few ulps, so that N is evaluated on
+    the branch's side (N has a square-root edge for a relay with hysteresis: the point is then exact to
+    about sqrt(1e-15) ~ 3e-8)."""
+    return a_edge + side * max(8 * float(np.spacing(abs(a_edge))), _EDGE_IN)
 
 
 def element_edges(N, a_max: float) -> list:

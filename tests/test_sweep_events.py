@@ -158,3 +158,23 @@ def test_sweep_marginal_label_is_the_solvers_and_right():
         assert lab == "stable"
         (same,) = [c for c in found if abs(c.amplitude / x - 1) < 1e-6]
         assert same.stability == lab  # the solver's label at the same value
+
+
+def test_relay_with_hysteresis_born_at_the_edge_of_its_domain():
+    """Relay M with hysteresis a: -1/N = -(pi A / 4M) e^{j asin(a/A)} is the horizontal half-line
+    Im = -pi a / (4M), Re <= 0, starting at A = a (where N's domain begins, N(a+) != 0). G = K/(s+1)^2 meets it
+    on its w > 1 part iff Im G(j1) = -K/2 < -pi a/(4M): the cycle is born at K = pi a / (2M), A = a, w = 1.
+    The DF has a square-root edge there (asin near 1), so the birth is located to about sqrt(rounding)."""
+    M, a = 1.0, 0.2
+    Kb = math.pi * a / (2 * M)
+    G = ct.tf([1], [1, 2, 1])
+    res = sweep(lambda K: (K * G, df.Relay(M, hysteresis=a)), np.linspace(0.5 * Kb, 3 * Kb, 6), parameter="K",
+                progress=False)
+    (b,) = [e for e in res.events if e.kind == "birth"]
+    assert b.cause == "amplitude domain"
+    assert abs(b.parameter / Kb - 1) < 2e-7 and abs(b.amplitude / a - 1) < 1e-12 and abs(b.frequency - 1) < 2e-7
+    (br,) = res.branches
+    K, A, w = br.at_values()
+    for k, x, ww in zip(K, A, w):  # on the half-line: Im G(jw) = -pi a/(4M) and A = 4M |G(jw)| / pi
+        g = k / (1j * ww + 1) ** 2
+        assert abs(g.imag / (-math.pi * a / (4 * M)) - 1) < 1e-9 and abs(x / (4 * M * abs(g) / math.pi) - 1) < 1e-9
