@@ -48,7 +48,7 @@ _BISECT = 80  # bound on the probes that locate an event inside a step
 _MATCH = 1e-6  # a solver's cycle lies on a traced curve when within this (ln A, ln w)
 _MATCH_MARGINAL = 1e-3  # ... or within this for a cycle the solver called marginal (a double root)
 _SAME_Q = 1e-12  # a point this close to a given value (in q) lies on it
-_CACHE = 512  # loops kept per sweep (the corrector asks for the same parameter values repeatedly)
+_CACHE = 2048  # loops kept per sweep (the corrector and the labels ask for the same parameter values again)
 _EDGE_IN = 1e-15  # an element edge is approached this far (in ln A, at least 8 ulps) on the branch's side
 _MAX_BREAKPOINTS = 64  # breakpoints of a static element examined as possible edges
 _LIMIT_NEWTON = 40  # Newton iterations for a birth from infinity / zero amplitude
@@ -467,6 +467,7 @@ class _Family:
         self.log_window = log_window  # (a_lo, a_hi, v_lo, v_hi)
         self._cache: dict = {}
         self._edges: dict = {}
+        self._edges_of: dict = {}
         self.last_failure = ""
 
     def value(self, q: float) -> float:
@@ -506,8 +507,14 @@ class _Family:
             return hit
         if len(self._edges) >= _CACHE:
             self._edges.clear()
-        self._edges[q] = out = element_edges(self.loop(q)[1], math.exp(self.log_window[1] + 1))
-        return out
+        N = self.loop(q)[1]
+        hit = self._edges_of.get(id(N))  # one element object serves many q (a gain sweep): its edges once
+        if hit is None or hit[0] is not N:
+            if len(self._edges_of) >= _CACHE:
+                self._edges_of.clear()
+            hit = self._edges_of[id(N)] = (N, element_edges(N, math.exp(self.log_window[1] + 1)))
+        self._edges[q] = hit[1]
+        return hit[1]
 
     def edge_value(self, edge: tuple, X: np.ndarray) -> float:
         """a - ln(level) at X (signed distance in ln A from the edge; > 0 above it)."""
@@ -574,11 +581,10 @@ class _Family:
         marginal test :func:`dfloop.solve.stability.label_roots`."""
         def slopes(a, v):
             a, v = np.asarray(a, float), np.asarray(v, float)
-            h = _FD
-            P = self.residual(q, a, v) - 1.0
-            pa = (self.residual(q, a + h, v) - self.residual(q, a - h, v)) / (2 * h)
-            pv = (self.residual(q, a, v + h) - self.residual(q, a, v - h)) / (2 * h)
-            return P, pa, pv
+            h, k = _FD, a.size
+            r = self.residual(q, np.concatenate([a, a + h, a - h, a, a]), np.concatenate([v, v, v, v + h, v - h]))
+            r0, rap, ram, rvp, rvm = (r[i * k:(i + 1) * k] for i in range(5))
+            return r0 - 1.0, (rap - ram) / (2 * h), (rvp - rvm) / (2 * h)
         return slopes
 
     def correct(self, X0: np.ndarray, n: np.ndarray, g: float, edge: tuple | None = None) -> _Point | None:

@@ -11,7 +11,6 @@ References (derived here, not from dfloop's code):
 """
 import math
 from concurrent.futures import ThreadPoolExecutor
-from functools import partial
 
 import matplotlib
 
