@@ -75,7 +75,8 @@ class Branch:
         Index into ``SweepResult.values`` where the point lies at a given value, else -1.
     start, end : str
         How the branch begins and ends in the order of the sweep: ``"sweep start"``, ``"sweep end"``,
-        ``"fold"``, ``"stability change"``, ``"enters <edge>"``, ``"leaves <edge>"``, ``"lost: <why>"``.
+        ``"fold"``, ``"stability change"``, ``"enters <edge>"``, ``"leaves <edge>"``, ``"born ..."`` /
+        ``"dies ..."`` (at an element edge: see ``SweepEvent.cause``), ``"lost: <why>"``.
     """
 
     index: int
@@ -314,11 +315,14 @@ class SweepResult:
             ax_a.plot(b.parameter, b.amplitude, label=label, **style[k])
             ax_w.plot(b.parameter, b.frequency, **style[k])
         marks = {"fold": dict(marker="o", color="k", ls="none", ms=5),
+                 "birth": dict(marker="^", color="C2", ls="none", ms=7),
+                 "death": dict(marker="v", color="C2", ls="none", ms=7),
+                 "continuum": dict(marker="|", color="0.3", ls="none", ms=12),
                  "entry": dict(marker="x", color="0.3", ls="none"), "exit": dict(marker="x", color="0.3", ls="none"),
                  "stability change": dict(marker="s", color="C2", ls="none", ms=5),
                  "lost": dict(marker="*", color="C1", ls="none", ms=8)}
         for kind, st in marks.items():
-            ev = [e for e in self.events if e.kind == kind]
+            ev = [e for e in self.events if e.kind == kind and 0 < e.amplitude < math.inf]  # births at A -> inf: no mark
             if ev:
                 label = "window edge" if kind in ("entry", "exit") else kind
                 label = None if label in seen else label
