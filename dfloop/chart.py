@@ -862,6 +862,7 @@ def design_chart(loop_at: Callable[[float, float], tuple], x_axis: ChartAxis, y_
                 chosen[part[ok]] = True
     labels = best.reshape(resolution, resolution)
 
+    notes = list(dict.fromkeys(notes))  # a failure met from several seeds is said once
     margin = _margin(nominal, boundaries, x_axis, y_axis) if nominal is not None else None
     return ChartResult(x_axis, y_axis, boundaries, sx, sy, counts, x_axis.value(gu), y_axis.value(gu), labels,
                        nominal, margin, notes, n_solves, exact_counts, exact_orbits)
