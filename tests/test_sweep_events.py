@@ -178,3 +178,16 @@ def test_relay_with_hysteresis_born_at_the_edge_of_its_domain():
     for k, x, ww in zip(K, A, w):  # on the half-line: Im G(jw) = -pi a/(4M) and A = 4M |G(jw)| / pi
         g = k / (1j * ww + 1) ** 2
         assert abs(g.imag / (-math.pi * a / (4 * M)) - 1) < 1e-9 and abs(x / (4 * M * abs(g) / math.pi) - 1) < 1e-9
+
+
+def test_cubic_spring_cycle_dies_at_zero_amplitude():
+    """N = k1 + 3 k3 A^2 / 4 -> k1 as A -> 0: the cycle (A^2 = (6/K - k1) 4 / (3 k3), for K < 6/k1) shrinks to
+    zero amplitude where the loop with N(0) = k1 is marginal, K = 6 / k1."""
+    k1, k3 = 1.5, 2.0
+    res = sweep(lambda K: (K * G0, df.CubicStiffness(k1, k3)), np.linspace(2, 5, 4), parameter="K", progress=False)
+    (d,) = [e for e in res.events if e.kind == "death"]
+    assert d.cause == "zero amplitude" and d.amplitude == 0.0
+    assert abs(d.parameter - 6 / k1) < 1e-12 and abs(d.frequency - math.sqrt(2)) < 1e-12
+    (br,) = res.branches
+    K, A, _ = br.at_values()
+    np.testing.assert_allclose(A, np.sqrt((6 / K - k1) * 4 / (3 * k3)), rtol=1e-9)
