@@ -634,6 +634,8 @@ class _Family:
         q = min(max(float(X[2]), 0.0), 1.0)
         kind, side, ref = edge[0], edge[1], edge[2](1.0)
         same = [e for e in self.edges(q) if e[0] == kind and e[1] == side]
+        if not same and kind == "jump":  # a jump found by probing N (not a declared breakpoint): fixed level
+            return math.log(edge[2](math.exp(X[1])))
         if not same:
             raise RuntimeError(f"the element's {kind} edge disappeared at p={self.value(q):.9g}")
         e = min(same, key=lambda e: abs(math.log(e[2](1.0) / ref)) if ref > 0 else 0.0)  # the same edge, moved
@@ -647,6 +649,37 @@ class _Family:
         hq = h if X[2] + h <= 1 else -h
         dq = (self._edge_level(edge, X + [0, 0, hq]) - base) / hq
         return np.array([1.0, -dv, -dq])
+
+    def jump_near(self, X: np.ndarray, direction: float):
+        """A jump of N in amplitude within 1e-5 (in ln A: a few difference steps, across which the corrector
+        fails) of X in ``direction`` (sign of d ln A): the amplitudes either side of it, located by bisection to
+        rounding, or None. For elements that do not declare their
+        breakpoints: a branch that cannot be continued is checked for one before it is called lost."""
+        if direction == 0:
+            return None
+        plant, N = self.loop(min(max(float(X[2]), 0.0), 1.0))
+        w = np.array([math.exp(X[1])])
+
+        def n(a):
+            A = np.array([math.exp(a)])
+            return complex((N(A, w) if N.frequency_dependent else N(A))[0])
+
+        a0, a1 = float(X[0]), float(X[0]) + math.copysign(10 * _FD, direction)
+        try:
+            n0, n1 = n(a0), n(a1)
+        except ValueError:
+            return None
+        if not abs(n1 - n0) > 1e-3 * max(abs(n0), abs(n1)):  # a smooth N changes by ~1e-5 here
+            return None
+        for _ in range(_BISECT):  # keep a0 on X's side, a1 across the jump
+            mid = 0.5 * (a0 + a1)
+            if mid in (a0, a1):
+                break
+            if abs(n(mid) - n0) <= 1e-3 * max(abs(n0), 1e-300):
+                a0 = mid
+            else:
+                a1 = mid
+        return math.exp(a0), math.exp(a1)
 
     def limit_birth(self, X: np.ndarray, amplitude: float):
         """Where a branch that runs to A -> ``amplitude`` (inf or 0) is born: the parameter at which
@@ -803,6 +836,15 @@ class _Tracer:
         X = lo.X + w * (hi.X - lo.X)
         return _Point(X, self.f.jacobian(X)[1])
 
+    def _jump_end(self, P: _Point, t: np.ndarray) -> _Point | None:
+        """Where a branch that cannot be continued meets a jump of N next to P (None if there is none)."""
+        hit = self.f.jump_near(P.X, t[0])
+        if hit is None:
+            return None
+        edge = ("jump", 0, lambda w, x=hit[0]: x)  # hit[0]: the last amplitude on P's side, to rounding
+        side = 1 if P.X[0] > math.log(hit[0]) else -1  # one-sided differences on P's side
+        return self.f.correct(P.X, t, 0.0, edge=(edge, side))
+
     def _edge_crossing(self, P: _Point, Q: _Point):
         """(edge name, point) where the segment P -> Q first leaves the (ln A, ln w) window, or None."""
         a_lo, a_hi, v_lo, v_hi = self.f.log_window
@@ -883,6 +925,11 @@ class _Tracer:
             if Q is None or not ok:
                 h *= 0.5
                 if h < _HMIN:
+                    E = self._jump_end(P, t)
+                    if E is not None:
+                        self._values_between(P, E, out)
+                        out.append(_Node(E, "edge", self._value_index(E.X[2]), "jump"))
+                        return out
                     out.append(_Node(P, "lost", -1, self.f.last_failure or "the step size underflowed"))
                     return out
                 continue

@@ -21,6 +21,7 @@ from scipy.optimize import brentq, minimize_scalar
 
 import dfloop as df
 from dfloop.continuation import ContinuumAt, sweep
+from dfloop.describing.base import DescribingFunction
 
 G0 = ct.tf([1], [1, 3, 2, 0])
 
@@ -191,3 +192,38 @@ def test_cubic_spring_cycle_dies_at_zero_amplitude():
     (br,) = res.branches
     K, A, _ = br.at_values()
     np.testing.assert_allclose(A, np.sqrt((6 / K - k1) * 4 / (3 * k3)), rtol=1e-9)
+
+
+class _StepRelay(DescribingFunction):
+    """An ideal relay whose level halves at A = 2 (N jumps there; no declared breakpoints)."""
+
+    def _evaluate(self, A, omega):
+        with np.errstate(divide="ignore"):
+            return np.where(A < 2.0, 4.0, 2.0) / (np.pi * A) + 0j
+
+
+class _Cubed:
+    """K / (jw + 1)^3 (picklable callable plant)."""
+
+    def __init__(self, K):
+        self.K = K
+
+    def __call__(self, w):
+        return self.K / (1j * np.asarray(w) + 1) ** 3
+
+
+def test_branch_ends_where_n_jumps():
+    """G = K/(s+1)^3 crosses the negative real axis at w = sqrt 3 at -K/8; -1/N = -pi A/4 for A < 2 and
+    -pi A/2 from A = 2 on. So A = K/(2 pi) below the jump (dies at K = 4 pi) and A = K/(4 pi) above it
+    (born at K = 8 pi): in between no cycle (-K/8 lies in the gap of -1/N). The jump is not declared by the
+    element: the sweep finds it by probing N where continuation stops."""
+    import pytest
+
+    with pytest.warns(UserWarning, match="jump crossing"):  # the solver at K = 18, in the gap
+        res = sweep(lambda K: (_Cubed(K), _StepRelay()), np.linspace(6, 30, 5), omega=(0.1, 10), parameter="K",
+                    progress=False)
+    d, b = sorted([e for e in res.events if e.kind in ("birth", "death")], key=lambda e: e.parameter)
+    assert d.kind == "death" and d.cause == "jump" and abs(d.parameter / (4 * math.pi) - 1) < 1e-12
+    assert b.kind == "birth" and b.cause == "jump" and abs(b.parameter / (8 * math.pi) - 1) < 1e-12
+    assert abs(d.amplitude - 2) < 1e-12 and abs(b.frequency - math.sqrt(3)) < 1e-12
+    assert [br.kind for br in res.branches] == ["stable", "stable"] and not res.notes
