@@ -373,6 +373,8 @@ class _Plane:
     def edge_level(self, kind: str, side: int, ref: float, w: float, ux: float, uy: float) -> float:
         """The element's edge of this kind and side nearest to ``ref`` at (ux, uy)."""
         same = [e for e in element_edges(self.loop(ux, uy)[1], self.a_max) if e[0] == kind and e[1] == side]
+        if not same and kind == "jump":  # a jump the sweep found by probing N: at a fixed amplitude
+            return ref
         if not same:
             raise ValueError(f"the element has no {kind} edge at ({self.xa.value(ux):.6g}, {self.ya.value(uy):.6g})")
         e = min(same, key=lambda e: abs(math.log(e[2](w) / ref)))
@@ -883,7 +885,7 @@ def _seed(plane: _Plane, e, along_x: bool, fixed: float, xa: ChartAxis, ya: Char
             return _Limit(plane, math.inf if e.cause == "infinity" else 0.0), np.array([v, ux, uy])
         edges = [e2 for e2 in element_edges(plane.loop(ux, uy)[1], plane.a_max) if e2[0] == e.cause]
         if not edges:
-            return None, None
+            return (_Edge(plane, "jump", 0, e.amplitude), np.array([v, ux, uy])) if e.cause == "jump" else (None, None)
         near = min(edges, key=lambda e2: abs(math.log(e2[2](e.frequency) / e.amplitude)))
         return _Edge(plane, e.cause, near[1], e.amplitude), np.array([v, ux, uy])
     if e.kind in ("entry", "exit"):
