@@ -631,11 +631,21 @@ def _line_loop(value, loop_at, fixed, along_x):
     return loop_at(value, fixed) if along_x else loop_at(fixed, value)
 
 
-def _sweep_segment(seg, loop_at: Callable, options: dict) -> SweepResult:
-    """A sweep along one axis between two samples (the other parameter fixed)."""
+@dataclass(frozen=True)
+class _SegmentEvents:
+    """What a seeding sweep sends back (picklable: no plants): its events and window."""
+
+    events: tuple
+    amplitude_window: tuple
+    omega_window: tuple
+
+
+def _sweep_segment(seg, loop_at: Callable, options: dict) -> _SegmentEvents:
+    """The events of a sweep along one axis between two samples (the other parameter fixed)."""
     along_x, fixed, values = seg
-    return sweep(partial(_line_loop, loop_at=loop_at, fixed=fixed, along_x=along_x), values, progress=False,
-                 **options)
+    res: SweepResult = sweep(partial(_line_loop, loop_at=loop_at, fixed=fixed, along_x=along_x), values,
+                             progress=False, **options)
+    return _SegmentEvents(tuple(res.events), tuple(res.amplitude_window), tuple(res.omega_window))
 
 
 def _segments_cross(p0, p1, segs) -> np.ndarray:
@@ -870,7 +880,7 @@ def design_chart(loop_at: Callable[[float, float], tuple], x_axis: ChartAxis, y_
                        nominal, margin, notes, n_solves, exact_counts, exact_orbits)
 
 
-def _seed(plane: _Plane, e, along_x: bool, fixed: float, xa: ChartAxis, ya: ChartAxis, res: SweepResult):
+def _seed(plane: _Plane, e, along_x: bool, fixed: float, xa: ChartAxis, ya: ChartAxis, res: _SegmentEvents):
     """The condition and starting point of the boundary through a sweep event (None for events that are not
     boundaries: continua, lost branches)."""
     if along_x:
