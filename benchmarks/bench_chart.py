@@ -9,8 +9,8 @@ A brute-force 100 x 100 grid of ``predict_limit_cycles`` calls is estimated from
 solves. Times are CPU times of this process, same run (the work is single-threaded; CPU time is less disturbed
 than wall time on a shared machine).
 
-Run: python benchmarks/bench_chart.py [--write] [--figure]
-(--write: benchmarks/results/bench_chart.md; --figure: docs/figures/design_chart_delay.png)
+Run: python benchmarks/bench_chart.py [--write]   (--write: benchmarks/results/bench_chart.md; the chart's figure
+in docs/ is drawn by examples/design_chart.py --figure)
 """
 from __future__ import annotations
 
@@ -67,12 +67,11 @@ def accuracy(name, res) -> str:
     return f"fold gain spread over h: {np.ptp(xs) / xs.mean():.1e} (rel.)"
 
 
-def main(write: bool, figure: bool) -> str:
+def main(write: bool) -> str:
     sweep(partial(_row, backlash_servo, fixed=0.2), [3.0, 4.0], progress=False)  # warm-up
     rows = ["| loop | one sweep, 100 values (CPU s) | chart 100 x 100 (CPU s) | chart / sweep | brute-force 100 x 100 "
             "grid (estimated CPU s) | boundaries | solves in the chart | accuracy |",
             "|---|---|---|---|---|---|---|---|"]
-    charts = []
     for name, fn, xa, ya, nominal, opts in CASES:
         t0 = time.process_time()
         s = sweep(partial(_row, fn, fixed=nominal[1]), np.linspace(xa.start, xa.stop, 100), progress=False, **opts)
@@ -84,7 +83,6 @@ def main(write: bool, figure: bool) -> str:
         t0 = time.process_time()
         res = design_chart(fn, xa, ya, nominal=nominal, samples=13, resolution=100, progress=False, **opts)
         t_chart = time.process_time() - t0
-        charts.append(res)
         rows.append(f"| {name} | {t_sweep:.2f} | {t_chart:.2f} | {t_chart / t_sweep:.2f} | {1e4 * t_solve:.0f} | "
                     f"{len(res.boundaries)} ({', '.join(b.kind for b in res.boundaries)}) | {res.n_solves} | "
                     f"{accuracy(name, res)} |")
@@ -96,20 +94,11 @@ def main(write: bool, figure: bool) -> str:
         out = pathlib.Path(__file__).parent / "results" / "bench_chart.md"
         out.parent.mkdir(exist_ok=True)
         out.write_text(table)
-    if figure:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        cp = charts[0].plot()
-        cp.axes[0, 0].set_title("Saturation around K e^(-sT)/(s(s+1)): where a limit cycle exists", fontsize="medium")
-        out = pathlib.Path(__file__).parents[1] / "docs" / "figures" / "design_chart_delay.png"
-        cp.figure.savefig(out, dpi=110)
     return table
 
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--write", action="store_true", help="write benchmarks/results/bench_chart.md")
-    ap.add_argument("--figure", action="store_true", help="write docs/figures/design_chart_delay.png")
     args = ap.parse_args()
-    print(main(args.write, args.figure))
+    print(main(args.write))
