@@ -11,7 +11,7 @@ from pydantic import BaseModel
 
 from .elements import registry, signature
 from .load import read_toml, shipped_scenes
-from .schema import PLANT_TYPES, SceneFile, Sweep, SweepRange, _model, type_name
+from .schema import PLANT_TYPES, Chart, ChartAxis, SceneFile, Sweep, SweepRange, _model, type_name
 
 __all__ = ["scene_reference"]
 
@@ -117,6 +117,9 @@ def scene_reference() -> str:
         elif section == "sweep":
             lines += _keys_table(Sweep)
             lines += ["`values` as a table: " + SweepRange.__doc__.strip(), ""] + _keys_table(SweepRange)
+        elif section == "chart":
+            lines += _keys_table(Chart)
+            lines += ["`x_axis` and `y_axis`: " + ChartAxis.__doc__.strip(), ""] + _keys_table(ChartAxis)
         elif section == "figure":
             lines += ["Such a scene usually sets `[analysis] predict = false` and `plots = []` (the `[plant]` is "
                       "then not used); `dfloop run` writes `<name>_figure.png` and lists the curves in the "

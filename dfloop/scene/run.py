@@ -100,7 +100,7 @@ def run_chart(scene: Scene, executor: Any = None) -> Any:
         nominal.append(value if inside else None)
     return design_chart(scene.chart_loop, axes[0], axes[1], nominal=None if None in nominal else tuple(nominal),
                         samples=scene.chart.samples, resolution=scene.chart.resolution, omega=scene.omega,
-                        amplitude=scene.amplitude, executor=executor, progress=False)
+                        amplitude=scene.amplitude, exact=scene.chart.exact, executor=executor, progress=False)
 
 
 @dataclass
