@@ -1194,13 +1194,18 @@ def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=No
     max_steps : int
         Bound on continuation steps per branch direction; exceeding it raises RuntimeError.
     **solver_options
-        Passed to :func:`~dfloop.predict_limit_cycles` (``grid``, ``tol``, ``marginal_tol``).
+        Passed to :func:`~dfloop.predict_limit_cycles` (``grid``, ``tol``, ``marginal_tol``). The branch points'
+        stability labels use the solver's marginal test (:func:`dfloop.solve.stability.label_roots`) with the
+        same ``marginal_tol``.
 
     Returns
     -------
     SweepResult
         Branches (arrays of parameter, amplitude, frequency, stability), events (folds located by bracketing
-        along the curve, window entries/exits at the exact edge, stability changes), per-value solver results.
+        along the curve; births and deaths at element edges (linear range, N's domain, jumps) by Newton on the
+        edge, from infinity or zero amplitude by Newton on the loop with N's limit; continua at single values;
+        window entries/exits at the exact edge; stability changes), per-value solver results (a
+        :class:`ContinuumAt` where the solver met a continuum: the sweep goes on past it).
 
     Notes
     -----
