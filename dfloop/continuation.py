@@ -13,6 +13,12 @@ and the Loeb determinant have the same sign up to the direction of travel: stabi
 folds, except at a branch point (two curves crossing), where the tangent field flips; such points are
 reported as "stability change" events.
 
+Births and deaths: a branch that reaches an edge of the element (N constant beyond it: the linear loop; the end of
+N's domain; a jump of N) ends exactly on it (Newton with the edge as constraint), and a branch that leaves the
+amplitude window towards A -> inf or 0 where N has a finite limit is born (or dies) where the loop with that limit
+is marginal (Newton in (ln w, q)). A continuum of solutions at one given value (the solver's ContinuumError) is
+recorded as an event. Labels use the solver's marginal test (:func:`dfloop.solve.stability.label_roots`).
+
 Completeness: :func:`dfloop.predict_limit_cycles` is run at every given value (independently, on any
 executor); every cycle it finds either lies on a traced curve or seeds a new trace, so branches born
 between two values (a pair from a fold, or one entering through the window edge) are traced back to their
