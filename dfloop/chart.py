@@ -39,7 +39,7 @@ _FD_FOLD = 1e-5  # outer difference step for the fold condition (itself a differ
 _XTOL = 1e-10
 _MAX_NEWTON = 10
 _COS_TURN = math.cos(math.radians(30))
-_EDGE_IN = 1e-12
+_EDGE_IN = 1e-15  # relative offset inside an element edge (see continuation._inside)
 _ROUNDS = 4  # completeness rounds (sweeps of unseparated sample pairs)
 _PAIRS_PER_ROUND = 24
 
@@ -222,6 +222,13 @@ class ChartResult:
         What the reader must know (unseparated sample pairs, lost curves).
     n_solves : int
         ``predict_limit_cycles`` calls made (samples and the sweeps that seeded curves).
+    exact_counts : ndarray of int, shape (ny, nx, 3), or None
+        With ``exact=True``: stable and unstable exact orbits that :func:`dfloop.exact_cycle` found at each
+        sample, started from the sample's and its neighbours' predictions (an orbit it cannot reach from them
+        is not counted: a disagreement says the DF and the exact flow differ *there*, or that the exact orbit
+        lies far from every prediction).
+    exact_orbits : list of lists, or None
+        ``exact_orbits[j][i]``: the orbits found at sample (i, j), ``[(amplitude, frequency, stable)]``.
     """
 
     x_axis: ChartAxis
@@ -237,11 +244,22 @@ class ChartResult:
     margin: ChartMargin | None = None
     notes: list = field(default_factory=list)
     n_solves: int = 0
+    exact_counts: np.ndarray | None = None
+    exact_orbits: list | None = None
 
     @property
     def sample_labels(self) -> np.ndarray:
         """Region label at each sample."""
         return _labels(self.sample_counts)
+
+    def exact_disagreements(self) -> list:
+        """Samples where the exact orbits (``exact=True``) put the point in another region than the DF:
+        ``[(x, y, DF region, exact region)]``; empty without the exact check."""
+        if self.exact_counts is None:
+            return []
+        df_l, ex_l = _labels(self.sample_counts), _labels(self.exact_counts)
+        return [(float(self.sample_x[i]), float(self.sample_y[j]), str(df_l[j, i]), str(ex_l[j, i]))
+                for j in range(self.sample_y.size) for i in range(self.sample_x.size) if df_l[j, i] != ex_l[j, i]]
 
     def region_fractions(self) -> dict:
         """Share of the chart's fine grid in each region."""
@@ -258,6 +276,11 @@ class ChartResult:
                         f"(ends: {b.ends[0]} / {b.ends[1]})")
         fr = self.region_fractions()
         rows.append("regions: " + ", ".join(f"{r} {100 * fr[r]:.1f} %" for r in REGIONS if fr[r] > 0))
+        if self.exact_counts is not None:
+            bad = self.exact_disagreements()
+            rows.append(f"exact orbits (exact_cycle) at the {self.sample_x.size * self.sample_y.size} samples: "
+                        f"{'all in the DF region' if not bad else f'{len(bad)} in another region than the DF says'}")
+            rows += [f"  ({x:.6g}, {y:.6g}): DF {a}, exact {b}" for x, y, a, b in bad]
         if self.margin is not None:
             rows += self.margin.lines()
         if self.notes:
@@ -283,10 +306,19 @@ class ChartResult:
             w = csv.writer(fh)
             w.writerow([self.x_axis.label, self.y_axis.label, "region", "stable", "unstable", "marginal"])
             labels = self.sample_labels
+            exact = _labels(self.exact_counts) if self.exact_counts is not None else None
+            if exact is not None:
+                fh.seek(0)
+                fh.truncate()
+                w.writerow([self.x_axis.label, self.y_axis.label, "region", "stable", "unstable", "marginal",
+                            "exact region", "exact stable", "exact unstable"])
             for j, y in enumerate(self.sample_y):
                 for i, x in enumerate(self.sample_x):
                     c = self.sample_counts[j, i]
-                    w.writerow([repr(float(x)), repr(float(y)), labels[j, i], *map(int, c)])
+                    row = [repr(float(x)), repr(float(y)), labels[j, i], *map(int, c)]
+                    if exact is not None:
+                        row += [exact[j, i], int(self.exact_counts[j, i, 0]), int(self.exact_counts[j, i, 1])]
+                    w.writerow(row)
 
     def plot(self, ax=None):
         """Filled regions, labelled boundary curves and the nominal point (:func:`dfloop.plot.chart.plot_chart`)."""
@@ -341,6 +373,8 @@ class _Plane:
     def edge_level(self, kind: str, side: int, ref: float, w: float, ux: float, uy: float) -> float:
         """The element's edge of this kind and side nearest to ``ref`` at (ux, uy)."""
         same = [e for e in element_edges(self.loop(ux, uy)[1], self.a_max) if e[0] == kind and e[1] == side]
+        if not same and kind == "jump":  # a jump the sweep found by probing N: at a fixed amplitude
+            return ref
         if not same:
             raise ValueError(f"the element has no {kind} edge at ({self.xa.value(ux):.6g}, {self.ya.value(uy):.6g})")
         e = min(same, key=lambda e: abs(math.log(e[2](w) / ref)))
@@ -365,7 +399,7 @@ class _Condition:
 
 
 class _Fold(_Condition):
-    """Z = (ln A, ln w, ux, uy): R = 0 and the crossing angle's sine det J / (|R_a| |R_w|) = 0."""
+    """Z = (ln A, ln w, ux, uy): R = 0 and the Loeb determinant det J / ((|R_a|^2 + |R_w|^2) / 2) = 0."""
 
     kind = "fold"
     fd = _FD_FOLD
@@ -377,9 +411,12 @@ class _Fold(_Condition):
         r = p.residual(math.exp(a), math.exp(v), ux, uy)
         ra = (p.residual(math.exp(a + h), math.exp(v), ux, uy) - p.residual(math.exp(a - h), math.exp(v), ux, uy)) / (2 * h)
         rv = (p.residual(math.exp(a), math.exp(v + h), ux, uy) - p.residual(math.exp(a), math.exp(v - h), ux, uy)) / (2 * h)
-        scale = abs(ra) * abs(rv)
-        sine = (ra.real * rv.imag - rv.real * ra.imag) / scale if scale > 0 else 0.0
-        return np.array([r.real, r.imag, sine])
+        # the Loeb determinant over (|R_a|^2 + |R_w|^2) / 2: smooth with a simple zero both at a tangency
+        # (backlash) and where R_a itself vanishes (the maximum of a dead-zone relay's N), unlike the crossing
+        # angle's sine, which jumps there
+        scale = 0.5 * (abs(ra) ** 2 + abs(rv) ** 2)
+        det = (ra.real * rv.imag - rv.real * ra.imag) / scale if scale > 0 else 0.0
+        return np.array([r.real, r.imag, det])
 
     def cycle(self, Z):
         return math.exp(Z[0]), math.exp(Z[1])
@@ -395,7 +432,7 @@ class _Edge(_Condition):
     def amplitude(self, Z):
         v, ux, uy = Z
         level = self.plane.edge_level(self.kind, self.side, self.ref, math.exp(v), ux, uy)
-        return level * (1 + self.side * _EDGE_IN)
+        return level * (1 + self.side * max(_EDGE_IN, 8 * float(np.finfo(float).eps)))
 
     def F(self, Z):
         r = self.plane.residual(self.amplitude(Z), math.exp(Z[0]), Z[1], Z[2])
@@ -558,26 +595,57 @@ class _Tracer:
 
 
 def _solve_at(point, loop_at: Callable, options: dict):
-    """Cycle counts (stable, unstable, marginal) at one (x, y); (-1, -1, -1) at a continuum."""
+    """Cycle counts (stable, unstable, marginal) at one (x, y), (-1, -1, -1) at a continuum, and the cycles'
+    (amplitude, frequency)."""
     x, y = point
     plant, N = _build(loop_at, x, y)
     try:
         cycles = predict_limit_cycles(plant, N, **options)
     except ContinuumError:
-        return (-1, -1, -1)
+        return (-1, -1, -1), []
     labels = [c.stability for c in cycles]
-    return (labels.count("stable"), labels.count("unstable"), labels.count("marginal"))
+    return (labels.count("stable"), labels.count("unstable"), labels.count("marginal")), \
+        [(float(c.amplitude), float(c.frequency)) for c in cycles]
+
+
+def _exact_at(item, loop_at: Callable):
+    """Exact periodic orbits (:func:`dfloop.exact_cycle`) started from the given predictions at one (x, y):
+    the distinct orbits found, ``[(amplitude, frequency, stable)]``."""
+    from .exact import exact_cycle
+
+    (x, y), seeds = item
+    G, N = loop_at(x, y)
+    found = []
+    for A, w in seeds:
+        try:
+            ex = exact_cycle(G, N, (A, w))
+        except (ValueError, RuntimeError, ArithmeticError):  # no orbit from this seed (e.g. it collapses to rest)
+            continue
+        if ex.success and not any(abs(ex.amplitude / a - 1) < 1e-6 and abs(ex.frequency / f - 1) < 1e-6
+                                  for a, f, _ in found):
+            found.append((ex.amplitude, ex.frequency, bool(ex.stable)))
+    return found
 
 
 def _line_loop(value, loop_at, fixed, along_x):
     return loop_at(value, fixed) if along_x else loop_at(fixed, value)
 
 
-def _sweep_segment(seg, loop_at: Callable, options: dict) -> SweepResult:
-    """A sweep along one axis between two samples (the other parameter fixed)."""
+@dataclass(frozen=True)
+class _SegmentEvents:
+    """What a seeding sweep sends back (picklable: no plants): its events and window."""
+
+    events: tuple
+    amplitude_window: tuple
+    omega_window: tuple
+
+
+def _sweep_segment(seg, loop_at: Callable, options: dict) -> _SegmentEvents:
+    """The events of a sweep along one axis between two samples (the other parameter fixed)."""
     along_x, fixed, values = seg
-    return sweep(partial(_line_loop, loop_at=loop_at, fixed=fixed, along_x=along_x), values, progress=False,
-                 **options)
+    res: SweepResult = sweep(partial(_line_loop, loop_at=loop_at, fixed=fixed, along_x=along_x), values,
+                             progress=False, **options)
+    return _SegmentEvents(tuple(res.events), tuple(res.amplitude_window), tuple(res.omega_window))
 
 
 def _segments_cross(p0, p1, segs) -> np.ndarray:
@@ -601,7 +669,8 @@ def _segments_cross(p0, p1, segs) -> np.ndarray:
 
 def design_chart(loop_at: Callable[[float, float], tuple], x_axis: ChartAxis, y_axis: ChartAxis, *,
           nominal: tuple | None = None, samples: int = 13, resolution: int = 100, omega=None, amplitude=None,
-          executor=None, progress: bool | None = None, max_steps: int = 5000, **solver_options) -> ChartResult:
+          exact: bool = False, executor=None, progress: bool | None = None, max_steps: int = 5000,
+          **solver_options) -> ChartResult:
     """Map a two-parameter family of loops: regions (no cycle / a stable cycle / only unstable / several) and
     the boundaries between them, traced as curves.
 
@@ -621,6 +690,10 @@ def design_chart(loop_at: Callable[[float, float], tuple], x_axis: ChartAxis, y_
         scaled chart, and the filled picture has resolution x resolution points.
     omega, amplitude : (float, float), optional
         Windows (rad/s; N's input unit), as for :func:`~dfloop.predict_limit_cycles`; default: the solver's.
+    exact : bool
+        Also look for the exact periodic orbits (:func:`dfloop.exact_cycle`, which needs a python-control
+        plant) at every sample, started from the sample's predictions and its neighbours': where their counts
+        differ from the DF's, the DF boundary is not the true one (``ChartResult.exact_disagreements``).
     executor : concurrent.futures.Executor, optional
         Runs the independent solves (the samples) and the seeding sweeps (``run_batch``; Dask included).
     progress : bool or None
@@ -639,7 +712,7 @@ def design_chart(loop_at: Callable[[float, float], tuple], x_axis: ChartAxis, y_
     -----
     Each boundary is the solution curve of a codimension-one condition in Z = (own coordinates, ux, uy),
     ux, uy the axes scaled to [0, 1] (log axes in log): a fold or stability change, R = 0 and
-    det J / (|R_a| |R_w|) = 0 in (ln A, ln w, ux, uy); a birth at an element edge, R(A_edge, w) = 0 in
+    det J / ((|R_a|^2 + |R_w|^2) / 2) = 0 in (ln A, ln w, ux, uy); a birth at an element edge, R(A_edge, w) = 0 in
     (ln w, ux, uy); a birth from infinity or zero amplitude, 1 + G N(A_lim) = 0 in (ln w, ux, uy); a window
     edge, R = 0 with ln A or ln w fixed. Pseudo-arclength continuation: tangent from the null space of the
     Jacobian (central differences), Newton on the hyperplane orthogonal to it, the step halved when Newton
@@ -668,10 +741,28 @@ def design_chart(loop_at: Callable[[float, float], tuple], x_axis: ChartAxis, y_
     us = np.linspace(0.0, 1.0, samples)
     sx, sy = x_axis.value(us), y_axis.value(us)
     pts = [(float(x), float(y)) for y in sy for x in sx]
-    counts = run_batch(partial(_solve_at, loop_at=loop_at, options=options), pts, executor=executor,
+    solved = run_batch(partial(_solve_at, loop_at=loop_at, options=options), pts, executor=executor,
                        progress=progress, label="chart: region samples")
-    counts = np.array(counts, int).reshape(samples, samples, 3)
+    counts = np.array([c for c, _ in solved], int).reshape(samples, samples, 3)
     n_solves = len(pts)
+    exact_counts = exact_orbits = None
+    if exact:
+        # seeds at each sample: its own predictions and its neighbours' (an orbit the DF misses here may be
+        # found from a neighbour's prediction)
+        cyc = [c for _, c in solved]
+        items = []
+        for j in range(samples):
+            for i in range(samples):
+                seeds = list(cyc[j * samples + i])
+                for jj, ii in ((j - 1, i), (j + 1, i), (j, i - 1), (j, i + 1)):
+                    if 0 <= jj < samples and 0 <= ii < samples:
+                        seeds += cyc[jj * samples + ii]
+                items.append(((float(sx[i]), float(sy[j])), seeds))
+        orbits = run_batch(partial(_exact_at, loop_at=loop_at), items, executor=executor, progress=progress,
+                           label="chart: exact orbits")
+        exact_orbits = [orbits[j * samples:(j + 1) * samples] for j in range(samples)]
+        exact_counts = np.array([[(sum(o[2] for o in cell), sum(not o[2] for o in cell), 0) for cell in row]
+                                 for row in exact_orbits], int)
 
     a_max = amplitude[1] if amplitude is not None else 1e8
     plane = _Plane(loop_at, x_axis, y_axis, a_max)
@@ -783,12 +874,13 @@ def design_chart(loop_at: Callable[[float, float], tuple], x_axis: ChartAxis, y_
                 chosen[part[ok]] = True
     labels = best.reshape(resolution, resolution)
 
+    notes = list(dict.fromkeys(notes))  # a failure met from several seeds is said once
     margin = _margin(nominal, boundaries, x_axis, y_axis) if nominal is not None else None
     return ChartResult(x_axis, y_axis, boundaries, sx, sy, counts, x_axis.value(gu), y_axis.value(gu), labels,
-                       nominal, margin, notes, n_solves)
+                       nominal, margin, notes, n_solves, exact_counts, exact_orbits)
 
 
-def _seed(plane: _Plane, e, along_x: bool, fixed: float, xa: ChartAxis, ya: ChartAxis, res: SweepResult):
+def _seed(plane: _Plane, e, along_x: bool, fixed: float, xa: ChartAxis, ya: ChartAxis, res: _SegmentEvents):
     """The condition and starting point of the boundary through a sweep event (None for events that are not
     boundaries: continua, lost branches)."""
     if along_x:
@@ -803,7 +895,7 @@ def _seed(plane: _Plane, e, along_x: bool, fixed: float, xa: ChartAxis, ya: Char
             return _Limit(plane, math.inf if e.cause == "infinity" else 0.0), np.array([v, ux, uy])
         edges = [e2 for e2 in element_edges(plane.loop(ux, uy)[1], plane.a_max) if e2[0] == e.cause]
         if not edges:
-            return None, None
+            return (_Edge(plane, "jump", 0, e.amplitude), np.array([v, ux, uy])) if e.cause == "jump" else (None, None)
         near = min(edges, key=lambda e2: abs(math.log(e2[2](e.frequency) / e.amplitude)))
         return _Edge(plane, e.cause, near[1], e.amplitude), np.array([v, ux, uy])
     if e.kind in ("entry", "exit"):

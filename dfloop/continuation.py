@@ -13,6 +13,12 @@ and the Loeb determinant have the same sign up to the direction of travel: stabi
 folds, except at a branch point (two curves crossing), where the tangent field flips; such points are
 reported as "stability change" events.
 
+Births and deaths: a branch that reaches an edge of the element (N constant beyond it: the linear loop; the end of
+N's domain; a jump of N) ends exactly on it (Newton with the edge as constraint), and a branch that leaves the
+amplitude window towards A -> inf or 0 where N has a finite limit is born (or dies) where the loop with that limit
+is marginal (Newton in (ln w, q)). A continuum of solutions at one given value (the solver's ContinuumError) is
+recorded as an event. Labels use the solver's marginal test (:func:`dfloop.solve.stability.label_roots`).
+
 Completeness: :func:`dfloop.predict_limit_cycles` is run at every given value (independently, on any
 executor); every cycle it finds either lies on a traced curve or seeds a new trace, so branches born
 between two values (a pair from a fold, or one entering through the window edge) are traced back to their
@@ -49,8 +55,8 @@ _BISECT = 80  # bound on the probes that locate an event inside a step
 _MATCH = 1e-6  # a solver's cycle lies on a traced curve when within this (ln A, ln w)
 _MATCH_MARGINAL = 1e-3  # ... or within this for a cycle the solver called marginal (a double root)
 _SAME_Q = 1e-12  # a point this close to a given value (in q) lies on it
-_CACHE = 512  # loops kept per sweep (the corrector asks for the same parameter values repeatedly)
-_EDGE_IN = 1e-12  # an element edge is approached this far (relative) on the branch's side
+_CACHE = 2048  # loops kept per sweep (the corrector and the labels ask for the same parameter values again)
+_EDGE_IN = 1e-15  # an element edge is approached this far (in ln A, at least 8 ulps) on the branch's side
 _MAX_BREAKPOINTS = 64  # breakpoints of a static element examined as possible edges
 _LIMIT_NEWTON = 40  # Newton iterations for a birth from infinity / zero amplitude
 
@@ -76,7 +82,8 @@ class Branch:
         Index into ``SweepResult.values`` where the point lies at a given value, else -1.
     start, end : str
         How the branch begins and ends in the order of the sweep: ``"sweep start"``, ``"sweep end"``,
-        ``"fold"``, ``"stability change"``, ``"enters <edge>"``, ``"leaves <edge>"``, ``"lost: <why>"``.
+        ``"fold"``, ``"stability change"``, ``"enters <edge>"``, ``"leaves <edge>"``, ``"born ..."`` /
+        ``"dies ..."`` (at an element edge: see ``SweepEvent.cause``), ``"lost: <why>"``.
     """
 
     index: int
@@ -441,6 +448,7 @@ class _Family:
         self.log_window = log_window  # (a_lo, a_hi, v_lo, v_hi)
         self._cache: dict = {}
         self._edges: dict = {}
+        self._edges_of: dict = {}
         self.last_failure = ""
 
     def value(self, q: float) -> float:
@@ -480,8 +488,14 @@ class _Family:
             return hit
         if len(self._edges) >= _CACHE:
             self._edges.clear()
-        self._edges[q] = out = element_edges(self.loop(q)[1], math.exp(self.log_window[1] + 1))
-        return out
+        N = self.loop(q)[1]
+        hit = self._edges_of.get(id(N))  # one element object serves many q (a gain sweep): its edges once
+        if hit is None or hit[0] is not N:
+            if len(self._edges_of) >= _CACHE:
+                self._edges_of.clear()
+            hit = self._edges_of[id(N)] = (N, element_edges(N, math.exp(self.log_window[1] + 1)))
+        self._edges[q] = hit[1]
+        return hit[1]
 
     def edge_value(self, edge: tuple, X: np.ndarray) -> float:
         """a - ln(level) at X (signed distance in ln A from the edge; > 0 above it)."""
@@ -548,11 +562,10 @@ class _Family:
         marginal test :func:`dfloop.solve.stability.label_roots`."""
         def slopes(a, v):
             a, v = np.asarray(a, float), np.asarray(v, float)
-            h = _FD
-            P = self.residual(q, a, v) - 1.0
-            pa = (self.residual(q, a + h, v) - self.residual(q, a - h, v)) / (2 * h)
-            pv = (self.residual(q, a, v + h) - self.residual(q, a, v - h)) / (2 * h)
-            return P, pa, pv
+            h, k = _FD, a.size
+            r = self.residual(q, np.concatenate([a, a + h, a - h, a, a]), np.concatenate([v, v, v, v + h, v - h]))
+            r0, rap, ram, rvp, rvm = (r[i * k:(i + 1) * k] for i in range(5))
+            return r0 - 1.0, (rap - ram) / (2 * h), (rvp - rvm) / (2 * h)
         return slopes
 
     def correct(self, X0: np.ndarray, n: np.ndarray, g: float, edge: tuple | None = None) -> _Point | None:
@@ -565,7 +578,7 @@ class _Family:
         side = 0 if edge is None else edge[1]
         for it in range(_MAX_NEWTON):
             if edge is not None:  # the edge's level at the current (w, q), and its slopes in ln w and q
-                X[0] = self._edge_level(edge[0], X) + side * _EDGE_IN
+                X[0] = _inside(self._edge_level(edge[0], X), side)
             if not self.admissible(X, side):
                 return None
             R, J = self.jacobian(X, side)
@@ -586,7 +599,7 @@ class _Family:
             X, prev = X + dx, step
             if step <= _XTOL:
                 if edge is not None:
-                    X[0] = self._edge_level(edge[0], X) + side * _EDGE_IN
+                    X[0] = _inside(self._edge_level(edge[0], X), side)
                 if not self.admissible(X, side):
                     return None
                 return _Point(X, self.jacobian(X, side)[1] if edge is not None else J, it + 1)
@@ -598,6 +611,8 @@ class _Family:
         q = min(max(float(X[2]), 0.0), 1.0)
         kind, side, ref = edge[0], edge[1], edge[2](1.0)
         same = [e for e in self.edges(q) if e[0] == kind and e[1] == side]
+        if not same and kind == "jump":  # a jump found by probing N (not a declared breakpoint): fixed level
+            return math.log(edge[2](math.exp(X[1])))
         if not same:
             raise RuntimeError(f"the element's {kind} edge disappeared at p={self.value(q):.9g}")
         e = min(same, key=lambda e: abs(math.log(e[2](1.0) / ref)) if ref > 0 else 0.0)  # the same edge, moved
@@ -611,6 +626,37 @@ class _Family:
         hq = h if X[2] + h <= 1 else -h
         dq = (self._edge_level(edge, X + [0, 0, hq]) - base) / hq
         return np.array([1.0, -dv, -dq])
+
+    def jump_near(self, X: np.ndarray, direction: float):
+        """A jump of N in amplitude within 1e-5 (in ln A: a few difference steps, across which the corrector
+        fails) of X in ``direction`` (sign of d ln A): the amplitudes either side of it, located by bisection to
+        rounding, or None. For elements that do not declare their
+        breakpoints: a branch that cannot be continued is checked for one before it is called lost."""
+        if direction == 0:
+            return None
+        plant, N = self.loop(min(max(float(X[2]), 0.0), 1.0))
+        w = np.array([math.exp(X[1])])
+
+        def n(a):
+            A = np.array([math.exp(a)])
+            return complex((N(A, w) if N.frequency_dependent else N(A))[0])
+
+        a0, a1 = float(X[0]), float(X[0]) + math.copysign(10 * _FD, direction)
+        try:
+            n0, n1 = n(a0), n(a1)
+        except ValueError:
+            return None
+        if not abs(n1 - n0) > 1e-3 * max(abs(n0), abs(n1)):  # a smooth N changes by ~1e-5 here
+            return None
+        for _ in range(_BISECT):  # keep a0 on X's side, a1 across the jump
+            mid = 0.5 * (a0 + a1)
+            if mid in (a0, a1):
+                break
+            if abs(n(mid) - n0) <= 1e-3 * max(abs(n0), 1e-300):
+                a0 = mid
+            else:
+                a1 = mid
+        return math.exp(a0), math.exp(a1)
 
     def limit_birth(self, X: np.ndarray, amplitude: float):
         """Where a branch that runs to A -> ``amplitude`` (inf or 0) is born: the parameter at which
@@ -647,6 +693,13 @@ class _Family:
             if max(abs(d[0]), abs(d[1])) <= _XTOL:
                 return q, v
         return None
+
+
+def _inside(a_edge: float, side: int) -> float:
+    """ln A just inside an edge at ln A = a_edge, on ``side`` (+1 above): a few ulps, so that N is evaluated on
+    the branch's side (N has a square-root edge for a relay with hysteresis: the point is then exact to
+    about sqrt(1e-15) ~ 3e-8)."""
+    return a_edge + side * max(8 * float(np.spacing(abs(a_edge))), _EDGE_IN)
 
 
 def element_edges(N, a_max: float) -> list:
@@ -760,6 +813,15 @@ class _Tracer:
         X = lo.X + w * (hi.X - lo.X)
         return _Point(X, self.f.jacobian(X)[1])
 
+    def _jump_end(self, P: _Point, t: np.ndarray) -> _Point | None:
+        """Where a branch that cannot be continued meets a jump of N next to P (None if there is none)."""
+        hit = self.f.jump_near(P.X, t[0])
+        if hit is None:
+            return None
+        edge = ("jump", 0, lambda w, x=hit[0]: x)  # hit[0]: the last amplitude on P's side, to rounding
+        side = 1 if P.X[0] > math.log(hit[0]) else -1  # one-sided differences on P's side
+        return self.f.correct(P.X, t, 0.0, edge=(edge, side))
+
     def _edge_crossing(self, P: _Point, Q: _Point):
         """(edge name, point) where the segment P -> Q first leaves the (ln A, ln w) window, or None."""
         a_lo, a_hi, v_lo, v_hi = self.f.log_window
@@ -840,6 +902,11 @@ class _Tracer:
             if Q is None or not ok:
                 h *= 0.5
                 if h < _HMIN:
+                    E = self._jump_end(P, t)
+                    if E is not None:
+                        self._values_between(P, E, out)
+                        out.append(_Node(E, "edge", self._value_index(E.X[2]), "jump"))
+                        return out
                     out.append(_Node(P, "lost", -1, self.f.last_failure or "the step size underflowed"))
                     return out
                 continue
@@ -1104,13 +1171,18 @@ def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=No
     max_steps : int
         Bound on continuation steps per branch direction; exceeding it raises RuntimeError.
     **solver_options
-        Passed to :func:`~dfloop.predict_limit_cycles` (``grid``, ``tol``, ``marginal_tol``).
+        Passed to :func:`~dfloop.predict_limit_cycles` (``grid``, ``tol``, ``marginal_tol``). The branch points'
+        stability labels use the solver's marginal test (:func:`dfloop.solve.stability.label_roots`) with the
+        same ``marginal_tol``.
 
     Returns
     -------
     SweepResult
         Branches (arrays of parameter, amplitude, frequency, stability), events (folds located by bracketing
-        along the curve, window entries/exits at the exact edge, stability changes), per-value solver results.
+        along the curve; births and deaths at element edges (linear range, N's domain, jumps) by Newton on the
+        edge, from infinity or zero amplitude by Newton on the loop with N's limit; continua at single values;
+        window entries/exits at the exact edge; stability changes), per-value solver results (a
+        :class:`ContinuumAt` where the solver met a continuum: the sweep goes on past it).
 
     Notes
     -----

@@ -21,6 +21,7 @@ from scipy.optimize import brentq, minimize_scalar
 
 import dfloop as df
 from dfloop.continuation import ContinuumAt, sweep
+from dfloop.describing.base import DescribingFunction
 
 G0 = ct.tf([1], [1, 3, 2, 0])
 
@@ -112,6 +113,16 @@ def _g0(w):
     return 1 / (s ** 3 + 3 * s ** 2 + 2 * s)
 
 
+class _Servo:
+    """K / (jw (jw + 1) (jw + 2)) as a callable."""
+
+    def __init__(self, K):
+        self.K = K
+
+    def __call__(self, w):
+        return self.K * _g0(np.asarray(w))
+
+
 def test_backlash_fold_against_an_independent_tangency():
     h = 0.2
 
@@ -121,12 +132,15 @@ def test_backlash_fold_against_an_independent_tangency():
         return 1 / (abs(_backlash_N(X, h)) * abs(_g0(w)))
 
     opt = minimize_scalar(gain, bounds=(0.11, 0.5), method="bounded", options={"xatol": 1e-10})
-    res = sweep(lambda K: (K * G0, df.Backlash(h)), np.linspace(3.0, 5.5, 4), parameter="K", progress=False)
+    servo = (0.01, 100.0)  # the plant as a callable (cheaper to rebuild than a tf): the window is given
+    res = sweep(lambda K: (_Servo(K), df.Backlash(h)), np.linspace(3.0, 5.5, 3), parameter="K", omega=servo,
+                progress=False)
     (f,) = res.folds()
     assert abs(f.parameter / opt.fun - 1) < 1e-9
     assert abs(f.amplitude / opt.x - 1) < 1e-4
     # and the stable branch dies at infinity where N -> 1: K = 6
-    res = sweep(lambda K: (K * G0, df.Backlash(h)), np.linspace(5.0, 7.0, 3), parameter="K", progress=False)
+    res = sweep(lambda K: (_Servo(K), df.Backlash(h)), np.linspace(5.0, 7.0, 3), parameter="K", omega=servo,
+                progress=False)
     (d,) = [e for e in res.events if e.kind == "death"]
     assert d.cause == "infinity" and abs(d.parameter - 6.0) < 1e-12
 
@@ -158,3 +172,71 @@ def test_sweep_marginal_label_is_the_solvers_and_right():
         assert lab == "stable"
         (same,) = [c for c in found if abs(c.amplitude / x - 1) < 1e-6]
         assert same.stability == lab  # the solver's label at the same value
+
+
+def test_relay_with_hysteresis_born_at_the_edge_of_its_domain():
+    """Relay M with hysteresis a: -1/N = -(pi A / 4M) e^{j asin(a/A)} is the horizontal half-line
+    Im = -pi a / (4M), Re <= 0, starting at A = a (where N's domain begins, N(a+) != 0). G = K/(s+1)^2 meets it
+    on its w > 1 part iff Im G(j1) = -K/2 < -pi a/(4M): the cycle is born at K = pi a / (2M), A = a, w = 1.
+    The DF has a square-root edge there (asin near 1), so the birth is located to about sqrt(rounding)."""
+    M, a = 1.0, 0.2
+    Kb = math.pi * a / (2 * M)
+    G = ct.tf([1], [1, 2, 1])
+    res = sweep(lambda K: (K * G, df.Relay(M, hysteresis=a)), np.linspace(0.5 * Kb, 3 * Kb, 6), parameter="K",
+                progress=False)
+    (b,) = [e for e in res.events if e.kind == "birth"]
+    assert b.cause == "amplitude domain"
+    assert abs(b.parameter / Kb - 1) < 2e-7 and abs(b.amplitude / a - 1) < 1e-12 and abs(b.frequency - 1) < 2e-7
+    (br,) = res.branches
+    K, A, w = br.at_values()
+    for k, x, ww in zip(K, A, w):  # on the half-line: Im G(jw) = -pi a/(4M) and A = 4M |G(jw)| / pi
+        g = k / (1j * ww + 1) ** 2
+        assert abs(g.imag / (-math.pi * a / (4 * M)) - 1) < 1e-9 and abs(x / (4 * M * abs(g) / math.pi) - 1) < 1e-9
+
+
+def test_cubic_spring_cycle_dies_at_zero_amplitude():
+    """N = k1 + 3 k3 A^2 / 4 -> k1 as A -> 0: the cycle (A^2 = (6/K - k1) 4 / (3 k3), for K < 6/k1) shrinks to
+    zero amplitude where the loop with N(0) = k1 is marginal, K = 6 / k1."""
+    k1, k3 = 1.5, 2.0
+    res = sweep(lambda K: (K * G0, df.CubicStiffness(k1, k3)), np.linspace(2, 5, 4), parameter="K", progress=False)
+    (d,) = [e for e in res.events if e.kind == "death"]
+    assert d.cause == "zero amplitude" and d.amplitude == 0.0
+    assert abs(d.parameter - 6 / k1) < 1e-12 and abs(d.frequency - math.sqrt(2)) < 1e-12
+    (br,) = res.branches
+    K, A, _ = br.at_values()
+    np.testing.assert_allclose(A, np.sqrt((6 / K - k1) * 4 / (3 * k3)), rtol=1e-9)
+
+
+class _StepRelay(DescribingFunction):
+    """An ideal relay whose level halves at A = 2 (N jumps there; no declared breakpoints)."""
+
+    def _evaluate(self, A, omega):
+        with np.errstate(divide="ignore"):
+            return np.where(A < 2.0, 4.0, 2.0) / (np.pi * A) + 0j
+
+
+class _Cubed:
+    """K / (jw + 1)^3 (picklable callable plant)."""
+
+    def __init__(self, K):
+        self.K = K
+
+    def __call__(self, w):
+        return self.K / (1j * np.asarray(w) + 1) ** 3
+
+
+def test_branch_ends_where_n_jumps():
+    """G = K/(s+1)^3 crosses the negative real axis at w = sqrt 3 at -K/8; -1/N = -pi A/4 for A < 2 and
+    -pi A/2 from A = 2 on. So A = K/(2 pi) below the jump (dies at K = 4 pi) and A = K/(4 pi) above it
+    (born at K = 8 pi): in between no cycle (-K/8 lies in the gap of -1/N). The jump is not declared by the
+    element: the sweep finds it by probing N where continuation stops."""
+    import pytest
+
+    with pytest.warns(UserWarning, match="jump crossing"):  # the solver at K = 18, in the gap
+        res = sweep(lambda K: (_Cubed(K), _StepRelay()), np.linspace(6, 30, 5), omega=(0.1, 10), parameter="K",
+                    progress=False)
+    d, b = sorted([e for e in res.events if e.kind in ("birth", "death")], key=lambda e: e.parameter)
+    assert d.kind == "death" and d.cause == "jump" and abs(d.parameter / (4 * math.pi) - 1) < 1e-12
+    assert b.kind == "birth" and b.cause == "jump" and abs(b.parameter / (8 * math.pi) - 1) < 1e-12
+    assert abs(d.amplitude - 2) < 1e-12 and abs(b.frequency - math.sqrt(3)) < 1e-12
+    assert [br.kind for br in res.branches] == ["stable", "stable"] and not res.notes

@@ -76,3 +76,23 @@ def test_margin_rejects_a_nominal_outside_the_range():
     res = sweep(lambda K: (K * G0, df.Saturation(1.0)), [2.0, 4.0], parameter="gain K", progress=False)
     with pytest.raises(ValueError, match="nominal"):
         res.margin(5.0)
+
+
+def test_scene_sweep_of_a_delay(tmp_path):
+    """Saturation around 2 e^{-sT}/(s(s+1)), T swept: the stable cycle is born where K_c(T) = 2, K_c(T) =
+    w sqrt(1 + w^2) with atan(w) + wT = pi/2 (so w sqrt(1 + w^2) = 2, T = (pi/2 - atan w) / w)."""
+    from scipy.optimize import brentq
+
+    w = brentq(lambda w: w * math.sqrt(1 + w * w) - 2.0, 0.1, 10, xtol=1e-15, rtol=1e-15)
+    T_birth = (math.pi / 2 - math.atan(w)) / w
+    path = tmp_path / "d.toml"
+    path.write_text("[plant]\nnum = [2.0]\nden = [1.0, 1.0, 0.0]\ndelay = 0.3\n[element]\ntype = 'Saturation'\n"
+                    "limit = 1.0\n[analysis]\nomega = [0.05, 20.0]\nplots = []\n[sweep]\nparameter = 'plant.delay'\n"
+                    "values = { start = 0.1, stop = 1.0, num = 4 }\n")
+    report = run_scene(load_scene(path), out_dir=tmp_path, log=lambda s: None, progress=False)
+    (b,) = [e for e in report.sweep.events if e.kind == "birth"]
+    assert abs(b.parameter - T_birth) < 1e-10 and abs(b.frequency - w) < 1e-9 and b.name == "delay T"
+    assert (tmp_path / "d_sweep.csv").read_text().splitlines()[0].startswith("branch,delay T [s],")
+    (m,) = report.margins  # nominal T = 0.3: a stable cycle appears when the delay grows by T_birth - 0.3
+    d, exact = m.distance("above")
+    assert exact and abs(d - (T_birth - 0.3)) < 1e-10 and not m.gain

@@ -62,6 +62,11 @@ def plot_chart(result, ax=None, *, show_samples: bool = False):
         X, Y = np.meshgrid(result.sample_x, result.sample_y)
         ax.plot(X.ravel(), Y.ravel(), ls="none", marker=".", ms=3, color="0.4", label="region samples")
     marks = []
+    bad = result.exact_disagreements()
+    if bad:
+        (p,) = ax.plot([b[0] for b in bad], [b[1] for b in bad], ls="none", marker="x", ms=7, mew=1.5,
+                       color="C3", label="exact orbits: another region")
+        marks.append(p)
     if result.nominal is not None:
         (p,) = ax.plot(*result.nominal, marker="*", ms=13, mfc="gold", mec="k", ls="none", zorder=5,
                        label="design point")

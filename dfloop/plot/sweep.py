@@ -13,6 +13,9 @@ __all__ = ["plot_sweep"]
 _BRANCH = {"stable": dict(color="C0", ls="-"), "unstable": dict(color="C3", ls="--"),
            "marginal": dict(color="C1", ls=":")}
 _EVENTS = {"fold": dict(marker="o", color="k", ls="none", ms=5),
+           "birth": dict(marker="^", color="C2", ls="none", ms=7),
+           "death": dict(marker="v", color="C2", ls="none", ms=7),
+           "continuum": dict(marker="|", color="0.3", ls="none", ms=12),
            "entry": dict(marker="x", color="0.3", ls="none"), "exit": dict(marker="x", color="0.3", ls="none"),
            "stability change": dict(marker="s", color="C2", ls="none", ms=5),
            "lost": dict(marker="*", color="C1", ls="none", ms=8)}
@@ -22,7 +25,8 @@ def plot_sweep(result, ax=None) -> Any:
     """Amplitude and frequency of every branch against the swept parameter.
 
     Stable branches solid, unstable dashed, marginal dotted; folds as black dots, window entries and exits as
-    crosses, stability changes as green squares, lost branches as stars. The parameter axis is labelled with
+    crosses, births and deaths as green triangles (none drawn for a birth at A -> inf), a continuum at one
+    parameter value as a bar, stability changes as green squares, lost branches as stars. The parameter axis is labelled with
     the result's ``parameter`` and ``unit`` (``"K [-]"``-style).
 
     Parameters
@@ -59,7 +63,7 @@ def plot_sweep(result, ax=None) -> Any:
         on_a += ax_a.plot(b.parameter, b.amplitude, label=label, **_BRANCH[b.kind])
         on_w += ax_w.plot(b.parameter, b.frequency, **_BRANCH[b.kind])
     for kind, style in _EVENTS.items():
-        ev = [e for e in result.events if e.kind == kind]
+        ev = [e for e in result.events if e.kind == kind and 0 < e.amplitude < np.inf]  # A -> inf: no mark
         if ev:
             label = "window edge" if kind in ("entry", "exit") else kind
             label = None if label in seen else label

@@ -11,7 +11,7 @@ from pydantic import BaseModel
 
 from .elements import registry, signature
 from .load import read_toml, shipped_scenes
-from .schema import PLANT_TYPES, SceneFile, Sweep, SweepRange, model_of, type_name
+from .schema import PLANT_TYPES, Chart, ChartAxis, SceneFile, Sweep, SweepRange, model_of, type_name
 
 __all__ = ["scene_reference"]
 
@@ -121,13 +121,16 @@ def scene_reference() -> str:
         elif section == "sweep":
             lines += _keys_table(Sweep)
             lines += ["`values` as a table: " + SweepRange.__doc__.strip(), ""] + _keys_table(SweepRange)
+        elif section == "chart":
+            lines += _keys_table(Chart)
+            lines += ["`x_axis` and `y_axis`: " + ChartAxis.__doc__.strip(), ""] + _keys_table(ChartAxis)
         elif section == "figure":
             lines += ["Such a scene usually sets `[analysis] predict = false` and `plots = []` (the `[plant]` is "
                       "then not used); `dfloop run` writes `<name>_figure.png` and lists the curves in the "
                       "report. The shipped `paper_fig*` scenes are examples of every kind.", ""]
-            lines += _keys_table(_section_model(section))
+            lines += _keys_table(_sectionmodel_of(section))
         else:
-            lines += _keys_table(_section_model(section))
+            lines += _keys_table(_sectionmodel_of(section))
     known = registry()
     elements = [n for n, cls in known.items() if not hasattr(cls, "keeps_similarity")]
     effects = [n for n, cls in known.items() if hasattr(cls, "keeps_similarity")]
@@ -140,6 +143,6 @@ def scene_reference() -> str:
     return "\n".join(lines).rstrip() + "\n"
 
 
-def _section_model(section: str) -> type[BaseModel]:
+def _sectionmodel_of(section: str) -> type[BaseModel]:
     """The model of a section holding a single table (``[scene]``, ``[analysis]``, ``[figure]``)."""
     return model_of(SceneFile.model_fields[section].annotation)

@@ -81,6 +81,26 @@ def sweep_margin(scene: Scene, result: Any) -> Any:
     return result.margin(nominal, gain=label.gain and lo > 0)
 
 
+def run_chart(scene: Scene, executor: Any = None) -> Any:
+    """The scene's ``[chart]``: regions and traced boundaries over two parameters (:func:`dfloop.chart.design_chart`),
+    with the design point (each axis's ``nominal``, else the scene's value) and its limit-cycle margin."""
+    from dfloop.chart import ChartAxis, design_chart
+
+    from .parameters import nominal_value, parameter_label
+
+    axes, nominal = [], []
+    for spec in (scene.chart.x_axis, scene.chart.y_axis):
+        label = parameter_label(scene.data, spec.parameter, spec.name, spec.unit)
+        axes.append(ChartAxis(spec.start, spec.stop, label.name, label.unit, spec.scale,
+                              label.gain and min(spec.start, spec.stop) > 0))
+        value = spec.nominal if spec.nominal is not None else nominal_value(scene.data, spec.parameter)
+        inside = value is not None and min(spec.start, spec.stop) <= value <= max(spec.start, spec.stop)
+        nominal.append(value if inside else None)
+    return design_chart(scene.chart_loop, axes[0], axes[1], nominal=None if None in nominal else tuple(nominal),
+                        samples=scene.chart.samples, resolution=scene.chart.resolution, omega=scene.omega,
+                        amplitude=scene.amplitude, exact=scene.chart.exact, executor=executor, progress=False)
+
+
 @dataclass
 class SceneReport:
     """What a scene run produced: cycles, verifications, files, and the stages that ran with their times."""
@@ -176,7 +196,7 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
     figure = figure_spec(scene)
     predict = scene.data.get("analysis", {}).get("predict", True)
     plots = scene.plots if predict else ()
-    planned = predict + len(plots) + (scene.sweep is not None) + (figure is not None)
+    planned = predict + len(plots) + (scene.sweep is not None) + (scene.chart is not None) + (figure is not None)
 
     motions_before = _motions_simulated()
     with progress_bar(scene.name, planned, enabled=progress) as bar:
@@ -218,6 +238,18 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
                 report.sweep.to_csv(out / f"{scene.name}_sweep.csv")
                 report.files.append(out / f"{scene.name}_sweep.csv")
             report.files.append(_save(report.sweep.plot().figure, out / f"{scene.name}_sweep.png"))
+        if scene.chart is not None:
+            report.chart = stage("design chart", lambda: run_chart(scene))
+            log(repr(report.chart))
+            if report.chart.margin is not None:
+                report.margins.append(report.chart.margin)
+            if scene.chart.csv:
+                report.chart.to_csv(out / f"{scene.name}_chart.csv")
+                report.chart.regions_to_csv(out / f"{scene.name}_chart_regions.csv")
+                report.files += [out / f"{scene.name}_chart.csv", out / f"{scene.name}_chart_regions.csv"]
+            drawn = report.chart.plot()
+            drawn.axes[0, 0].set_title(scene.title, fontsize="medium")
+            report.files.append(_save(drawn.figure, out / f"{scene.name}_chart.png"))
         if figure is not None:
             report.figure = stage(f"figure ({figure.kind})", lambda: figure_data(scene))
             log(repr(report.figure))

@@ -197,6 +197,9 @@ class Chart(_Table):
                                                              "curves' steps and the filled plot's grid.")
     csv: bool = Field(True, description="Write the boundary curves to <name>_chart.csv and the region samples "
                                         "to <name>_chart_regions.csv.")
+    exact: bool = Field(False, description="Also look for the exact periodic orbits (`dfloop.exact_cycle`) at "
+                                           "every sample and mark where they put it in another region than the "
+                                           "DF (python-control plants without delay).")
 
 
 class Figure(_Table):
