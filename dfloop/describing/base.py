@@ -148,6 +148,22 @@ class DescribingFunction(ABC):
         shape = np.shape(frequency_array(omega)) if omega is not None else ()
         return np.zeros(shape), np.full(shape, np.inf)
 
+    def tail_bound(self, A) -> np.ndarray | None:
+        """Upper bound on |N(A, w) - N(inf, w)| for every w, at amplitudes ``A`` (non-increasing in A).
+
+        The solver's default amplitude window rests on it: where N(inf, w) is finite and non-zero, a root
+        needs |G| |N - N(inf)| >= |1 + G N(inf)|, so no root lies beyond the amplitude where
+        ``max |G| tail_bound(A)`` falls below ``min |1 + G N(inf)|`` (docs/solver.md, "Default windows").
+        None (the default) when the element states no bound; then only |N| itself limits the window.
+        """
+        return None
+
+    def head_bound(self, A) -> np.ndarray | None:
+        """Upper bound on |N(A, w) - N(0, w)| for every w, at amplitudes ``A`` (non-decreasing in A), for
+        elements whose N(0) is finite and non-zero with no dead band (the small-amplitude side of
+        :meth:`tail_bound`). None (the default) when the element states none."""
+        return None
+
     def validity(self, A, omega=None) -> np.ndarray:
         """Boolean mask: True where N(A, omega) is a trustworthy DF value (broadcast shape).
 

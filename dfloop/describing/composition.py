@@ -112,6 +112,14 @@ class LinearThenStatic(DescribingFunction):
         with np.errstate(divide="ignore"):
             return lo / mag, hi / mag
 
+    def tail_bound(self, A):
+        """The static element's bound, unchanged in the composite's unit when it is of the form C / X:
+        |N - N(inf, w)| = |G_lin| |N_s(X) - N_s(inf)| <= |G_lin| C / (|G_lin| F) = C / F for every w."""
+        b = self.static.tail_bound(np.array([1.0, 2.0]))
+        if b is None or not b[0] == 2 * b[1]:  # only a bound of the form C / X carries over to F
+            return None
+        return float(b[0]) / np.asarray(A, float)
+
     def __repr__(self) -> str:
         return f"LinearThenStatic({self.linear!r}, {self.static!r})"
 

@@ -205,6 +205,10 @@ class Backlash(DescribingFunction):
         """(h/2, inf): N = 0 for X <= h/2 (the input never crosses the play)."""
         return _domain(0.5 * self.h, np.inf, omega)
 
+    def tail_bound(self, A):
+        """|N - k| <= k h / X (the supremum of |N - k| X / (k h) is 2/pi, reached as X -> inf)."""
+        return self.k * self.h / np.asarray(A, float)
+
     def operator(self) -> PlayOperator:
         """A fresh :class:`PlayOperator` (play centred, output 0)."""
         return PlayOperator(self.h, self.k)
@@ -251,6 +255,14 @@ class Saturation(StaticElement):
         """(0, inf): N is non-zero for every amplitude (N(0) = k)."""
         return _domain(0.0, np.inf, omega)
 
+    def tail_bound(self, A):
+        """|N| <= (4/pi) k limit / A (f(u) <= 4 u / pi)."""
+        return (4.0 / np.pi) * (1 + 1e-12) * self.k * self.limit / np.asarray(A, float)
+
+    def head_bound(self, A):
+        """N = k exactly for A <= limit: |N - k| <= k beyond (0 below)."""
+        return np.where(np.asarray(A, float) <= self.limit, 0.0, self.k)
+
 
 class DeadZone(StaticElement):
     """Dead zone: y = 0 for |x| <= delta, y = k (x - delta sign x) beyond.
@@ -292,6 +304,10 @@ class DeadZone(StaticElement):
     def amplitude_domain(self, omega=None):
         """(delta, inf)."""
         return _domain(self.delta, np.inf, omega)
+
+    def tail_bound(self, A):
+        """|N - k| = k f(delta / A) <= (4/pi) k delta / A."""
+        return (4.0 / np.pi) * (1 + 1e-12) * self.k * self.delta / np.asarray(A, float)
 
 
 # -------------------------------------------------------------------------------------------------- relay
@@ -398,6 +414,10 @@ class Relay(DescribingFunction):
         """(d + a, inf)."""
         return _domain(self.on_level, np.inf, omega)
 
+    def tail_bound(self, A):
+        """|N| <= 4 M / (pi A)."""
+        return (4.0 / np.pi) * (1 + 1e-12) * self.M / np.asarray(A, float)
+
     def operator(self) -> RelayOperator:
         """A fresh :class:`RelayOperator` at rest (output 0 until |x| exceeds the on-level d + a)."""
         return RelayOperator(self.M, self.on_level, self.off_level)
@@ -451,6 +471,10 @@ class CubicStiffness(StaticElement):
         """(0, inf) when hardening; (0, sqrt(4 k1 / (3 |k3|))) when softening (N = 0 at the upper end)."""
         hi = np.inf if self.k3 > 0 else math.sqrt(4.0 * self.k1 / (3.0 * -self.k3))
         return _domain(0.0, hi, omega)
+
+    def head_bound(self, A):
+        """|N - k1| = (3/4) |k3| A^2."""
+        return 0.75 * (1 + 1e-12) * abs(self.k3) * np.asarray(A, float) ** 2
 
 
 class Quantizer(StaticElement):
@@ -521,8 +545,13 @@ class Quantizer(StaticElement):
         return _keep_nan(A, np.where(A <= 0.5 * self.step, 0.0, np.where(np.isinf(A), 1.0, n_out)))
 
     def amplitude_domain(self, omega=None):
-        """(step/2, inf)."""
-        return _domain(0.5 * self.step, np.inf, omega)
+        """(step/2, step 1e7): N = 0 up to step/2; beyond 1e7 levels the element refuses (its level bound)."""
+        return _domain(0.5 * self.step, self.step * _QUANTIZER_MAX_LEVELS, omega)
+
+    def tail_bound(self, A):
+        """|N - 1| <= step / (2 A) (checked on a dense scan with every threshold; the largest ratio, 1/2, is
+        at A = step/2 where N = 0)."""
+        return 0.5 * (1 + 1e-9) * self.step / np.asarray(A, float)
 
 
 class PreloadedSpring(StaticElement):
@@ -559,6 +588,10 @@ class PreloadedSpring(StaticElement):
     def amplitude_domain(self, omega=None):
         """(0, inf)."""
         return _domain(0.0, np.inf, omega)
+
+    def tail_bound(self, A):
+        """|N - k| = 4 F0 / (pi A)."""
+        return (4.0 / np.pi) * (1 + 1e-12) * self.preload / np.asarray(A, float)
 
 
 class CoulombViscousFriction(StaticElement):
@@ -599,3 +632,7 @@ class CoulombViscousFriction(StaticElement):
     def amplitude_domain(self, omega=None):
         """(0, inf)."""
         return _domain(0.0, np.inf, omega)
+
+    def tail_bound(self, A):
+        """|N - c| = 4 Fc / (pi V)."""
+        return (4.0 / np.pi) * (1 + 1e-12) * self.Fc / np.asarray(A, float)

@@ -15,7 +15,7 @@ from ._kernels import candidate_cells
 from .grid import FD_MIN_WIDTH, STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
 from .plant import as_plant
 from .result import GridReport, JumpCrossing, LimitCycle, LimitCycles
-from .roots import JUMP_BOX, Residual, dominant_steps, find_roots, greedy_unique
+from .roots import JUMP_BOX, Residual, accepted, dominant_steps, find_roots, greedy_unique
 from .stability import MARGINAL_TOL, classify
 
 __all__ = ["predict_limit_cycles"]
@@ -43,23 +43,82 @@ def _grid_size(grid, frequency_dependent: bool) -> tuple[int, int]:
     return na, nw
 
 
-def _amplitude_domain(N, v: np.ndarray) -> tuple[float, float]:
+def _amplitude_domain(N, v: np.ndarray) -> tuple[float, float, float]:
+    """(smallest lower end, largest upper end, largest lower end) of N's amplitude domain over the nodes v."""
     if N.frequency_dependent:
         lo, hi = N.amplitude_domain(np.exp(v))
     else:
         lo, hi = N.amplitude_domain()
-    return float(np.min(lo)), float(np.max(hi))
+    return float(np.min(lo)), float(np.max(hi)), float(np.max(lo))
 
 
-def _default_amplitude_window(res: Residual, v: np.ndarray, dom: tuple[float, float]):
-    """Amplitudes where |G N| = 1 can hold for some w of the window (the only place for roots)."""
-    lo, hi = dom
-    cand = lo * (1 + np.logspace(-9, 8, 171)) if lo > 0 else np.logspace(-30, 30, 601)
+_REACH_GRID = np.logspace(-300, 300, 12001)  # amplitudes searched for the limit arguments (0.05 decades)
+
+
+def _limit_reach(res: Residual, v: np.ndarray, eps_v: np.ndarray, end: str):
+    """The amplitude beyond which (``end="inf"``) or below which (``end="zero"``) no root can lie, by the
+    element's :meth:`tail_bound` / :meth:`head_bound`, or None when the element states no bound, or its limit
+    there is 0 or infinite (then |N| alone limits the window), or G N(limit) reaches -1 in the window.
+
+    A root needs |G| |N - N_lim| >= |1 + G N_lim| (N_lim = N(inf, w) or N(0, w)). |1 + G N_lim| is taken on
+    the frequency nodes refined 16-fold (fewer for very large grids) less the most G can move between the fine
+    nodes (|G(w) - G(w_k)| <= |G(w_k)| (e^eps - 1), eps the resolved bound on |d ln G| per interval / 16).
+    """
+    N = res.N
+    bound = N.tail_bound if end == "inf" else N.head_bound
+    if bound(np.ones(1)) is None:
+        return None
+    k = int(np.clip(200_000 // max(v.size, 1), 1, 16))
+    t = np.linspace(0.0, 1.0, k, endpoint=False)
+    vf = np.concatenate([(v[:-1, None] + np.diff(v)[:, None] * t[None, :]).ravel(), v[-1:]])
+    w = np.exp(vf)
+    A_lim = np.inf if end == "inf" else 0.0
+    try:
+        n_lim = N(np.full(w.shape, A_lim), w) if res.frequency_dependent else N(A_lim)
+    except ValueError:
+        return None
+    P = res.plant(w) * n_lim
+    if not (np.all(np.isfinite(P)) and np.any(P)):
+        return None
+    finite_eps = eps_v[np.isfinite(eps_v)]
+    slack = math.expm1((float(finite_eps.max()) if finite_eps.size else STEP) / k)
+    gap = float(np.min(np.abs(1 + P) - np.abs(P) * slack))
+    if not gap > 0:
+        return None
+    g_max = float(np.max(np.abs(res.plant(w)) * (1 + slack)))
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        dev = bound(_REACH_GRID) * g_max
+    if end == "inf":
+        ok = np.flatnonzero(dev < 0.5 * gap)
+        return float(_REACH_GRID[ok[0]]) if ok.size else None
+    ok = np.flatnonzero(~(dev < 0.5 * gap))
+    return float(_REACH_GRID[ok[0] - 1]) if ok.size and ok[0] > 0 else None
+
+
+def _default_amplitude_window(res: Residual, v: np.ndarray, eps_v: np.ndarray, dom: tuple[float, float, float]):
+    """Amplitudes where |G N| = 1 can hold for some w of the window (the only place for roots), within the
+    reach of the element's limit arguments (:func:`_limit_reach`; docs/solver.md, "Default windows")."""
+    lo, hi, lo_max = dom
+    top, bottom = _limit_reach(res, v, eps_v, "inf"), _limit_reach(res, v, eps_v, "zero")
+    if lo > 0:
+        reach = top if top is not None else (lo_max * 1e8 if math.isfinite(lo_max) else hi)
+        cand = np.concatenate([lo * (1 + np.logspace(-9, 8, 171)), np.geomspace(lo, max(reach, lo * 2), 200)])
+        if lo_max > lo:  # a domain that moves with w (MassBacklash: h/2 m w^2): dense near each lower end
+            cand = np.concatenate([cand, np.geomspace(lo, lo_max, 200)])
+    else:
+        cand = np.logspace(-30, 30, 601)
     if math.isfinite(hi):
         cand = np.concatenate([cand, hi * (1 - np.logspace(-9, -0.3, 88))])
+    if top is not None:
+        cand = np.concatenate([cand[cand < top], [top]])
+    if bottom is not None:
+        cand = np.concatenate([[bottom], cand[cand > bottom]])
     cand = np.unique(cand[(cand > lo) & (cand < hi)])
+    if cand.size < 2:
+        return (float(lo * (1 + 1e-9)), float(min(hi * (1 - 1e-9), lo * 2))), "default: N's amplitude domain"
     if res.frequency_dependent:
-        P = res.grid(np.log(cand), v)
+        sub = v[np.unique(np.linspace(0, v.size - 1, min(v.size, 2000)).astype(int))]
+        P = res.grid(np.log(cand), sub)
         if not np.any(P):
             raise ValueError("N is zero everywhere in its amplitude domain: no limit cycle is possible")
         M = np.abs(P)
@@ -80,10 +139,13 @@ def _default_amplitude_window(res: Residual, v: np.ndarray, dom: tuple[float, fl
     rows[:-1] |= (band[:-1] | cross) & varying
     rows[1:] |= (band[1:] | cross) & varying
     idx = np.flatnonzero(rows)
+    limits = "; no root beyond A=%.3g by N's limit" % top if top is not None else ""
+    limits += "; no root below A=%.3g by N's limit" % bottom if bottom is not None else ""
     if idx.size == 0:
-        return (float(cand[0]), float(cand[-1])), "default: N's amplitude domain (|G N| never reaches 1)"
+        return (float(cand[0]), float(cand[-1])), f"default: N's amplitude domain (|G N| never reaches 1){limits}"
     i0, i1 = max(idx[0] - 2, 0), min(idx[-1] + 2, cand.size - 1)
-    return (float(cand[i0]), float(cand[i1])), "default: where |G N| can reach 1 within N's amplitude domain"
+    return ((float(cand[i0]), float(cand[i1])),
+            f"default: where |G N| can reach 1 within N's amplitude domain{limits}")
 
 
 def _split_mask(P: np.ndarray, axis: int, x: np.ndarray) -> np.ndarray:
@@ -218,11 +280,11 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     if amplitude is None:
         # every node of G's resolved grid (|G| changes by at most a factor e^STEP between them, well inside
         # the band 1/2..2 used), so a narrow resonance peak is seen; a frequency-dependent N on a subset
-        sub = v if not res.frequency_dependent else v[np.unique(np.linspace(0, v.size - 1, min(v.size, 400)).astype(int))]
-        (A_lo, A_hi), a_src = _default_amplitude_window(res, sub, dom)
+        (A_lo, A_hi), a_src = _default_amplitude_window(res, v, eps_v, dom)
     else:
         A_lo, A_hi = checked_window("amplitude", amplitude)
         a_src = "given"
+        dom = dom[:2]
         if A_lo <= dom[0]:
             A_lo, a_src = dom[0] * (1 + 1e-9), "given, clipped to N's amplitude domain"
         if A_hi >= dom[1]:
@@ -262,7 +324,8 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
                         candidate_cells=n_cand, n_evaluations=int(n_eval))
     window = (a[0], a[-1], v[0], v[-1])
     ra, rv, jumps = find_roots(res, a, v, P, tol, cells)
-    cycles = _build(res, ra, rv, window, marginal_tol)
+    cycles, rejected = _build(res, ra, rv, window, marginal_tol, tol)
+    report = dataclasses.replace(report, rejected=rejected)
     crossings = _jump_crossings(res, jumps)
     if crossings:
         where = "; ".join(f"A={c.amplitude:.4g}, omega={c.frequency:.4g} rad/s" for c in crossings[:5])
@@ -312,9 +375,20 @@ def _jump_crossings(res: Residual, jumps: np.ndarray) -> list[JumpCrossing]:
     return out
 
 
-def _build(res: Residual, ra, rv, bounds, marginal_tol) -> list[LimitCycle]:
+def _build(res: Residual, ra, rv, bounds, marginal_tol, tol) -> tuple[list[LimitCycle], int]:
+    """The LimitCycle objects of refined roots (ra, rv), and how many points failed the residual bound.
+
+    Every returned cycle satisfies :func:`roots.residual_bound` (checked here, centrally, on fresh values of
+    G and N, whatever path found it); a point that does not is dropped and counted (``GridReport.rejected``).
+    """
     if ra.size == 0:
-        return []
+        return [], 0
+    P, P_a, P_v = res.slopes(ra, rv)
+    good = accepted(P, P_a, P_v, ra, rv, tol)
+    rejected = int(np.count_nonzero(~good))
+    ra, rv = ra[good], rv[good]
+    if ra.size == 0:
+        return [], rejected
     det, cond, label = classify(res, ra, rv, marginal_tol)
     # a double root may be reached from several seeds: merge marginal roots closer than 1e-4 (log units)
     keep = np.ones(ra.size, bool)
@@ -351,4 +425,4 @@ def _build(res: Residual, ra, rv, bounds, marginal_tol) -> list[LimitCycle]:
                               loeb_determinant=float(det[k]), loeb_conditioning=float(cond[k]), G=complex(g[k]),
                               N=complex(n[k]), on_edge=bool(on_edge[k]), valid=bool(valid[k]),
                               n_error=float(err[k])))
-    return out
+    return out, rejected

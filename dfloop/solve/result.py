@@ -205,6 +205,14 @@ class GridReport:
         holds no root. None when every cell's winding was computed.
     n_evaluations : int
         Points at which G or N was sampled to choose the grid.
+    uncertified : tuple of (float, float)
+        Frequency intervals (rad/s) where the sampled bound on |d ln G| (|d ln G N|) could not be certified:
+        the samples and the slopes at them still disagree at the smallest interval width (a discontinuity
+        of a callable or frd G, or a feature narrower than the sampling can follow). Roots inside them may
+        be missed. Empty for rational G.
+    rejected : int
+        Refined points dropped because they did not satisfy the residual bound (``roots.residual_bound``);
+        every returned cycle satisfies it.
     """
 
     shape: tuple
@@ -215,9 +223,17 @@ class GridReport:
     n_jumps: int
     candidate_cells: int | None
     n_evaluations: int
+    uncertified: tuple = ()
+    rejected: int = 0
 
     def __str__(self) -> str:
         cand = "" if self.candidate_cells is None else f", {self.candidate_cells} candidate cells"
+        if self.uncertified:
+            cand += (f"; {len(self.uncertified)} frequency interval(s) not certified (roots may be missed there): "
+                     + ", ".join(f"[{lo:.6g}, {hi:.6g}]" for lo, hi in self.uncertified[:3])
+                     + (" ..." if len(self.uncertified) > 3 else ""))
+        if self.rejected:
+            cand += f"; {self.rejected} point(s) rejected by the residual bound"
         return (f"grid {self.shape[0]} x {self.shape[1]} (omega: {self.frequency_rule}, max step "
                 f"{self.max_step_frequency:.3g}; A: {self.amplitude_rule}, max step "
                 f"{self.max_step_amplitude:.3g}; {self.n_jumps} jump interval(s){cand})")

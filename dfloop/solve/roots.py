@@ -23,7 +23,7 @@ from .errors import ContinuumError
 from ._kernels import edge_steps, nonzero_windings, tangent_seeds
 from .plant import Plant
 
-__all__ = ["Residual", "Box", "find_roots", "dominant_steps", "greedy_unique"]
+__all__ = ["Residual", "Box", "find_roots", "dominant_steps", "greedy_unique", "accepted", "residual_bound"]
 
 _SPLIT_PHASE = np.pi / 2  # an edge step whose phase change exceeds this is bisected
 _MAX_EDGE_DEPTH = 50  # bisection levels along an edge (2**-50 of its length)
@@ -294,6 +294,20 @@ def at_rounding_level(P, P_a, P_v, a, v) -> np.ndarray:
     return (np.abs(da) <= ua + ka * uv) & (np.abs(dv) <= uv + kv * ua)
 
 
+def residual_bound(P, P_a, P_v, a, v, tol: float) -> np.ndarray:
+    """The residual a returned root must satisfy: |1 + G N| <= max(tol (1 + |G N|), 32 (|R_a| u_a + |R_v| u_v)),
+    u the rounding unit of the log coordinate (:func:`_rounding`): the first-order change of R over the
+    rounding of (ln A, ln w), the floor where R turns faster than ln A, ln w can be represented (a resonance
+    of damping 1e-12). A point inside a dead band (R = 1, slopes ~0) never satisfies it."""
+    return np.maximum(tol * (1 + np.abs(P)), 32 * (np.abs(P_a) * _rounding(a) + np.abs(P_v) * _rounding(v)))
+
+
+def accepted(P, P_a, P_v, a, v, tol: float) -> np.ndarray:
+    """Whether points are roots: within :func:`residual_bound` (the central test every returned cycle passes)."""
+    with np.errstate(invalid="ignore"):
+        return np.abs(1 + P) <= residual_bound(P, P_a, P_v, np.asarray(a, float), np.asarray(v, float), tol)
+
+
 def _rounding(x: np.ndarray) -> np.ndarray:
     """The rounding unit of log coordinates x: their float spacing, at least one roundoff (exp(x)
     carries a relative error of that size however small x is)."""
@@ -305,7 +319,8 @@ def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.nd
 
     Every trial point is evaluated together with its finite-difference neighbours, so an accepted step
     costs one call. Returns the final (a, v) and a mask of points with |R| <= tol (1 + |G N|) or
-    a Newton step at the rounding level of (a, v) (:func:`at_rounding_level`).
+    a Newton step at the rounding level of (a, v) (:func:`at_rounding_level`), and within
+    :func:`residual_bound` in either case.
     Bounded by 100 iterations.
     """
     a, v = np.array(a, float), np.array(v, float)
@@ -362,7 +377,7 @@ def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.nd
         lam[rej] *= 100
         done = (rel <= polish) | at_rounding_level(P, ra, rv, a, v)
         failed |= (lam > 1e8) & ~done
-    return a, v, (rel <= tol) | at_rounding_level(P, ra, rv, a, v)
+    return a, v, ((rel <= tol) | at_rounding_level(P, ra, rv, a, v)) & accepted(P, ra, rv, a, v, tol)
 
 
 def _touches(box: Box, points: list) -> np.ndarray:
