@@ -47,6 +47,20 @@ def _amplitude_domain(N, v: np.ndarray) -> tuple[float, float]:
     return float(np.min(lo)), float(np.max(hi))
 
 
+def _omega_window_reason(plant) -> str:
+    """Why the default frequency window ends where it does (for the header of the result)."""
+    if plant.domain[0] != 0:
+        return "default: the frd's grid"
+    if not plant.exact:
+        return "default: from the plant's poles/zeros"
+    mag = np.abs(np.concatenate(plant.roots))
+    mag = mag[np.isfinite(mag) & (mag > 0)]
+    if mag.size == 0:
+        return "default: G has no pole or zero off the origin (a pure integrator or gain): 0.01-100 rad/s"
+    return (f"default: two decades beyond G's slowest and fastest non-zero poles/zeros ({mag.min():.4g}, "
+            f"{mag.max():.4g} rad/s), where G's phase and slope have settled")
+
+
 def _default_amplitude_window(res: Residual, v: np.ndarray, dom: tuple[float, float]):
     """Amplitudes where |G N| = 1 can hold for some w of the window (the only place for roots)."""
     lo, hi = dom
@@ -79,7 +93,20 @@ def _default_amplitude_window(res: Residual, v: np.ndarray, dom: tuple[float, fl
     if idx.size == 0:
         return (float(cand[0]), float(cand[-1])), "default: N's amplitude domain (|G N| never reaches 1)"
     i0, i1 = max(idx[0] - 2, 0), min(idx[-1] + 2, cand.size - 1)
-    return (float(cand[i0]), float(cand[i1])), "default: where |G N| can reach 1 within N's amplitude domain"
+    # why the window ends at the top: N's domain, N no longer changing (a root beyond would sit on its limit),
+    # or |G N| out of reach of 1 at every frequency of the window
+    top = idx[-1]
+    if top >= cand.size - 2 and math.isfinite(hi):
+        end = "up to the end of N's amplitude domain"
+    elif top >= cand.size - 2:
+        end = (f"cut at {cand[-1] / lo:.0e} times the domain's lower edge: |G N| = 1 stays within reach above "
+               "(N tends to a non-zero limit and |G| spans that range over the frequency window)"
+               if lo > 0 else "cut at the end of the amplitudes searched (1e30)")
+    elif not varying[min(top, varying.size - 1):].any():
+        end = f"up to where N stops changing (constant to 1e-9 beyond {cand[top]:.3g}: its limit as A grows)"
+    else:
+        end = "up to where |G N| can no longer reach 1 at any frequency of the window"
+    return (float(cand[i0]), float(cand[i1])), f"default: where |G N| can reach 1 within N's amplitude domain, {end}"
 
 
 def _split_mask(P: np.ndarray, axis: int, x: np.ndarray) -> np.ndarray:
@@ -194,7 +221,7 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
         if plant.default_window is None:
             raise ValueError("omega window is required when G is a callable (no poles/zeros to choose it from)")
         w_lo, w_hi = plant.default_window
-        w_src = "default: from the plant's poles/zeros" if plant.domain[0] == 0 else "default: the frd's grid"
+        w_src = _omega_window_reason(plant)
     else:
         w_lo, w_hi = checked_window("omega", omega)
         w_src = "given"
