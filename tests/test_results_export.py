@@ -127,3 +127,17 @@ def test_sweep_to_dict_matches_its_csv(tmp_path):
     # relay closed form along the branch: A = 4 K / (6 pi) at w = sqrt(2) for every K
     for p, a in zip(first["parameter"], first["amplitude"]):
         assert a == pytest.approx(4 * p / (6 * math.pi), rel=1e-7)
+
+
+def test_impact_loop_orbit_round_trip(tmp_path):
+    """The impact loop's orbit (its fields as impact_loop_orbit fills them) writes its period and reads back."""
+    from dfloop.impact.loop import ImpactLoopOrbit
+
+    t = np.linspace(0.0, 0.2, 9)
+    orbit = ImpactLoopOrbit(True, "converged", 0.2, 1, t, np.sin(t), np.cos(t), np.array([0.05, 0.15]),
+                            np.array([0.3 + 0.1j, 0.0]), True, "test data")
+    d = orbit.to_dict()
+    assert d["frequency"] == pytest.approx(2 * math.pi / 0.2) and d["multipliers"] == [0.3 + 0.1j, 0j]
+    orbit.to_csv(tmp_path / "orbit.csv")
+    rows = read_csv(tmp_path / "orbit.csv")
+    assert [r["x"] for r in rows] == np.sin(t).tolist() and [r["t"] for r in rows] == t.tolist()

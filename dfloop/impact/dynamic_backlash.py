@@ -46,7 +46,7 @@ _PRIOR_SIMULATIONS_PER_BLOCK = 60              # progress estimate (per start) b
 _STARTS = ((0.1, 1.5), (0.9, -1.5), (0.5, 3.0), (0.3, -0.75))
 _COMPILE_SECONDS = 16                          # first-use compilation of the table driver (docs/impact.md, JIT row)
 _EFFECTS_COMPILE_SECONDS = 15                  # first-use compilation of the effects engine (fresh numba cache)
-_MOTIONS = {"simulated": 0}                    # motions simulated by every DynamicBacklash in this process
+_MOTIONS = {"simulated": 0, "samples": 0}      # work done for tables by every DynamicBacklash in this process
 _MOTIONS_LOCK = threading.Lock()
 
 
@@ -54,6 +54,12 @@ def motions_simulated() -> int:
     """Motions simulated for tables by every :class:`DynamicBacklash` in this process so far (a scene run
     reports the difference over the run: what the run actually simulated, whichever elements did it)."""
     return _MOTIONS["simulated"]
+
+
+def table_samples() -> int:
+    """Table samples computed by every :class:`DynamicBacklash` in this process so far (each sample simulates
+    one or more motions: from rest, and from alternative starts where coexisting motions are looked for)."""
+    return _MOTIONS["samples"]
 
 
 def _effects_tuple(effects) -> tuple:
@@ -242,7 +248,8 @@ class DynamicBacklash(DescribingFunction):
 
     @property
     def n_simulations(self) -> int:
-        """Number of motions simulated by this object so far (0 when everything came from the cache)."""
+        """Table samples computed by this object so far (0 when everything came from the cache); each sample
+        simulates one or more motions (:func:`motions_simulated` counts those)."""
         return 0 if self._table is None else self._table.n_sampled
 
     @property
@@ -451,8 +458,9 @@ class DynamicBacklash(DescribingFunction):
         lock = threading.Lock()
         count = {"sims": 0, "blocks": 0}
         self._announce_compile(label, enabled)
+        samples_before = self.n_simulations
         with progress_bar(label, n_blocks * _PRIOR_SIMULATIONS_PER_BLOCK * (1 + self.starts),
-                          enabled=enabled) as bar:
+                          enabled=enabled, estimated=True) as bar:   # the total is a forecast, refined per block
             def tick():
                 with lock:
                     count["sims"] += 1
@@ -471,6 +479,8 @@ class DynamicBacklash(DescribingFunction):
                 extend(user, checkpoint)
             finally:
                 self._tick = None
+                with _MOTIONS_LOCK:
+                    _MOTIONS["samples"] += self.n_simulations - samples_before
         self._store()
 
     def _announce_compile(self, label: str, enabled: bool | None) -> None:

@@ -201,6 +201,24 @@ class ImpactLoopOrbit:
         """Fundamental frequency 2 pi / T (rad/s)."""
         return 2.0 * math.pi / self.period if self.success else math.nan
 
+    def to_dict(self) -> dict:
+        """Plain data keyed by the attribute names (arrays as lists, multipliers as Python complex), plus
+        ``frequency``."""
+        from ..export import plain
+
+        names = ("success", "message", "period", "frequency", "period_multiple", "t", "x", "y", "event_times",
+                 "multipliers", "stable", "method", "residual", "iterations", "section_state", "section_side")
+        return {name: plain(getattr(self, name)) for name in names}
+
+    def to_csv(self, path) -> None:
+        """Write the orbit's period, one row per sample: ``t`` (s), ``x`` (N), ``y`` (m); ValueError without one."""
+        from ..export import write_csv
+
+        if not self.success:
+            raise ValueError(f"this ImpactLoopOrbit has no orbit to write ({self.message})")
+        write_csv(path, ({"t": t, "x": x, "y": y} for t, x, y in zip(self.t.tolist(), self.x.tolist(),
+                                                                      self.y.tolist())))
+
     def __repr__(self) -> str:
         if not self.success:
             return f"ImpactLoopOrbit(failed: {self.message})"

@@ -96,7 +96,7 @@ class FigureData:
 
     def __repr__(self) -> str:
         body = "\n".join("  " + repr(c) for c in self.curves)
-        sims = f", table motions simulated={self.simulations}" if self.simulations else ""
+        sims = f", table samples computed={self.simulations}" if self.simulations else ""
         return f"FigureData(kind={self.kind!r}, title={self.title!r}, curves={len(self.curves)}{sims})\n{body}"
 
 
