@@ -141,3 +141,23 @@ def test_impact_loop_orbit_round_trip(tmp_path):
     orbit.to_csv(tmp_path / "orbit.csv")
     rows = read_csv(tmp_path / "orbit.csv")
     assert [r["x"] for r in rows] == np.sin(t).tolist() and [r["t"] for r in rows] == t.tolist()
+
+
+def test_exact_outcome_is_said_in_three_words_and_never_claims_more_than_was_shown():
+    """Backlash servo: the outer cycle's exact orbit exists (confirmed, with the orbit's numbers); the inner
+    cycle has no orbit near it: the table says 'artefact' only with evidence of where the motions went (the
+    search's outcome), otherwise 'not checked' with the reason, never a bare 'no orbit'."""
+    from dfloop.solve.result import exact_kind, exact_words
+
+    cycles = df.predict_limit_cycles(ct.tf([5.0], [1.0, 1.0, 0.0]), df.Backlash(h=1.0), exact=True)
+    table = repr(cycles)
+    assert "exact: no orbit" not in table
+    inner, outer = cycles
+    assert exact_kind(outer)[0] == "confirmed"
+    assert f"confirmed: exact amplitude={outer.exact.amplitude:.6g}" in table
+    kind = exact_kind(inner)[0]
+    assert not inner.exact.success and kind in ("artefact", "not checked")
+    if kind == "artefact":
+        assert (inner.exact.extra or {}).get("outcome") in ("another cycle", "rest", "divergence", "not periodic")
+    assert exact_words(inner).startswith(f"{kind} (") and exact_words(inner) in table
+    assert cycles.to_dict()["cycles"][0]["exact_verdict"] == kind
