@@ -117,6 +117,9 @@ def test_sweep_to_dict_matches_its_csv(tmp_path):
 
     res = sweep(lambda K: (ct.tf([K], [1.0, 3.0, 2.0, 0.0]), df.Relay(M=1.0)), [1.0, 2.0, 3.0],
                 omega=(0.5, 5.0), progress=False, parameter="K")
+    for obj in (res, *res.branches, *res.events):   # what the sweep prints is named as its attributes
+        for name in _names(str(obj)) - {"p"}:        # p=...: the parameter's value, named by res.parameter
+            assert hasattr(obj, name), f"{type(obj).__name__} prints {name}= but has no attribute {name!r}"
     d = res.to_dict()
     res.to_csv(tmp_path / "s.csv")
     rows = read_csv(tmp_path / "s.csv")
@@ -136,6 +139,8 @@ def test_impact_loop_orbit_round_trip(tmp_path):
     t = np.linspace(0.0, 0.2, 9)
     orbit = ImpactLoopOrbit(True, "converged", 0.2, 1, t, np.sin(t), np.cos(t), np.array([0.05, 0.15]),
                             np.array([0.3 + 0.1j, 0.0]), True, "test data")
+    for name in _names(repr(orbit)):
+        assert hasattr(orbit, name), f"ImpactLoopOrbit prints {name}= but has no attribute {name!r}"
     d = orbit.to_dict()
     assert d["frequency"] == pytest.approx(2 * math.pi / 0.2) and d["multipliers"] == [0.3 + 0.1j, 0j]
     orbit.to_csv(tmp_path / "orbit.csv")

@@ -224,8 +224,8 @@ class ImpactLoopOrbit:
             return f"ImpactLoopOrbit(failed: {self.message})"
         mu = np.max(np.abs(self.multipliers)) if self.multipliers.size else 0.0
         return (f"ImpactLoopOrbit(period={self.period:.6g} s (frequency={self.frequency:.6g} rad/s), "
-                f"period_multiple={self.period_multiple}, impacts={self.event_times.size}, "
-                f"x amplitude={np.max(np.abs(self.x)):.4g} N, stable={self.stable} (max |mu|={mu:.3g}), "
+                f"period_multiple={self.period_multiple}, {self.event_times.size} impacts per period, "
+                f"peak |x| {np.max(np.abs(self.x)):.4g} N, stable={self.stable} (largest |multiplier| {mu:.3g}), "
                 f"residual={self.residual:.1e}, iterations={self.iterations})")
 
 

@@ -59,7 +59,7 @@ class Curve:
     note: str = ""
 
     def __repr__(self) -> str:
-        return (f"Curve(A={self.amplitude:g}, value={self.value}, omega={self.omega}, points={self.x.size}, "
+        return (f"Curve(amplitude={self.amplitude:g}, value={self.value}, omega={self.omega}, points={self.x.size}, "
                 f"trusted={int(np.count_nonzero(self.ok))}{', ' + self.note if self.note else ''})")
 
 
