@@ -33,6 +33,8 @@ def comparison_table(cycles: Any) -> list[str]:
     """Markdown rows, one per cycle: predicted A and w, the confidence (distortion, estimated errors) and, for
     cycles carrying an exact orbit, its A, w, Floquet stability (largest non-trivial |multiplier|) and the
     DF's relative errors (predicted - exact) / exact. Amplitudes in the element's input unit, w in rad/s."""
+    from dfloop.solve.result import exact_words
+
     rows = ["| # | predicted A | predicted w [rad/s] | distortion | est. error A | est. error w | exact A | "
             "exact w [rad/s] | exact stability (max non-trivial abs multiplier) | DF error A | DF error w |",
             "|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -47,7 +49,7 @@ def comparison_table(cycles: Any) -> list[str]:
         if ex is None:
             exact = ["-"] * 5
         elif not ex.success:
-            exact = ["no orbit: " + ex.message.replace("|", "\\|").replace("\n", " "), "-", "-", "-", "-"]
+            exact = [exact_words(c, long=True).replace("|", "\\|").replace("\n", " "), "-", "-", "-", "-"]
         else:
             exact = [f"{ex.amplitude:.8g}", f"{ex.frequency:.8g}",
                      f"{'stable' if ex.stable else 'unstable'} ({ex.largest_multiplier:.4g})",

@@ -56,9 +56,9 @@ def _omega_window_reason(plant) -> str:
     mag = np.abs(np.concatenate(plant.roots))
     mag = mag[np.isfinite(mag) & (mag > 0)]
     if mag.size == 0:
-        return "default: G has no pole or zero off the origin (a pure integrator or gain): 0.01-100 rad/s"
-    return (f"default: two decades beyond G's slowest and fastest non-zero poles/zeros ({mag.min():.4g}, "
-            f"{mag.max():.4g} rad/s), where G's phase and slope have settled")
+        return "default: G has no pole or zero off the origin: 0.01-100 rad/s"
+    at = f"{mag.min():.3g}" if f"{mag.min():.3g}" == f"{mag.max():.3g}" else f"{mag.min():.3g}..{mag.max():.3g}"
+    return f"default: 2 decades beyond G's poles/zeros at {at} rad/s, where G's phase and slope have settled"
 
 
 def _default_amplitude_window(res: Residual, v: np.ndarray, dom: tuple[float, float]):
@@ -97,16 +97,15 @@ def _default_amplitude_window(res: Residual, v: np.ndarray, dom: tuple[float, fl
     # or |G N| out of reach of 1 at every frequency of the window
     top = idx[-1]
     if top >= cand.size - 2 and math.isfinite(hi):
-        end = "up to the end of N's amplitude domain"
+        end = "ends at the edge of N's domain"
     elif top >= cand.size - 2:
-        end = (f"cut at {cand[-1] / lo:.0e} times the domain's lower edge: |G N| = 1 stays within reach above "
-               "(N tends to a non-zero limit and |G| spans that range over the frequency window)"
-               if lo > 0 else "cut at the end of the amplitudes searched (1e30)")
+        end = (f"cut at {cand[-1] / lo:.0e} x the domain's lower edge: |G N| = 1 stays reachable above, as N "
+               "tends to its limit and |G| spans it" if lo > 0 else "cut at the largest amplitude searched (1e30)")
     elif not varying[min(top, varying.size - 1):].any():
-        end = f"up to where N stops changing (constant to 1e-9 beyond {cand[top]:.3g}: its limit as A grows)"
+        end = "ends where N stops changing (its limit, to 1e-9)"
     else:
-        end = "up to where |G N| can no longer reach 1 at any frequency of the window"
-    return (float(cand[i0]), float(cand[i1])), f"default: where |G N| can reach 1 within N's amplitude domain, {end}"
+        end = "ends where |G N| can no longer reach 1"
+    return (float(cand[i0]), float(cand[i1])), f"default: where |G N| can reach 1 within N's domain; {end}"
 
 
 def _split_mask(P: np.ndarray, axis: int, x: np.ndarray) -> np.ndarray:
