@@ -337,6 +337,13 @@ def test_dynamic_backlash_says_what_to_use_instead():
     with pytest.raises(ValueError, match="hysteretic NumericDF"):
         to_control(df.NumericDF(df.Backlash(h=1.0))).to_nlsys(dt=0.1)
 
+    class OnlyDF(df.DescribingFunction):   # a DF without any time-domain model
+        def _evaluate(self, A, omega):
+            return np.ones_like(A, dtype=complex)
+
+    with pytest.raises(ValueError, match="no time-domain map"):
+        to_control(OnlyDF())
+
 
 @pytest.mark.parametrize("G, N", [
     (ct.tf([8.0], [1.0, 2.0, 2.0, 1.0]), df.Saturation(1.0)),

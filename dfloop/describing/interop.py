@@ -541,7 +541,11 @@ def to_control(element):
 
     N = as_element(element)
     if not N.frequency_dependent:
-        return _nonlinearity_class()(N)
+        try:
+            return _nonlinearity_class()(N)
+        except NotImplementedError as err:   # a user's element with a DF but no time-domain operator
+            raise ValueError(f"N = {N!r} cannot be converted to a python-control nonlinearity: it has no "
+                             f"time-domain map ({err})") from None
     model = _model(N)
     if model is None:
         raise _no_model(N)
