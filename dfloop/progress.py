@@ -38,30 +38,35 @@ class NullProgress:
     def update(self, n: int = 1, stage: str | None = None) -> None:
         """Count ``n`` more units of work done (ignored)."""
 
-    def set_total(self, total: int | None) -> None:
-        """Change the expected amount of work (ignored)."""
+    def set_total(self, total: int | None, estimated: bool | None = None) -> None:
+        """Change the expected amount of work (ignored); ``estimated`` marks it as a forecast."""
 
     def close(self) -> None:
         """Finish (nothing to do)."""
 
 
 class ProgressSink(NullProgress):
-    """Plain-line progress for non-terminal streams: ``label: n/total (stage), t elapsed, ~t left``."""
+    """Plain-line progress for non-terminal streams: ``label: n/total (stage), t elapsed, ~t left``; a total
+    that is a forecast (``estimated``) shows as ``n/~total``."""
 
-    def __init__(self, label: str, total: int | None, stream: TextIO, delay: float, interval: float = 5.0):
+    def __init__(self, label: str, total: int | None, stream: TextIO, delay: float, interval: float = 5.0,
+                 estimated: bool = False):
         self.label, self.total, self.stream = label, total, stream
+        self.estimated = estimated
         self.delay, self.interval = delay, interval
         self.n, self.stage = 0, None
         self.t0 = time.monotonic()
         self._first = None   # (time, count) at the first completed unit: the rate is measured from there on
         self._last = None
 
-    def set_total(self, total: int | None) -> None:
+    def set_total(self, total: int | None, estimated: bool | None = None) -> None:
         self.total = total
+        if estimated is not None:
+            self.estimated = estimated
 
     def _line(self) -> str:
         elapsed = time.monotonic() - self.t0
-        count = f"{self.n}/{self.total}" if self.total else f"{self.n}"
+        count = f"{self.n}/{'~' if self.estimated else ''}{self.total}" if self.total else f"{self.n}"
         left = ""
         if self.total and 0 < self.n < self.total and self._first is not None:
             t1, n1 = self._first
@@ -85,6 +90,8 @@ class ProgressSink(NullProgress):
 
     def close(self) -> None:
         if self._last is not None:  # only close with a line when something was printed
+            if self.estimated:      # the work is done: its amount is known now
+                self.total, self.estimated = self.n, False
             print(self._line() + ", done", file=self.stream, flush=True)
             self._last = None
 
@@ -99,7 +106,7 @@ class _TqdmSink(NullProgress):
         self.bar = tqdm(total=total, desc=label, file=stream, delay=delay, leave=False, dynamic_ncols=True)
         self._started = False
 
-    def set_total(self, total: int | None) -> None:
+    def set_total(self, total: int | None, estimated: bool | None = None) -> None:
         self.bar.total = total
         self.bar.refresh()
 
@@ -124,7 +131,7 @@ class _TqdmSink(NullProgress):
 
 
 def progress_bar(label: str, total: int | None = None, *, enabled: bool | None = None,
-                 stream: TextIO | None = None, delay: float = 1.0) -> NullProgress:
+                 stream: TextIO | None = None, delay: float = 1.0, estimated: bool = False) -> NullProgress:
     """A progress sink for ``total`` units of work labelled ``label``.
 
     Parameters
@@ -140,13 +147,16 @@ def progress_bar(label: str, total: int | None = None, *, enabled: bool | None =
         Where to write; ``sys.stderr`` by default.
     delay : float
         Seconds of work before the first report.
+    estimated : bool
+        ``total`` is a forecast (plain lines show ``n/~total``), until the work ends or ``set_total`` says
+        otherwise.
     """
     if enabled is False or os.environ.get("DFLOOP_PROGRESS", "1") == "0":
         return NullProgress()
     stream = sys.stderr if stream is None else stream
     if getattr(stream, "isatty", lambda: False)():
         return _TqdmSink(label, total, stream, delay)
-    return ProgressSink(label, total, stream, delay)
+    return ProgressSink(label, total, stream, delay, estimated=estimated)
 
 
 def announce(message: str, *, enabled: bool | None = None, stream: TextIO | None = None) -> None:

@@ -4,6 +4,7 @@ import math
 import numpy as np
 import pytest
 
+from dfloop.errors import CacheWarning
 from dfloop.tables import cache
 from dfloop.impact.dynamic_backlash import DynamicBacklash, prepare_many
 from dfloop.impact.sampling import ImpactSampler
@@ -118,7 +119,8 @@ def test_corrupted_or_stale_cache_is_rebuilt(tmp_cache, monkeypatch):
     data = bytearray(path.read_bytes())
     data[len(data) // 2] ^= 0xFF
     path.write_bytes(bytes(data))
-    b = DynamicBacklash(M1, M2, H, EPS, **KW).prepare(F, w)
+    with pytest.warns(CacheWarning, match="corrupted file"):
+        b = DynamicBacklash(M1, M2, H, EPS, **KW).prepare(F, w)
     assert b.n_simulations > 0                          # corrupted: rebuilt, not trusted
     np.testing.assert_allclose(b(F, w), a(F, w), rtol=1e-12)
     monkeypatch.setattr(cache, "code_version", lambda: "other-code")
@@ -138,7 +140,8 @@ def test_save_and_load_with_provenance(tmp_path):
     assert b.n_simulations == 0
     np.testing.assert_array_equal(a(50.0, 35.0), b(50.0, 35.0))
     other = DynamicBacklash(M1, M2, H, 0.7, cache=False, **KW)
-    assert not other.load(path)                         # built for other parameters: refused
+    with pytest.warns(CacheWarning, match="built for another key"):
+        assert not other.load(path)                     # built for other parameters: refused
 
 
 def test_prepare_many_uses_threads_and_matches_single():

@@ -63,3 +63,15 @@ def test_compile_pending_tracks_numba_cache(tmp_path):
     assert compile_pending(m.f) is False
     assert compile_pending(load().f) is False    # fresh dispatcher, compiled code on disk
     assert "nt_jit_probe" not in sys.modules
+
+
+def test_a_forecast_total_says_so_until_the_work_ends():
+    out = io.StringIO()
+    sink = ProgressSink("table", 100, out, delay=0.0, interval=0.0, estimated=True)
+    sink.update(30)
+    sink.set_total(80, estimated=True)
+    sink.update(50)
+    sink.close()
+    lines = out.getvalue().splitlines()
+    assert lines[0].startswith("table: 30/~100,") and lines[1].startswith("table: 80/~80,")
+    assert lines[-1].startswith("table: 80/80,") and lines[-1].endswith(", done")

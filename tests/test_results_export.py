@@ -117,6 +117,9 @@ def test_sweep_to_dict_matches_its_csv(tmp_path):
 
     res = sweep(lambda K: (ct.tf([K], [1.0, 3.0, 2.0, 0.0]), df.Relay(M=1.0)), [1.0, 2.0, 3.0],
                 omega=(0.5, 5.0), progress=False, parameter="K")
+    for obj in (res, *res.branches, *res.events):   # what the sweep prints is named as its attributes
+        for name in _names(str(obj)) - {"p"}:        # p=...: the parameter's value, named by res.parameter
+            assert hasattr(obj, name), f"{type(obj).__name__} prints {name}= but has no attribute {name!r}"
     d = res.to_dict()
     res.to_csv(tmp_path / "s.csv")
     rows = read_csv(tmp_path / "s.csv")
@@ -127,3 +130,39 @@ def test_sweep_to_dict_matches_its_csv(tmp_path):
     # relay closed form along the branch: A = 4 K / (6 pi) at w = sqrt(2) for every K
     for p, a in zip(first["parameter"], first["amplitude"]):
         assert a == pytest.approx(4 * p / (6 * math.pi), rel=1e-7)
+
+
+def test_impact_loop_orbit_round_trip(tmp_path):
+    """The impact loop's orbit (its fields as impact_loop_orbit fills them) writes its period and reads back."""
+    from dfloop.impact.loop import ImpactLoopOrbit
+
+    t = np.linspace(0.0, 0.2, 9)
+    orbit = ImpactLoopOrbit(True, "converged", 0.2, 1, t, np.sin(t), np.cos(t), np.array([0.05, 0.15]),
+                            np.array([0.3 + 0.1j, 0.0]), True, "test data")
+    for name in _names(repr(orbit)):
+        assert hasattr(orbit, name), f"ImpactLoopOrbit prints {name}= but has no attribute {name!r}"
+    d = orbit.to_dict()
+    assert d["frequency"] == pytest.approx(2 * math.pi / 0.2) and d["multipliers"] == [0.3 + 0.1j, 0j]
+    orbit.to_csv(tmp_path / "orbit.csv")
+    rows = read_csv(tmp_path / "orbit.csv")
+    assert [r["x"] for r in rows] == np.sin(t).tolist() and [r["t"] for r in rows] == t.tolist()
+
+
+def test_exact_outcome_is_said_in_three_words_and_never_claims_more_than_was_shown():
+    """Backlash servo: the outer cycle's exact orbit exists (confirmed, with the orbit's numbers); the inner
+    cycle has no orbit near it: the table says 'artefact' only with evidence of where the motions went (the
+    search's outcome), otherwise 'not checked' with the reason, never a bare 'no orbit'."""
+    from dfloop.solve.result import exact_kind, exact_words
+
+    cycles = df.predict_limit_cycles(ct.tf([5.0], [1.0, 1.0, 0.0]), df.Backlash(h=1.0), exact=True)
+    table = repr(cycles)
+    assert "exact: no orbit" not in table
+    inner, outer = cycles
+    assert exact_kind(outer)[0] == "confirmed"
+    assert f"confirmed: exact amplitude={outer.exact.amplitude:.6g}" in table
+    kind = exact_kind(inner)[0]
+    assert not inner.exact.success and kind in ("artefact", "not checked")
+    if kind == "artefact":
+        assert (inner.exact.extra or {}).get("outcome") in ("another cycle", "rest", "divergence", "not periodic")
+    assert exact_words(inner).startswith(f"{kind} (") and exact_words(inner) in table
+    assert cycles.to_dict()["cycles"][0]["exact_verdict"] == kind

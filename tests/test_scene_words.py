@@ -43,3 +43,28 @@ def test_scene_errors_use_the_projects_words(tmp_path, text, key, words):
 def test_unknown_validator_kind_still_names_the_value():
     assert validator_message("some_new_kind", {}, 3.5) == "invalid value 3.5"
     assert validator_message("greater_than", {"gt": 0}, -2) == "must be > 0, got -2"
+
+
+def test_element_keyword_guesses_name_the_real_parameter():
+    import dfloop as df
+    from dfloop.describing.base import DescribingFunction
+    from dfloop.errors import DfloopError
+
+    with pytest.raises(TypeError, match=r"Saturation has no parameter 'slope' \(did you mean 'k'\?\); its "
+                                        r"parameters are limit, k"):
+        df.Saturation(limit=1.0, slope=2.0)
+    with pytest.raises(DfloopError, match=r"'clearance' \(did you mean 'h'\?\)"):
+        df.Backlash(clearance=1.0)
+    with pytest.raises(TypeError, match=r"'dead_band' \(did you mean 'dead_zone'\?\)"):
+        df.Relay(M=1.0, dead_band=0.1)   # a relay's band is dead_zone, a dead zone's is delta
+    assert df.Saturation(limit=1.0, k=2.0).k == 2.0
+
+    class Custom(DescribingFunction):   # a user's element taking any keyword: its own TypeError is kept
+        def __init__(self, **options):
+            raise TypeError("Custom needs a gain")
+
+        def _evaluate(self, A, omega):
+            return A
+
+    with pytest.raises(TypeError, match="^Custom needs a gain$"):
+        Custom(slope=1.0)

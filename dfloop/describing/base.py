@@ -33,7 +33,10 @@ class UnknownParameterError(DfloopError, TypeError):
 
 def _parameter_hint(cls: type, init, kwargs: dict) -> str | None:
     """Why ``cls(**kwargs)`` cannot bind: each unknown keyword with the parameter it probably means."""
-    params = [p for p in inspect.signature(init).parameters if p != "self"]
+    signature = inspect.signature(init)
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in signature.parameters.values()):
+        return None   # takes any keyword: the TypeError is the constructor's own
+    params = [p for p in signature.parameters if p != "self"]
     unknown = [k for k in kwargs if k not in params]
     if not unknown:
         return None

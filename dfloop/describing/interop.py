@@ -506,7 +506,7 @@ def _nonlinearity_class():
     return ControlNonlinearity
 
 
-def to_control(element):
+def to_control(element: Any) -> Any:
     """A dfloop element as a python-control object, in one call.
 
     Amplitude-only elements give a ``control.DescribingFunctionNonlinearity`` whose call ``F(x)`` is the
@@ -542,7 +542,11 @@ def to_control(element):
 
     N = as_element(element)
     if not N.frequency_dependent:
-        return _nonlinearity_class()(N)
+        try:
+            return _nonlinearity_class()(N)
+        except NotImplementedError as err:   # a user's element with a DF but no time-domain operator
+            raise ValueError(f"N = {N!r} cannot be converted to a python-control nonlinearity: it has no "
+                             f"time-domain map ({err})") from None
     model = _model(N)
     if model is None:
         raise _no_model(N)
@@ -566,7 +570,7 @@ def _cycle_pair(cycle) -> tuple[float, float]:
     return positive("cycle amplitude", A0), positive("cycle frequency", w)
 
 
-def control_initial_state(G, N, cycle) -> np.ndarray:
+def control_initial_state(G: Any, N: Any, cycle: Any) -> np.ndarray:
     """State of :func:`control_loop` (G, N) on the harmonic-balance orbit of a cycle, at t = 0 (x = 0, rising).
 
     The plant state is Im((jw I - A)^-1 B N(A0, w) A0) (the steady state of G driven by the element output's
@@ -589,7 +593,7 @@ def control_initial_state(G, N, cycle) -> np.ndarray:
     return np.concatenate([X.imag, model.initial(complex(A0), w)])
 
 
-def control_loop(G, N, *, name: str = "dfloop_loop"):
+def control_loop(G: Any, N: Any, *, name: str = "dfloop_loop") -> Any:
     """The closed loop of the paper's Fig. 1 as a python-control ``nlsys`` for ``control.input_output_response``.
 
     Reference r (the input, 0 for the autonomous loop), element input x = r - c, element output y, plant output

@@ -46,7 +46,7 @@ _BLOCK_BASE_INTERVALS = 8                      # a canonical block holds 8 base 
 _PRIOR_SIMULATIONS_PER_BLOCK = 60              # progress estimate (per start) before the first block is done
 _COMPILE_SECONDS = 16                          # first-use compilation of the table driver (docs/impact.md, JIT row)
 _EFFECTS_COMPILE_SECONDS = 15                  # first-use compilation of the effects engine (fresh numba cache)
-_MOTIONS = {"simulated": 0}                    # motions simulated by every DynamicBacklash in this process
+_MOTIONS = {"simulated": 0, "samples": 0}      # work done for tables by every DynamicBacklash in this process
 _MOTIONS_LOCK = threading.Lock()
 
 
@@ -54,6 +54,18 @@ def motions_simulated() -> int:
     """Motions simulated for tables by every :class:`DynamicBacklash` in this process so far (a scene run
     reports the difference over the run: what the run actually simulated, whichever elements did it)."""
     return _MOTIONS["simulated"]
+
+
+def table_samples() -> int:
+    """Table samples computed by every :class:`DynamicBacklash` in this process so far (each sample simulates
+    one or more motions: from rest, and from alternative starts where coexisting motions are looked for)."""
+    return _MOTIONS["samples"]
+
+
+def table_samples() -> int:
+    """Table samples computed by every :class:`DynamicBacklash` in this process so far (each sample simulates
+    one or more motions: from rest, and from alternative starts where coexisting motions are looked for)."""
+    return _MOTIONS["samples"]
 
 
 def _effects_tuple(effects) -> tuple:
@@ -230,7 +242,8 @@ class DynamicBacklash(DescribingFunction):
 
     @property
     def n_simulations(self) -> int:
-        """Number of motions simulated by this object so far (0 when everything came from the cache)."""
+        """Table samples computed by this object so far (0 when everything came from the cache); each sample
+        simulates one or more motions (:func:`motions_simulated` counts those)."""
         return self.store.n_sampled
 
     @property
@@ -287,10 +300,13 @@ class DynamicBacklash(DescribingFunction):
                     _MOTIONS["simulated"] += 1
 
             self.sampler.tick = counted
+            samples_before = self.store.n_sampled
             try:
                 extend(progress, checkpoint)
             finally:
                 self.sampler.tick = None
+                with _MOTIONS_LOCK:
+                    _MOTIONS["samples"] += self.store.n_sampled - samples_before
 
         self.store.build(run, n_units, _PRIOR_SIMULATIONS_PER_BLOCK * (1 + self.starts),
                          first_use=self._first_use())

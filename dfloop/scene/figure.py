@@ -63,7 +63,7 @@ class Curve:
     trajectory: Any = field(default=None, compare=False)
 
     def __repr__(self) -> str:
-        return (f"Curve(A={self.amplitude:g}, value={self.value}, omega={self.omega}, points={self.x.size}, "
+        return (f"Curve(amplitude={self.amplitude:g}, value={self.value}, omega={self.omega}, points={self.x.size}, "
                 f"trusted={int(np.count_nonzero(self.ok))}{', ' + self.note if self.note else ''})")
 
 
@@ -89,7 +89,7 @@ class FigureData:
 
     def __repr__(self) -> str:
         body = "\n".join("  " + repr(c) for c in self.curves)
-        sims = f", table motions simulated={self.simulations}" if self.simulations else ""
+        sims = f", table samples computed={self.simulations}" if self.simulations else ""
         return f"FigureData(kind={self.kind!r}, title={self.title!r}, curves={len(self.curves)}{sims})\n{body}"
 
 

@@ -31,6 +31,8 @@ def comparison_table(cycles: Any) -> list[str]:
     """Markdown rows, one per cycle: predicted A and w, the confidence (distortion, estimated errors) and, for
     cycles carrying an exact orbit, its A, w, Floquet stability (largest non-trivial |multiplier|) and the
     DF's relative errors (predicted - exact) / exact. Amplitudes in the element's input unit, w in rad/s."""
+    from dfloop.solve.result import exact_words
+
     rows = ["| # | predicted A | predicted w [rad/s] | distortion | est. error A | est. error w | exact A | "
             "exact w [rad/s] | exact stability (max non-trivial abs multiplier) | DF error A | DF error w |",
             "|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -45,7 +47,7 @@ def comparison_table(cycles: Any) -> list[str]:
         if ex is None:
             exact = ["-"] * 5
         elif not ex.success:
-            exact = ["no orbit: " + ex.message.replace("|", "\\|").replace("\n", " "), "-", "-", "-", "-"]
+            exact = [exact_words(c, long=True).replace("|", "\\|").replace("\n", " "), "-", "-", "-", "-"]
         else:
             exact = [f"{ex.amplitude:.8g}", f"{ex.frequency:.8g}",
                      f"{'stable' if ex.stable else 'unstable'} ({ex.largest_multiplier:.4g})",
@@ -155,12 +157,13 @@ def _save(fig: Any, path: Path) -> Path:
     return path
 
 
-def _motions_simulated() -> int:
-    """Motions simulated for tables in this process so far (0 when no tabulated element was ever built)."""
+def _motions_simulated() -> tuple[int, int]:
+    """(table samples, motions simulated) for tables in this process so far ((0, 0) when no tabulated element
+    was ever built)."""
     import sys
 
     module = sys.modules.get("dfloop.impact.dynamic_backlash")
-    return 0 if module is None else module.motions_simulated()
+    return (0, 0) if module is None else (module.table_samples(), module.motions_simulated())
 
 
 def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], None] = print,
@@ -275,10 +278,11 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
             report.files.append(stage("plot residual map", residual))
     # counted after every stage (prediction, verification, sweep, figure: each may build tables, and a figure
     # builds one per curve family), so the note says what this run did, not what it had done so far
-    simulations = _motions_simulated() - motions_before
+    samples, simulations = (now - before for now, before in zip(_motions_simulated(), motions_before))
     if hasattr(scene.element, "n_simulations") or simulations:
-        report.notes.append(f"{type(scene.element).__name__}: {simulations} motions simulated in this run "
-                            f"({'tables served from the cache' if simulations == 0 else 'tables built and cached'})")
+        report.notes.append(f"{type(scene.element).__name__}: {simulations} motions simulated in this run " + (
+            "(tables served from the cache)" if simulations == 0 else
+            f"for {samples} table samples (tables built and cached)"))
         log(f"[{scene.name}] {report.notes[-1]}")
     path = out / f"{scene.name}_report.md"
     path.write_text(report.to_markdown())

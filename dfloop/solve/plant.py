@@ -151,6 +151,40 @@ def _show_matrix(m: np.ndarray) -> str:
     return " ".join(text.split())
 
 
+_MARKOV_ZERO = 1e-12  # |C A^(k-1) B| below this times |C| |A|^(k-1) |B| (elementwise) is rounding: zero
+
+
+def _ss_polynomials(ss) -> tuple[np.ndarray, np.ndarray]:
+    """Numerator and denominator of a SISO state-space G, with its true numerator degree.
+
+    By the matrix determinant lemma G(s) = [det(sI - A + BC) - det(sI - A)] / det(sI - A) + D. Where the
+    numerator is exactly zero, its leading coefficients (the relative degree r), the difference of the two
+    characteristic polynomials leaves rounding (``control.tf(ss)`` gives -2.2e-16 s + 5 for the ss form of
+    5/(s(s+1))), and such leading coefficients are huge spurious zeros (4.5e16 rad/s) that would set the
+    default window. The relative degree is found from the Markov parameters h_k = C A^(k-1) B, k = 1..n: the
+    first one above ``_MARKOV_ZERO`` times the elementwise product |C| |A|^(k-1) |B| (its rounding scale;
+    structurally zero below r in the companion forms ``control.ss`` / ``control.tf2ss`` make, and in modal or
+    diagonally scaled forms a cancellation at that scale). The r leading numerator coefficients are set to zero,
+    so the ss form gives the tf form's poles, zeros and default window. A dense, badly conditioned change of
+    state basis determines G's coefficients only to its conditioning (no method recovers more).
+    """
+    A, B, C, D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
+    n = A.shape[0]
+    p0 = np.real(np.poly(np.linalg.eigvals(A)))
+    d = float(D.ravel()[0])
+    num = np.real(np.poly(np.linalg.eigvals(A - np.outer(B[:, 0], C[0])))) - p0 + d * p0
+    r = 0 if d != 0.0 else n + 1
+    v, bound = B[:, 0], np.abs(B[:, 0])
+    for k in range(1, n + 1):
+        if r <= n:
+            break
+        if abs(float(C[0] @ v)) > _MARKOV_ZERO * float(np.abs(C[0]) @ bound):
+            r = k
+        v, bound = A @ v, np.abs(A) @ bound
+    num[:min(r, num.size)] = 0.0   # coefficients of s^n .. s^(n-r+1)
+    return num, p0
+
+
 def _from_tf(sys) -> Plant:
     import control as ct
 
@@ -164,8 +198,10 @@ def _from_tf(sys) -> Plant:
             m = np.asarray(getattr(sys, name))
             if not np.all(np.isfinite(m)):
                 raise ValueError(f"G (ss) must have finite matrices; got {name} = {_show_matrix(m)}")
-    tf = sys if isinstance(sys, ct.TransferFunction) else ct.tf(sys)
-    num, den = (np.asarray(x, dtype=float) for x in (tf.num[0][0], tf.den[0][0]))
+    if isinstance(sys, ct.TransferFunction):
+        num, den = (np.asarray(x, dtype=float) for x in (sys.num[0][0], sys.den[0][0]))
+    else:  # state space: the same polynomials as the tf form (rounding of the conversion removed)
+        num, den = _ss_polynomials(sys)
     for name, coef in (("num", num), ("den", den)):  # np.roots would raise LinAlgError
         if not np.all(np.isfinite(coef)):
             raise ValueError(f"G (tf) must have finite coefficients; got {name} = {coef.tolist()!r}")

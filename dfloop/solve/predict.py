@@ -260,7 +260,7 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
         if plant.default_window is None:
             raise ValueError("omega window is required when G is a callable (no poles/zeros to choose it from)")
         w_lo, w_hi = plant.default_window
-        w_src = "default: from the plant's poles/zeros" if plant.domain[0] == 0 else "default: the frd's grid"
+        w_src = _omega_window_reason(plant)
     else:
         w_lo, w_hi = checked_window("omega", omega)
         w_src = "given"
@@ -426,3 +426,17 @@ def _build(res: Residual, ra, rv, bounds, marginal_tol, tol) -> tuple[list[Limit
                               N=complex(n[k]), on_edge=bool(on_edge[k]), valid=bool(valid[k]),
                               n_error=float(err[k])))
     return out, rejected
+
+
+def _omega_window_reason(plant) -> str:
+    """Why the default frequency window ends where it does (for the header of the result)."""
+    if plant.domain[0] != 0:
+        return "default: the frd's grid"
+    if not plant.exact:
+        return "default: from the plant's poles/zeros"
+    mag = np.abs(np.concatenate(plant.roots))
+    mag = mag[np.isfinite(mag) & (mag > 0)]
+    if mag.size == 0:
+        return "default: G has no pole or zero off the origin: 0.01-100 rad/s"
+    at = f"{mag.min():.3g}" if f"{mag.min():.3g}" == f"{mag.max():.3g}" else f"{mag.min():.3g}..{mag.max():.3g}"
+    return f"default: 2 decades beyond G's poles/zeros at {at} rad/s, where G's phase and slope have settled"

@@ -6,22 +6,38 @@ from dataclasses import dataclass, field
 __all__ = ["LimitCycle", "LimitCycles", "JumpCrossing", "GridReport"]
 
 
-def exact_words(ex, long: bool = False) -> str:
-    """What the exact-orbit search established, in the project's words.
+_ARTEFACT_OUTCOMES = ("another cycle", "rest", "divergence", "not periodic")
 
-    ``exact: amplitude=..., frequency=... rad/s, stable`` for an orbit found; for none, ``exact: artefact (...)``
-    only when the search classified the DF cycle as an artefact (``classification == "artefact"``: evidence
-    that no orbit exists there), otherwise ``exact: not found (reason)``, since a failed search alone does not
-    prove that no orbit exists. ``long`` keeps the whole reason (``str(cycle)``); the table shortens it.
-    """
+
+def exact_kind(cycle) -> tuple[str, str]:
+    """(``"confirmed"`` | ``"artefact"`` | ``"not checked"``, detail) of a cycle with ``exact`` attached."""
+    ex = cycle.exact
+    verdict = getattr(cycle, "verdict", None)
+    if verdict is not None:
+        return verdict.kind, verdict.detail
     if ex.success:
-        return (f"exact: amplitude={ex.amplitude:.6g}, frequency={ex.frequency:.6g} rad/s, "
+        return "confirmed", ""
+    outcome = (getattr(ex, "extra", None) or {}).get("outcome")
+    return ("artefact" if outcome in _ARTEFACT_OUTCOMES else "not checked"), str(ex.message)
+
+
+def exact_words(cycle, long: bool = False) -> str:
+    """What the exact-orbit search established for a predicted cycle, in three words shared by every printout:
+
+    ``confirmed`` (an exact orbit near the prediction: its amplitude, frequency and stability), ``artefact`` (no
+    periodic orbit near it, with the evidence: where the motions went) or ``not checked`` (why: no exact engine
+    for the loop, or a search that failed without evidence, which does not prove that no orbit exists).
+    The cycle's own ``verdict`` is used when it has one; otherwise the words are read from ``cycle.exact``
+    (its ``extra["outcome"]``). ``long`` keeps the whole reason (``str(cycle)``); the table shortens it.
+    """
+    ex = cycle.exact
+    kind, detail = exact_kind(cycle)
+    if ex.success:
+        return (f"{kind}: exact amplitude={ex.amplitude:.6g}, frequency={ex.frequency:.6g} rad/s, "
                 f"{'stable' if ex.stable else 'unstable'}")
-    reason = str(ex.message)
-    if not long and len(reason) > 60:
-        reason = reason[:57].rstrip() + "..."
-    kind = getattr(ex, "classification", None)
-    return f"exact: artefact ({reason})" if kind == "artefact" else f"exact: not found ({reason})"
+    if not long and len(detail) > 60:
+        detail = detail[:57].rstrip() + "..."
+    return f"{kind} ({detail})" if detail else kind
 
 
 @dataclass(frozen=True)
@@ -109,7 +125,8 @@ class LimitCycle:
         Keys: the attribute names (``amplitude``, ``frequency``, ``stability``, ``residual``, ...; complex ``G``
         and ``N`` as ``G_real``/``G_imag``, ``N_real``/``N_imag``), the confidence as ``confidence_distortion``,
         ``confidence_amplitude_error``, ``confidence_frequency_error``, ``confidence_available``,
-        ``confidence_reliable``, and with ``exact`` attached ``exact_success``, ``exact_amplitude``,
+        ``confidence_reliable``, and with ``exact`` attached ``exact_verdict`` (confirmed, artefact or not
+        checked), ``exact_success``, ``exact_amplitude``,
         ``exact_frequency``, ``exact_stable``, ``exact_message`` (see :mod:`dfloop.export`).
         """
         from ..export import flat
@@ -124,8 +141,8 @@ class LimitCycle:
                                     "frequency_error": conf.frequency_error}
         if self.exact is not None:
             ex = self.exact
-            fields["exact"] = {"success": ex.success, "amplitude": ex.amplitude, "frequency": ex.frequency,
-                               "stable": ex.stable, "message": ex.message}
+            fields["exact"] = {"verdict": exact_kind(self)[0], "success": ex.success, "amplitude": ex.amplitude,
+                               "frequency": ex.frequency, "stable": ex.stable, "message": ex.message}
         return flat(fields)
 
     def to_csv(self, path) -> None:
@@ -142,8 +159,7 @@ class LimitCycle:
             flags += (f" [distortion {100 * conf.distortion:.2g} %, est. DF error: amplitude "
                       f"{100 * conf.amplitude_error:+.2g} %, frequency {100 * conf.frequency_error:+.2g} %]")
         if self.exact is not None:
-            ex = self.exact
-            flags += f" [{exact_words(ex, long=True)}]"
+            flags += f" [{exact_words(self, long=True)}]"
         return (f"LimitCycle(amplitude={self.amplitude:.6g}, frequency={self.frequency:.6g} rad/s, {self.stability}, "
                 f"|1+GN|={self.residual:.1e}{flags})")
 
@@ -292,7 +308,7 @@ class LimitCycles(list):
                                                ("DF unreliable (distortion > 5 %)", available and not conf.reliable))
                               if on)
             if c.exact is not None:
-                notes += ("; " if notes else "") + exact_words(c.exact)
+                notes += ("; " if notes else "") + exact_words(c)
             rows.append(f"{i:>3} {c.amplitude:>12.6g} {c.frequency:>18.6g} {c.stability:>10} {c.residual:>9.1e} "
                         f"{c.loeb_determinant:>10.3g} {c.G.real:>11.4g} {c.G.imag:>11.4g} {distortion:>10}  {notes}")
         return "\n".join([head] + rows + jumps)

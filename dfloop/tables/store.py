@@ -107,7 +107,8 @@ class TableStore:
         count = {"samples": 0, "units": 0}
         if first_use:
             announce(f"{self.label}: {first_use}", enabled=enabled)
-        with progress_bar(self.label, n_units * prior_per_unit, enabled=enabled) as bar:
+        with progress_bar(self.label, n_units * prior_per_unit, enabled=enabled,
+                          estimated=True) as bar:   # the total is a forecast, refined per unit
             def tick():
                 with lock:
                     count["samples"] += 1
