@@ -132,22 +132,6 @@ def test_sweep_to_dict_matches_its_csv(tmp_path):
         assert a == pytest.approx(4 * p / (6 * math.pi), rel=1e-7)
 
 
-def test_impact_loop_orbit_round_trip(tmp_path):
-    """The impact loop's orbit (its fields as impact_loop_orbit fills them) writes its period and reads back."""
-    from dfloop.impact.loop import ImpactLoopOrbit
-
-    t = np.linspace(0.0, 0.2, 9)
-    orbit = ImpactLoopOrbit(True, "converged", 0.2, 1, t, np.sin(t), np.cos(t), np.array([0.05, 0.15]),
-                            np.array([0.3 + 0.1j, 0.0]), True, "test data")
-    for name in _names(repr(orbit)):
-        assert hasattr(orbit, name), f"ImpactLoopOrbit prints {name}= but has no attribute {name!r}"
-    d = orbit.to_dict()
-    assert d["frequency"] == pytest.approx(2 * math.pi / 0.2) and d["multipliers"] == [0.3 + 0.1j, 0j]
-    orbit.to_csv(tmp_path / "orbit.csv")
-    rows = read_csv(tmp_path / "orbit.csv")
-    assert [r["x"] for r in rows] == np.sin(t).tolist() and [r["t"] for r in rows] == t.tolist()
-
-
 def test_exact_outcome_is_said_in_three_words_and_never_claims_more_than_was_shown():
     """Backlash servo: the outer cycle's exact orbit exists (confirmed, with the orbit's numbers); the inner
     cycle has no orbit near it: the table says 'artefact' only with evidence of where the motions went (the
