@@ -180,7 +180,8 @@ class ChartMargin:
         if self.nearest is None:
             out.append("  no boundary in the chart")
         else:
-            out.append(f"  nearest boundary ({self.kind}) at ({self.nearest[0]:.6g}, {self.nearest[1]:.6g}): "
+            what = Boundary(self.kind, np.empty(0), np.empty(0), np.empty(0), np.empty(0)).label
+            out.append(f"  nearest boundary ({what}) at ({self.nearest[0]:.6g}, {self.nearest[1]:.6g}): "
                        f"distance {self.distance:.4g} in the chart's scaled plane (each axis's range = 1)")
         for ax, lo, hi, p in ((self.x_axis, self.x_below, self.x_above, self.nominal[0]),
                               (self.y_axis, self.y_below, self.y_above, self.nominal[1])):
