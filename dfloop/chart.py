@@ -817,7 +817,12 @@ def design_chart(loop_at: Callable[[float, float], tuple], x_axis: ChartAxis, y_
                                 progress=False, label="chart: seeding sweeps")
             n_solves += 2 * len(segs)
             for (along_x, fixed, _), res in zip(segs, results):
+                # a branch that leaves the window towards a birth from infinity / zero amplitude: the birth is the
+                # boundary, the window edge next to it is not
+                to_limit = {i for e in res.events if e.cause in ("infinity", "zero amplitude") for i in e.branches}
                 for e in res.events:
+                    if e.kind in ("entry", "exit") and set(e.branches) & to_limit:
+                        continue
                     cond, Z0 = _seed(plane, e, along_x, fixed, x_axis, y_axis, res)
                     if cond is None:
                         continue
