@@ -180,7 +180,8 @@ class ChartMargin:
         if self.nearest is None:
             out.append("  no boundary in the chart")
         else:
-            out.append(f"  nearest boundary ({self.kind}) at ({self.nearest[0]:.6g}, {self.nearest[1]:.6g}): "
+            what = Boundary(self.kind, np.empty(0), np.empty(0), np.empty(0), np.empty(0)).label
+            out.append(f"  nearest boundary ({what}) at ({self.nearest[0]:.6g}, {self.nearest[1]:.6g}): "
                        f"distance {self.distance:.4g} in the chart's scaled plane (each axis's range = 1)")
         for ax, lo, hi, p in ((self.x_axis, self.x_below, self.x_above, self.nominal[0]),
                               (self.y_axis, self.y_below, self.y_above, self.nominal[1])):
@@ -816,7 +817,12 @@ def design_chart(loop_at: Callable[[float, float], tuple], x_axis: ChartAxis, y_
                                 progress=False, label="chart: seeding sweeps")
             n_solves += 2 * len(segs)
             for (along_x, fixed, _), res in zip(segs, results):
+                # a branch that leaves the window towards a birth from infinity / zero amplitude: the birth is the
+                # boundary, the window edge next to it is not
+                to_limit = {i for e in res.events if e.cause in ("infinity", "zero amplitude") for i in e.branches}
                 for e in res.events:
+                    if e.kind in ("entry", "exit") and set(e.branches) & to_limit:
+                        continue
                     cond, Z0 = _seed(plane, e, along_x, fixed, x_axis, y_axis, res)
                     if cond is None:
                         continue

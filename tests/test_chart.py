@@ -115,6 +115,16 @@ def test_backlash_fold_boundary_is_independent_of_the_clearance(tmp_path):
     assert ax.get_xlabel() == "gain K" and ax.get_ylabel() == "clearance h [m]"
     labels = [t.get_text() for t in cp.legend.get_texts()]
     assert "fold / stability change" in labels and "design point" in labels
+    import matplotlib.pyplot as plt
+    import pytest
+
+    from dfloop.plot.chart import plot_chart
+
+    fig, given = plt.subplots()
+    assert plot_chart(res, ax=given).axes[0, 0] is given
+    with pytest.raises(ValueError, match="ax must be"):
+        plot_chart(res, ax=fig)
+    plt.close("all")
 
 
 def test_bad_axes_and_options():

@@ -58,3 +58,50 @@ def test_relay_dead_zone_chart_fold_closed_form_and_exact_orbits():
                 assert res.exact_counts[j, i, 0] == 1
     assert checked >= 3
     assert "exact orbits (exact_cycle)" in repr(res)
+
+
+def _true_fold_gain(d, M=1.0):
+    """The smallest gain with an exact symmetric orbit (Tsypkin): with K = 1, x1(t; w, tau) from the Fourier
+    series; an orbit needs x1(0) = x1(tau) (then K = d / x1(0)); minimise K over the duty r = w tau / pi."""
+    from scipy.optimize import brentq, minimize_scalar
+
+    k = np.arange(1, 4001, 2)
+
+    def x1(t, w, tau):
+        s = 1j * k * w
+        Yk = 2 * M * (1 - np.exp(-s * tau)) / (s * 2 * np.pi / w)
+        return -2 * np.real(np.sum(1 / (s * (s + 1) * (s + 2)) * Yk * np.exp(s * t)))
+
+    def gain(r):
+        f = lambda w: x1(0, w, r * math.pi / w) - x1(r * math.pi / w, w, r * math.pi / w)  # noqa: E731
+        ws = np.linspace(0.5, 2.0, 31)
+        vals = [f(w) for w in ws]
+        roots = [brentq(f, ws[i], ws[i + 1], xtol=1e-14) for i in range(30) if vals[i] * vals[i + 1] < 0]
+        return min(d / x1(0, w, r * math.pi / w) for w in roots)
+
+    return minimize_scalar(gain, bounds=(0.2, 0.7), method="bounded", options={"xatol": 1e-8}).fun
+
+
+def test_exact_orbits_between_the_true_and_the_df_fold():
+    """The DF puts the dead-zone relay's fold at K = 3 pi d / M = 9.42 d/M; the exact orbits appear earlier, at
+    K_true = 8.98 d/M (Tsypkin, computed here). Between the two the chart's DF regions say "no cycle" and the
+    exact check, seeded from the neighbouring samples' predictions, finds orbits; below K_true it finds none."""
+    c_true = _true_fold_gain(1.0)  # K_true = c_true d / M (x scales with K M, the switching level with d)
+    assert 0.9 * 3 * math.pi < c_true < 3 * math.pi
+    res = design_chart(relay_dead_zone, ChartAxis(0.8, 1.1, "gain K"), ChartAxis(0.09, 0.11, "dead zone d"),
+                       samples=5, resolution=20, exact=True, progress=False)
+    between = 0
+    for j, d in enumerate(res.sample_y):
+        for i, K in enumerate(res.sample_x):
+            ratio = K / d
+            df_count, ex_count = res.sample_counts[j, i, :2].sum(), res.exact_counts[j, i, :2].sum()
+            if ratio < c_true * 0.995:
+                assert ex_count == 0
+            elif c_true * 1.005 < ratio < 3 * math.pi * 0.995:
+                assert df_count == 0 and ex_count >= 1  # cycles the DF does not predict
+                between += 1
+            elif ratio > 3 * math.pi * 1.005:
+                assert df_count == 2 and res.exact_counts[j, i, 0] == 1
+    assert between >= 2
+    bad = res.exact_disagreements()
+    assert all(df_region == "no cycle" for _, _, df_region, _ in bad) and len(bad) >= between

@@ -76,8 +76,14 @@ def plot_chart(result, ax=None, *, show_samples: bool = False):
             (seg,) = ax.plot([result.nominal[0], m.nearest[0]], [result.nominal[1], m.nearest[1]], color="k",
                              lw=1, ls=(0, (2, 2)), label=f"limit-cycle margin ({m.distance:.3g} of the range)")
             marks.append(seg)
-    ax.set_xscale("log" if xa.scale == "log" else "linear")
-    ax.set_yscale("log" if ya.scale == "log" else "linear")
+    from matplotlib.ticker import LogLocator, NullFormatter, ScalarFormatter
+
+    for axis, spec, setter in ((ax.xaxis, xa, ax.set_xscale), (ax.yaxis, ya, ax.set_yscale)):
+        setter("log" if spec.scale == "log" else "linear")
+        if spec.scale == "log" and max(spec.start, spec.stop) / min(spec.start, spec.stop) < 30:
+            axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+            axis.set_major_formatter(ScalarFormatter())  # plain numbers on a short log axis (not 2 x 10^0)
+            axis.set_minor_formatter(NullFormatter())
     ax.set_xlim(min(xa.start, xa.stop), max(xa.start, xa.stop))
     ax.set_ylim(min(ya.start, ya.stop), max(ya.start, ya.stop))
     ax.set_xlabel(xa.label)
