@@ -112,7 +112,7 @@ def test_backlash_fold_boundary_is_independent_of_the_clearance(tmp_path):
     assert (tmp_path / "r.csv").read_text().splitlines()[0].startswith("gain K,clearance h [m],region")
     cp = res.plot()
     ax = cp.axes[0, 0]
-    assert ax.get_xlabel() == "gain K" and ax.get_ylabel() == "clearance h [m]"
+    assert ax.get_xlabel() == "gain K [-]" and ax.get_ylabel() == "clearance h [m]"
     labels = [t.get_text() for t in cp.legend.get_texts()]
     assert "fold / stability change" in labels and "design point" in labels
     import matplotlib.pyplot as plt

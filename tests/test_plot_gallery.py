@@ -176,6 +176,18 @@ def test_sweep_and_collision_map():
     assert ticks and all(re.fullmatch(r"[0-9.]+", t.replace("\u2212", "-")) for t in ticks), ticks  # plain numbers
 
 
+def _chart_loop(K, h):
+    return K * ct.tf([1.0], [1.0, 3.0, 2.0, 0.0]), df.Backlash(h)
+
+
+def test_design_chart():
+    from dfloop.chart import ChartAxis, design_chart
+
+    res = design_chart(_chart_loop, ChartAxis(2.5, 5.5, "gain K"), ChartAxis(0.1, 0.5, "clearance h", "m"),
+                       nominal=(3.0, 0.3), samples=3, resolution=12, omega=(0.01, 100.0), progress=False)
+    check_figure(res.plot().figure, "design chart")
+
+
 def _study(kind):
     """A FigureData of every kind with the shape of the paper's figures (nine restitutions, F = 50 N)."""
     w = np.geomspace(5.0, 45.0, 60)
@@ -222,7 +234,7 @@ GALLERY = {"plot_nyquist": test_nyquist_pictures, "plot_residual_map": test_freq
            "plot_loci": test_frequency_dependent_family_and_residual_map, "plot_exact_cycle": test_time_domain_pictures,
            "plot_verification": test_time_domain_pictures, "plot_time_response": test_time_domain_pictures,
            "plot_sweep": test_sweep_and_collision_map, "plot_collision_map": test_sweep_and_collision_map,
-           "plot_element_study": test_scene_figure_study}
+           "plot_element_study": test_scene_figure_study, "plot_chart": test_design_chart}
 
 
 def test_the_gallery_covers_every_plot_function():

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._labels import axes_or_new
+from ._labels import axes_or_new, quantity
 
 __all__ = ["plot_chart", "REGION_COLORS"]
 
@@ -86,8 +86,8 @@ def plot_chart(result, ax=None, *, show_samples: bool = False):
             axis.set_minor_formatter(NullFormatter())
     ax.set_xlim(min(xa.start, xa.stop), max(xa.start, xa.stop))
     ax.set_ylim(min(ya.start, ya.stop), max(ya.start, ya.stop))
-    ax.set_xlabel(xa.label)
-    ax.set_ylabel(ya.label)
+    ax.set_xlabel(quantity(xa.name, xa.unit or "-"))
+    ax.set_ylabel(quantity(ya.name, ya.unit or "-"))
     line_handles, _ = ax.get_legend_handles_labels()
     leg = ax.legend(handles=handles + line_handles, loc="best", fontsize="small", framealpha=0.9)
     lines = np.empty(2, dtype=object)
