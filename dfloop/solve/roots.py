@@ -39,6 +39,10 @@ _TANGENT_THRESHOLD = 0.1  # local minima of |R|^2 / (1 + |GN|^2) below this are 
 _MAX_TANGENT_SEEDS = 5000
 _JUMP_LENGTH = 1e-9  # segments shorter than this (log units, i.e. relative in A and w) ...
 _JUMP_SIZE = 1e-3  # ... across which R changes by more than this times 1 + |G N| are discontinuities
+# live boxes crowding in a region this small (log units) are one multiple root: a double root is located only to
+# about sqrt(rounding) (1.5e-8) along its degenerate direction, where Re R or Im R stays at rounding level and zeros
+# appear on many box edges; distinct simple roots are isolated by winding long before their boxes number thousands
+_MULTIPLE_ROOT_SPAN = 1e-6
 JUMP_BOX = 1e-7  # a winding box narrower than this (log units) touching a discontinuity is a jump crossing
 _JUMP_DOMINANCE = 4.0  # a grid step of G N this many times larger than both neighbouring steps is a jump
 _MEMO_BATCH = 64  # batches of at most this many points are remembered by Residual.slopes ...
@@ -380,6 +384,11 @@ def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.nd
     return a, v, ((rel <= tol) | at_rounding_level(P, ra, rv, a, v)) & accepted(P, ra, rv, a, v, tol)
 
 
+def _span(box: Box) -> float:
+    """The largest side (log units) of the bounding box of ``box``'s boxes."""
+    return float(max(box.a_hi.max() - box.a_lo.min(), box.v_hi.max() - box.v_lo.min()))
+
+
 def _touches(box: Box, points: list) -> np.ndarray:
     """Mask of boxes containing (edges included) at least one of ``points`` [(a, v), ...]."""
     if not points:
@@ -424,6 +433,12 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
             check_continuum(res, sa, sv, window, tol)
         keep |= _touches(kids, suspects[:_MAX_LIVE_BOXES])
         queue = kids.take(keep)
+        if len(queue) > _MAX_LIVE_BOXES and _span(queue) < _MULTIPLE_ROOT_SPAN:
+            # the live boxes crowd around one point smaller than a resolvable separation: a multiple (tangent)
+            # root whose neighbourhood has zeros of Re R or Im R on many edges; refined below as one box
+            queue = Box(*(np.array([f(x)]) for f, x in ((np.min, queue.a_lo), (np.max, queue.a_hi),
+                                                          (np.min, queue.v_lo), (np.max, queue.v_hi))))
+            break
         if len(queue) > _MAX_LIVE_BOXES:
             check_continuum(res, (queue.a_lo + queue.a_hi) / 2, (queue.v_lo + queue.v_hi) / 2, window, tol)
             raise RuntimeError(f"root isolation kept {len(queue)} boxes alive (bound {_MAX_LIVE_BOXES}) without "
