@@ -206,8 +206,9 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
 
     Parameters
     ----------
-    G : python-control tf or ss
-        Strictly proper SISO plant (from the element's output y to c; x = -c).
+    G : python-control tf or ss, or ``delayed(G, T)``
+        Strictly proper SISO plant (from the element's output y to c; x = -c); with a pure delay
+        (:func:`dfloop.solve.delay.delayed`) a piecewise-constant element runs on the exact delay flow.
     N : DescribingFunction
         The element: piecewise-linear elements (relays, saturation, dead zone, backlash, quantizer, ...) run on
         the exact hybrid engine, other static elements on DOP853 (said in ``method``), a
@@ -252,6 +253,11 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     settle_periods = in_closed_interval("settle_periods", settle_periods, 0.0, 1000.0)
     max_deviation = positive("max_deviation", max_deviation)
 
+    from .solve.delay import delay_of
+    if delay_of(G) > 0:   # a pure delay: the exact delay flow (dfloop.hybrid.delay)
+        from .hybrid.delay import delay_orbit
+        return ExactCycle(**delay_orbit(G, N, A0, w0, tol=tol, max_iterations=max_iterations, harmonics=harmonics,
+                                        samples=samples, max_events=max_events, max_deviation=max_deviation))
     from .impact import DynamicBacklash
     if isinstance(N, DynamicBacklash):
         return _impact_orbit(G, N, A0, w0)

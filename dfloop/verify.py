@@ -67,6 +67,10 @@ def simulate_loop(G, N, amplitude: float, frequency: float, *, periods: float = 
 
     A0, w = positive("amplitude", amplitude), positive("frequency", frequency)
     periods, steps_per_period = _run_options(periods, steps_per_period)
+    from .solve.delay import delay_of
+    if delay_of(G) > 0:   # a pure delay: the exact delay flow (dfloop.hybrid.delay)
+        from .hybrid.delay import delay_simulation
+        return LoopSimulation(*delay_simulation(G, N, A0, w, periods, steps_per_period))
     if hasattr(N, "simulate_loop"):  # elements with internal dynamics (dynamic backlash) simulate themselves
         return N.simulate_loop(G, A0, w, periods=periods, steps_per_period=steps_per_period)
     from .hybrid import loop_model
