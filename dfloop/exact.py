@@ -253,6 +253,13 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     settle_periods = in_closed_interval("settle_periods", settle_periods, 0.0, 1000.0)
     max_deviation = positive("max_deviation", max_deviation)
 
+    from .hybrid.globalise import shoot_or_globalise   # no false "no orbit": globalise when shooting fails
+    options = dict(harmonics=harmonics, samples=samples, tol=tol, max_iterations=max_iterations,
+                   settle_periods=settle_periods, max_events=max_events, max_deviation=max_deviation, nodes=nodes)
+    outer = shoot_or_globalise(G, N, predicted, lambda c, **kw: exact_cycle(G, N, c, **{**options, **kw}),
+                               max_deviation)
+    if outer is not None:
+        return outer
     from .solve.delay import delay_of
     if delay_of(G) > 0:   # a pure delay: the exact delay flow (dfloop.hybrid.delay)
         from .hybrid.delay import delay_orbit

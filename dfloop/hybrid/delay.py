@@ -438,7 +438,7 @@ def predicted_start(loop: DelayLoop, A0: float, w0: float, section: tuple | None
     P = 2.0 * math.pi / w0
     T = loop.delay
     span = T + 3.0 * P
-    mode0 = int(np.argmin(np.abs(loop.levels)))          # the element at rest (any mode works after a period)
+    mode0 = int(loop.element.initial(np.zeros(1), 0.0)[0])   # the element at x = 0 (any mode works after a period)
     sw, _ = _sinusoid_switches(loop, A0, w0, -span, P, mode0)
     if not sw:
         raise DelayError(f"the predicted input x = {A0:g} sin({w0:g} t) never switches the element")
