@@ -207,3 +207,104 @@ def test_stability_verdicts_agree_with_perturbed_runs():
             assert dist < 0.5 * dist0
         else:
             assert dist > 2 * dist0 or len(queue) != len(ex["queue0"])
+
+
+def _closed_form_check(e, G, L, thresholds):
+    """An exact orbit with a piecewise-constant element, checked without event location: the plant's input is
+    the element output y(t - L) (levels read between the reported switches), the periodic plant state follows
+    from (I - e^{AP}) s0 = sum of the segments' forced responses, and then (a) x at every reported switch lies
+    on a threshold of the element, (b) x over the period equals the reported waveform."""
+    ss = ct.ss(G)
+    A, B, C = np.asarray(ss.A), np.asarray(ss.B)[:, 0], np.asarray(ss.C)[0]
+    n = A.shape[0]
+    P = e.period
+    sw = np.sort(e.switching_times)
+    mids = 0.5 * (sw + np.roll(sw, -1) + np.where(np.arange(sw.size) == sw.size - 1, P, 0.0))
+    levels = np.interp(mids % P, e.t, e.y, period=P)
+    levels = np.round(levels, 9)
+    # u(t) = y(t - L): level k holds on [sw_k + L, sw_{k+1} + L) mod P
+    starts = (sw + L) % P
+    order = np.argsort(starts)
+    starts, lev = starts[order], levels[order]
+    big = np.zeros((n + 1, n + 1))
+    big[:n, :n], big[:n, n] = A, B
+
+    def flow(s, u, h):
+        E = expm(big * h)
+        return E[:n, :n] @ s + E[:n, n] * u
+
+    u_at0 = lev[-1]                       # the level started last before t = P wraps to t = 0
+    bounds = np.concatenate([[0.0], starts, [P]])
+    us = np.concatenate([[u_at0], lev])
+    Phi, F = np.eye(n), np.zeros(n)
+    for a, b, u in zip(bounds[:-1], bounds[1:], us):
+        E = expm(big * (b - a))
+        Phi, F = E[:n, :n] @ Phi, E[:n, :n] @ F + E[:n, n] * u
+    s0 = np.linalg.solve(np.eye(n) - Phi, F)
+
+    def x_at(t):
+        k = np.searchsorted(bounds, t, side="right") - 1
+        s = s0
+        for a, b, u in zip(bounds[:k], bounds[1:k + 1], us[:k]):
+            s = flow(s, u, b - a)
+        return -C @ flow(s, us[k], t - bounds[k])
+
+    scale = np.max(np.abs(e.x))
+    for t in sw:
+        assert np.min(np.abs(x_at(t) - thresholds)) <= 1e-9 * scale
+    xs = np.array([x_at(t) for t in e.t[::8]])
+    np.testing.assert_allclose(xs, e.x[::8], rtol=0, atol=1e-9 * scale)
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_dead_zone_relay_and_quantizer_orbits_are_true_orbits(seed):
+    rng = np.random.default_rng(seed)
+    poles = -np.sort(rng.uniform(0.5, 3.0, 3))
+    G = ct.zpk([], poles, float(np.prod(-poles)) * rng.uniform(4.0, 8.0))
+    L = rng.uniform(0.2, 1.5)
+    hyst, dz = rng.uniform(0.02, 0.1), rng.uniform(0.05, 0.2)
+    relay = df.Relay(1.0, hysteresis=hyst, dead_zone=dz)
+    # the quantizer tends to a unit gain: scale G so that |G| = 0.9 at its phase crossover (bounded motion)
+    w180 = brentq(lambda w: np.pi - np.sum(np.arctan(w / -poles)) - w * L, 1e-6, 100.0)   # arg G e^{-jwL} = -pi
+    Gq = G * (0.9 / abs(complex(G(1j * w180))))
+    q = df.Quantizer(0.1)
+    thresholds_q = 0.1 * (np.arange(-200, 201) + 0.5)
+    for N, plant, thr in ((relay, G, np.array([relay.on_level, relay.off_level, -relay.on_level,
+                                                -relay.off_level])), (q, Gq, thresholds_q)):
+        cycles = df.predict_limit_cycles(delayed(plant, L), N, omega=(0.05, 20.0), amplitude=(0.05, 50.0))
+        stable = [c for c in cycles if c.stability == "stable"]
+        c = max(stable, key=lambda c: c.amplitude)
+        e = df.exact_cycle(delayed(plant, L), N, c, samples=256)
+        assert e.success, e.message
+        _closed_form_check(e, plant, L, thr)
+
+
+def test_random_delayed_relay_loops_settled_runs_are_the_exact_orbits():
+    # a small version of benchmarks/bench_delay_exact.py: the orbit a long event-located run from the slowest
+    # prediction settles on (return map iterated to 1e-13, no Newton) is exact_cycle's orbit to 1e-8
+    rng = np.random.default_rng(11)
+    for _ in range(3):
+        n = int(rng.integers(2, 6))
+        poles = -10 ** rng.uniform(-0.5, 0.5, n)
+        G = delayed(ct.zpk([], poles, float(np.prod(-poles)) * rng.uniform(1.5, 4.0)), rng.uniform(0.05, 5.0)
+                    / abs(poles).min())
+        N = df.Relay(rng.uniform(0.5, 2.0), hysteresis=rng.uniform(0, 0.1), dead_zone=rng.uniform(0, 0.1))
+        c = min(df.predict_limit_cycles(G, N, omega=(0.01, 20.0)), key=lambda c: c.frequency)
+        e = df.exact_cycle(G, N, c)
+        assert e.success, e.message
+        loop = delay_loop(G, N, c.amplitude, c.frequency)
+        from dfloop.hybrid.delay import predicted_start
+        s, mode, u, queue, section = predicted_start(loop, c.amplitude, c.frequency)
+        prev = None
+        for _ in range(2000):
+            s, u, queue, t1, _, fl = return_map(loop, s, mode, u, queue, section, horizon=100.0, tangent=False)
+            v = np.concatenate([s, [q[0] for q in queue], [t1]])
+            if prev is not None and prev.size == v.size and np.linalg.norm(v - prev) <= 1e-13 * np.linalg.norm(v):
+                break
+            prev = v
+        else:
+            pytest.fail("the run did not settle")
+        A_run = abs(2j * loop.fourier(fl, t1, 2 * math.pi / t1, 1)[0])
+        assert e.frequency == pytest.approx(2 * math.pi / t1, rel=1e-8)
+        assert e.amplitude == pytest.approx(A_run, rel=1e-8)
+        assert e.stable

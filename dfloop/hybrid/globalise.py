@@ -65,7 +65,13 @@ def _simulate(G, N, A: float, w: float, periods: float):
 
         try:
             t, x, _, diverged, method = delay_simulation(G, N, A, w, periods, 64, diverge=_DIVERGED)
-        except (DelayError, ValueError):
+        except DelayError as exc:
+            if "left the range" in str(exc):          # the quantizer's modelled range (64 A): a divergence
+                return np.array([0.0]), np.array([_DIVERGED * A]), True, str(exc)
+            if "never switches" in str(exc):          # the element stays at rest: so does its output
+                return np.array([0.0]), np.array([0.0]), False, str(exc)
+            return None
+        except ValueError:
             return None
         return t, x, diverged, method
     from . import HybridError, loop_model, plant_matrices
@@ -113,6 +119,8 @@ def _motion(G, N, A0: float, w0: float, factor: float) -> dict:
     t, x, diverged, _ = run
     if diverged:
         return {**out, "outcome": "divergence", "amplitude": float(np.max(np.abs(x)))}
+    if t.size < 3:          # the element never switches from this start: its output stays at rest
+        return {**out, "outcome": "rest", "amplitude": 0.0, "note": run[3]}
     tail = x[t > t[-1] - 0.1 * (t[-1] - t[0])]
     if np.max(np.abs(tail)) < _REST * A:
         return {**out, "outcome": "rest", "amplitude": float(np.max(np.abs(tail)))}
@@ -133,6 +141,8 @@ def _words(m: dict) -> str:
         return (f"{start}: not periodic within {m['periods']} periods (A~{m['amplitude']:.4g}, "
                 f"w~{m['frequency']:.4g} rad/s, amplitude spread {m['periodicity']:.2g})")
     if k == "rest":
+        if "note" in m:
+            return f"{start}: the element never switches ({m['note']})"
         return f"{start}: decays to rest (|x| <= {m['amplitude']:.3g})"
     if k == "divergence":
         return f"{start}: diverges (|x| reached {m['amplitude']:.3g})"
