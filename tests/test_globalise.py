@@ -19,7 +19,7 @@ def test_pade_chain_relay_orbit_is_found_where_shooting_from_the_prediction_stal
     assert e.predicted == (c.amplitude, c.frequency)
     assert e.amplitude_error == pytest.approx((c.amplitude - e.amplitude) / e.amplitude, rel=1e-14)
     # independent: a long run on the exact flow (no shooting) settles on the same orbit
-    sim = simulate_loop(G, N, c.amplitude, c.frequency, periods=300, steps_per_period=2000)
+    sim = simulate_loop(G, N, c.amplitude, c.frequency, periods=150, steps_per_period=800)
     st = steady_state(sim.t, sim.x, 20)
     assert st.periodicity < 1e-6
     assert e.frequency == pytest.approx(st.frequency, rel=1e-6)
@@ -58,3 +58,33 @@ def test_delay_prediction_far_from_any_orbit_reports_the_slow_cycle():
     assert miss.extra["outcome"] == "another cycle"
     w_slow = np.pi / (0.5 + np.log(2 - np.exp(-0.5)))
     assert f"w={w_slow:.6g}" in miss.message
+
+
+def test_every_prediction_is_classified():
+    from dfloop.solve.delay import delayed
+
+    G, N = ct.tf([5], [1, 1, 0]), df.Backlash(h=1.0)
+    inner, outer = df.predict_limit_cycles(G, N, exact=True)
+    assert inner.verdict.kind == "artefact" and "another cycle" in inner.verdict.detail
+    assert outer.verdict.kind == "confirmed"
+    assert outer.verdict.distance == pytest.approx(
+        max(abs(np.log(outer.amplitude / outer.exact.amplitude)), abs(np.log(outer.frequency / outer.exact.frequency))),
+        rel=1e-12)
+    text = repr(df.predict_limit_cycles(G, N, exact=True))
+    assert "artefact" in text and "confirmed" in text
+    assert df.predict_limit_cycles(G, N)[0].verdict.kind == "not checked"
+    # a delay with a sloped element has no exact engine: not checked, with the reason naming N
+    sat = df.predict_limit_cycles(delayed(ct.tf([4.0], [1.0, 1.0]), 0.5), df.Saturation(1.0), exact=True)
+    assert sat and all(c.verdict.kind == "not checked" and "N: Saturation" in c.verdict.detail for c in sat)
+
+
+def test_relay_delay_scene_report_classifies_its_five_cycles(tmp_path):
+    from dfloop.scene import run_scene
+
+    report = run_scene(df.load_scene(df.find_scene("relay_delay")), out_dir=tmp_path, log=lambda *_: None,
+                       progress=False)
+    kinds = [c.verdict.kind for c in report.cycles]
+    assert kinds == ["confirmed"] * 5
+    assert [c.exact.stable for c in report.cycles] == [True, False, False, False, False]
+    md = report.to_markdown()
+    assert md.count("| confirmed |") == 5

@@ -70,6 +70,14 @@ class LimitCycle:
         return conf
 
     @property
+    def verdict(self):
+        """Confirmed (an exact orbit near it), artefact (none; where the motions go) or not checked (why):
+        :func:`dfloop.solve.verdict.classify`."""
+        from .verdict import classify
+
+        return classify(self)
+
+    @property
     def stable(self) -> bool:
         """True only for a stable cycle (marginal cycles are not stable)."""
         return self.stability == "stable"
@@ -228,10 +236,10 @@ class LimitCycles(list):
                                                ("DF unreliable (distortion > 5 %)", available and not conf.reliable))
                               if on)
             if c.exact is not None:
-                ex = c.exact
+                ex, v = c.exact, c.verdict
                 notes += ("; " if notes else "") + (
-                    f"exact A={ex.amplitude:.6g}, omega={ex.frequency:.6g}, {'stable' if ex.stable else 'unstable'}"
-                    if ex.success else "exact: no orbit")
+                    f"{v.kind}: exact A={ex.amplitude:.6g}, omega={ex.frequency:.6g}, "
+                    f"{'stable' if ex.stable else 'unstable'}" if ex.success else v.kind)
             rows.append(f"{i:>3} {c.amplitude:>12.6g} {c.frequency:>14.6g} {c.stability:>10} {c.residual:>9.1e} "
                         f"{c.loeb_determinant:>10.3g} {c.G.real:>11.4g} {c.G.imag:>11.4g} {distortion:>10}  {notes}")
         return "\n".join([head] + rows + jumps)
