@@ -183,9 +183,11 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
 
     Parameters
     ----------
-    G : python-control tf or ss
+    G : python-control tf or ss, or ``delayed(G, T)``
         SISO plant (from the element's output y to c; x = -c), strictly proper (except around a dynamic
-        backlash, whose output x1 is a state).
+        backlash, whose output x1 is a state); with a pure delay (:func:`dfloop.solve.delay.delayed`) a
+        piecewise-constant element (relays, quantizer) runs on the exact delay flow
+        (:mod:`dfloop.hybrid.delay`: Newton on the return map to a switch), other elements raise ``ValueError``.
     N : DescribingFunction
         The element; its ``time_model`` decides the engine (:func:`dfloop.hybrid.loop_model`): piecewise-affine
         elements (relays, saturation, dead zone, backlash, quantizer, ...) run on the exact hybrid engine, a
@@ -219,10 +221,14 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     Returns
     -------
     ExactCycle
-        ``success`` False (with the reason) when no orbit was found near the prediction.
+        ``success`` False (with the reason) when no orbit was found near the prediction. Never a false "no
+        orbit": when shooting from the prediction fails, the loop is globalised (:mod:`dfloop.hybrid.globalise`:
+        fewer nodes, runs from three starts on the exact flow, shooting from every oscillation seen), and a "no
+        orbit" answer says where the motions went (``extra["outcome"]``, ``extra["motions"]``).
     """
     from ._checks import in_closed_interval
-    from .hybrid import ShootingError, loop_model, periodic_orbit
+    from .hybrid import ShootingError, delay_orbit, loop_model, periodic_orbit
+    from .hybrid.globalise import shoot_or_globalise
 
     N = as_element(N)
     A0, w0 = cycle_argument(cycle)
@@ -237,7 +243,17 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     max_events = int(in_closed_interval("max_events", max_events, 1, 10**9))
     m = int(in_closed_interval("nodes", nodes, 1, 1000))
 
+    # no false "no orbit": the whole search below runs inside the globalisation wrapper, which globalises a failure
+    options = dict(harmonics=harmonics, samples=samples, tol=tol, max_iterations=max_iterations,
+                   settle_periods=settle_periods, max_events=max_events, max_deviation=max_deviation, nodes=nodes)
+    outer = shoot_or_globalise(G, N, predicted, lambda c, **kw: exact_cycle(G, N, c, **{**options, **kw}),
+                               max_deviation)
+    if outer is not None:
+        return outer
     loop = loop_model(G, N, A0, w0, what="exact_cycle")
+    if loop.delay > 0:   # a pure delay: Newton on the return map of the exact delay flow (dfloop.hybrid.delay)
+        return ExactCycle(**delay_orbit(loop, A0, w0, tol=tol, max_iterations=max_iterations, harmonics=harmonics,
+                                        samples=samples, max_events=max_events, max_deviation=max_deviation))
     if not loop.exact:
         raise ValueError(f"N: {type(N).__name__} is known only through a sampled operator ({loop.method}): "
                          "exact_cycle needs an exact time model (piecewise affine, smooth or impact; implement "

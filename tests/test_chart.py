@@ -22,7 +22,7 @@ from scipy.optimize import brentq, minimize_scalar  # noqa: E402
 
 import dfloop as df  # noqa: E402
 from dfloop.chart import ChartAxis, design_chart  # noqa: E402
-from dfloop.scene.plant import DelayedPlant  # noqa: E402
+from dfloop.solve.delay import delayed  # noqa: E402
 
 G1 = ct.tf([1], [1, 1, 0])
 G3 = ct.tf([1], [1, 3, 2, 0])
@@ -30,7 +30,7 @@ OMEGA = (0.05, 20.0)
 
 
 def delayed_saturation(K, T):
-    return DelayedPlant(K * G1, T), df.Saturation(1.0)
+    return delayed(K * G1, T), df.Saturation(1.0)
 
 
 def backlash_servo(K, h):

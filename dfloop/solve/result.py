@@ -3,25 +3,29 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from .verdict import NOT_CHECKED, classify, exact_kind
+
 __all__ = ["LimitCycle", "LimitCycles", "JumpCrossing", "GridReport"]
 
 
 def exact_words(ex, long: bool = False) -> str:
-    """What the exact-orbit search established, in the project's words.
+    """What the exact-orbit search established, in the project's words (the kinds of :mod:`dfloop.solve.verdict`).
 
-    ``exact: amplitude=..., frequency=... rad/s, stable`` for an orbit found; for none, ``exact: artefact (...)``
-    only when the search classified the DF cycle as an artefact (``classification == "artefact"``: evidence
-    that no orbit exists there), otherwise ``exact: not found (reason)``, since a failed search alone does not
-    prove that no orbit exists. ``long`` keeps the whole reason (``str(cycle)``); the table shortens it.
+    ``confirmed: exact amplitude=..., frequency=... rad/s, stable`` for an orbit found; ``artefact (...)`` only
+    when the search gathered evidence that no orbit exists near the prediction (where the motions started on and
+    around it went); otherwise ``not checked (reason)``, since a failed search alone does not prove that no orbit
+    exists. ``long`` keeps the whole reason (``str(cycle)``); the table shortens it.
     """
     if ex.success:
-        return (f"exact: amplitude={ex.amplitude:.6g}, frequency={ex.frequency:.6g} rad/s, "
+        return (f"confirmed: exact amplitude={ex.amplitude:.6g}, frequency={ex.frequency:.6g} rad/s, "
                 f"{'stable' if ex.stable else 'unstable'}")
     reason = str(ex.message)
+    prefix = NOT_CHECKED + ": "
+    if reason.startswith(prefix):
+        reason = reason[len(prefix):]
     if not long and len(reason) > 60:
         reason = reason[:57].rstrip() + "..."
-    kind = getattr(ex, "classification", None)
-    return f"exact: artefact ({reason})" if kind == "artefact" else f"exact: not found ({reason})"
+    return f"{exact_kind(ex)} ({reason})"
 
 
 @dataclass(frozen=True)
@@ -86,6 +90,12 @@ class LimitCycle:
             conf = conf()
             object.__setattr__(self, "_confidence", conf)
         return conf
+
+    @property
+    def verdict(self):
+        """Confirmed (an exact orbit near it), artefact (none; where the motions go) or not checked (why):
+        :func:`dfloop.solve.verdict.classify`."""
+        return classify(self)
 
     @property
     def stable(self) -> bool:
