@@ -47,10 +47,12 @@ class DelayError(RuntimeError):
 
 def split_delay(G) -> tuple[object, float]:
     """(delay-free part, delay T in s) of a plant: a plant with a pure delay
-    (:class:`dfloop.solve.delay.DelayedSystem`) carries its rational part as ``system`` and T as ``delay``; any
-    other plant is returned as it is, with T = 0. (Read by attribute: the engines sit above the solver's layer,
-    which defines the class.)"""
+    (:class:`dfloop.solve.delay.DelayedSystem`) carries its rational part as ``system`` and T as ``delay`` (a
+    :class:`dfloop.solve.plant.Plant` made from one, as ``delay_free``); any other plant is returned as it is,
+    with T = 0. (Read by attribute: the engines sit above the solver's layer, which defines the classes.)"""
     system, delay = getattr(G, "system", None), getattr(G, "delay", None)
+    if system is None and delay:
+        system = getattr(G, "delay_free", None)
     if system is None or delay is None:
         return G, 0.0
     return system, float(delay)
