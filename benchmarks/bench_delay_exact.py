@@ -17,7 +17,8 @@ every predicted cycle (at most ``PER_LOOP`` of them, the slowest first):
 A settled orbit is *found* when one of the loop's exact_cycle results (from any of its predictions) equals it to
 1e-8 in A and w; a *miss* is a settled orbit no exact_cycle result matches. Each exact orbit's stability
 verdict is checked against runs started 1e-3 (relative) off it: a stable orbit must attract (distance halved
-within 30 returns), an unstable one repel (distance doubled, or the switching pattern left).
+within 30 returns, or 30 + 3 / |ln mu| returns when the largest non-trivial multiplier mu is within 10 % of 1), an
+unstable one repel (distance doubled, or the switching pattern left).
 
 Run: python benchmarks/bench_delay_exact.py [--write]   (--write writes benchmarks/results/bench_delay_exact.md)
 """
@@ -111,7 +112,9 @@ def verdict_agrees(G, N, e) -> bool | None:
     d *= 1e-3 * np.linalg.norm(s0) / np.linalg.norm(d)
     s, queue, u = s0 + d, [list(q) for q in q0], ex["u0"]
     d0 = np.linalg.norm(d)
-    for _ in range(30):
+    mu = e.largest_multiplier
+    returns = 30 if mu == 0 or abs(math.log(mu)) > 0.1 else min(3000, 30 + int(3.0 / abs(math.log(mu))))
+    for _ in range(returns):
         try:
             out = return_map(loop, s, ex["mode0"], u, queue, ex["section"], horizon=50 * e.period + 2 * loop.delay,
                              tangent=False)

@@ -310,3 +310,41 @@ def test_random_delayed_relay_loops_settled_runs_are_the_exact_orbits():
         assert e.frequency == pytest.approx(2 * math.pi / t1, rel=1e-8)
         assert e.amplitude == pytest.approx(A_run, rel=1e-8)
         assert e.stable
+
+
+@pytest.mark.parametrize("G, N", [(delayed(ct.tf([1.0], [1.0, 1.0]), 0.5), df.Relay(1.0)),
+                                  (delayed(ct.tf([3.0], [1.0, 0.8, 1.5]), 1.3), df.Relay(1.0, hysteresis=0.05)),
+                                  (delayed(ct.tf([6.0], [1.0, 2.0, 1.5]), 1.3), df.Relay(1.0, 0.05, 0.1))])
+def test_multipliers_equal_those_of_a_finite_difference_return_map(G, N):
+    # the exact tangent (saltation of the delayed switches included) against central differences of the
+    # event-located return map, on orbits with several pending switches in the delay line
+    checked = 0
+    for c in df.predict_limit_cycles(G, N, omega=(0.1, 20.0))[:3]:
+        e = df.exact_cycle(G, N, c)
+        if not e.success:
+            continue
+        checked += 1
+        ex = e.extra
+        loop = delay_loop(G, N, e.amplitude, e.frequency)
+        q0 = [list(q) for q in ex["queue0"]]
+        v0 = np.concatenate([ex["s0"], [q[0] for q in q0]])
+        n = loop.n
+
+        def F(v):
+            out = return_map(loop, v[:n], ex["mode0"], ex["u0"], [[t, q[1]] for t, q in zip(v[n:], q0)],
+                             ex["section"], horizon=100.0, tangent=False)
+            return np.concatenate([out[0], [q[0] for q in out[2]]])
+
+        J = np.zeros((v0.size, v0.size))
+        for k in range(v0.size - 1):          # the last pending switch is the section's own: fixed at T
+            h = 1e-6 * max(1.0, abs(v0[k]))
+            d = np.zeros(v0.size)
+            d[k] = h
+            J[:, k] = (F(v0 + d) - F(v0 - d)) / (2 * h)
+        mu_fd = np.linalg.eigvals(J)
+        mu_fd = np.sort_complex(mu_fd[np.abs(mu_fd) > 1e-6])
+        mu = e.multipliers[np.abs(e.multipliers - 1.0) > 1e-12]   # without the trivial one added
+        mu = np.sort_complex(mu[np.abs(mu) > 1e-6])
+        assert mu.size == mu_fd.size
+        np.testing.assert_allclose(mu, mu_fd, atol=1e-6 * max(1.0, np.abs(mu).max(initial=0.0)))
+    assert checked >= 2
