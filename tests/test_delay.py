@@ -325,7 +325,7 @@ def test_multipliers_equal_those_of_a_finite_difference_return_map(G, N):
             continue
         checked += 1
         ex = e.extra
-        loop = delay_loop(G, N, e.amplitude, e.frequency)
+        loop = loop_model(G, N, e.amplitude, e.frequency)
         q0 = [list(q) for q in ex["queue0"]]
         v0 = np.concatenate([ex["s0"], [q[0] for q in q0]])
         n = loop.n
