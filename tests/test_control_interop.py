@@ -20,6 +20,7 @@ import control as ct
 import dfloop as df
 from control.descfcn import friction_backlash_nonlinearity, \
     relay_hysteresis_nonlinearity, saturation_nonlinearity
+from dfloop.describing import StaticElement
 from dfloop.describing.interop import as_element, control_loop, to_control
 from dfloop.harmonics import steady_state
 
@@ -276,7 +277,7 @@ def test_every_element_converts_and_its_map_has_its_describing_function(element)
         F.reset()
         numeric.append(ct.describing_function(F, a, num_points=4000, zero_check=False, try_method=False))
     np.testing.assert_allclose(np.ravel(numeric), element(amps), atol=3e-3)
-    assert F._isstatic() == (isinstance(element, (df.StaticElement, df.NumericDF))
+    assert F._isstatic() == (isinstance(element, (StaticElement, df.NumericDF))
                              or (isinstance(element, df.Relay) and element.hysteresis == 0.0))
 
 

@@ -54,8 +54,8 @@ def test_sweep_plot_and_csv_use_name_and_unit(tmp_path):
     G0 = ct.tf([1], [1, 3, 2, 0])
     res = sweep(lambda h: (5 * G0, df.Backlash(h)), np.linspace(0.1, 0.3, 3), parameter="clearance h", unit="m",
                 progress=False)
-    ax_a, ax_w = res.plot()
-    assert ax_w.get_xlabel() == "clearance h [m]" and ax_a.get_ylabel() == "amplitude X [m]"
+    ax_a, ax_w = res.plot().axes[:, 0]
+    assert ax_w.get_xlabel() == "clearance h [m]" and ax_a.get_ylabel() == "Amplitude X [m]"
     res.to_csv(tmp_path / "s.csv")
     assert (tmp_path / "s.csv").read_text().splitlines()[0].startswith("branch,clearance h [m],amplitude X [m]")
     assert "sweep of clearance h [m]" in repr(res)

@@ -406,10 +406,20 @@ def _model(N):
     return None
 
 
+def _is_impact(N) -> bool:
+    """Whether N's time model is an impact model (two masses with a clearance: velocity jumps)."""
+    from .time_model import Impact
+
+    try:
+        return isinstance(N.time_model(1.0), Impact)
+    except (AttributeError, NotImplementedError, ValueError, TypeError):
+        return False
+
+
 def _no_model(N) -> ValueError:
     why = ("its impacts (velocity jumps) are no python-control nlsys; dfloop.verify.simulate_loop(G, N, "
            "amplitude, frequency) runs its closed loop on the exact impact engine"
-           if hasattr(N, "simulate_loop") else
+           if _is_impact(N) else
            "it has no state model here (a hysteretic NumericDF keeps its state inside its operator; a LinearThenStatic "
            "needs a python-control tf/ss linear block)")
     return ValueError(f"N = {N!r} cannot be converted to a python-control system: {why}")
