@@ -69,7 +69,10 @@ class ExactCycle:
         Newton iterations used.
     extra : dict
         Engine details: ``z0`` (augmented state [plant state, element state, 1] at the shooting start, which is
-        not the waveform's t = 0) and ``mode0`` (the element's mode there), for re-running the flow.
+        not the waveform's t = 0) and ``mode0`` (the element's mode there), for re-running the flow. On the
+        exact delay flow: ``s0`` (plant state), ``mode0``, ``u0`` (plant input), ``queue0`` (pending switches
+        [instant (s), level] of the delay line), ``section`` (the switch the return map starts on) and ``delay``;
+        after a failed search that was globalised, ``outcome`` and ``motions`` (:mod:`dfloop.hybrid.globalise`).
     """
 
     success: bool
@@ -208,12 +211,14 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
         detected on the settled motion). With 0 the shooting starts on the predicted sinusoidal orbit itself
         (right for unstable cycles, which a flow leaves); a few periods help a stable cycle that the DF places
         poorly. None (default): the loop model's own choice, 0 except for the dynamic backlash (200: the masses'
-        motion is not set by the prediction).
+        motion is not set by the prediction). Not used on the exact delay flow (its start is the exact periodic
+        response to the delayed output of the predicted sinusoid).
     max_events : int
         Bound on switches (impacts) per flow, >= 1 (a flow reaching it fails with a message that says so).
     nodes : int
         Multiple-shooting nodes per period (1: single shooting). Several nodes keep Newton's corrections
-        small on strongly unstable cycles, whose flow leaves the prediction within a period.
+        small on strongly unstable cycles, whose flow leaves the prediction within a period. Not used on the
+        exact delay flow (Newton on the return map to one switch).
     max_deviation : float
         An orbit whose amplitude or frequency differs from the prediction by more than this in log scale
         (0.5: a factor 1.65) is reported as another orbit (``success`` False, its numbers in the message).
