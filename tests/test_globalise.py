@@ -73,9 +73,9 @@ def test_every_prediction_is_classified():
     text = repr(df.predict_limit_cycles(G, N, exact=True))
     assert "artefact" in text and "confirmed" in text
     assert df.predict_limit_cycles(G, N)[0].verdict.kind == "not checked"
-    # a delay with a sloped element has no exact engine: not checked, with the reason naming N
-    sat = df.predict_limit_cycles(delayed(ct.tf([4.0], [1.0, 1.0]), 0.5), df.Saturation(1.0), exact=True)
-    assert sat and all(c.verdict.kind == "not checked" and "N: Saturation" in c.verdict.detail for c in sat)
+    # a delay with an element with memory has no exact engine: not checked, with the reason naming N
+    bl = df.predict_limit_cycles(delayed(ct.tf([4.0], [1.0, 1.0, 0.0]), 0.3), df.Backlash(h=0.5), exact=True)
+    assert bl and all(c.verdict.kind == "not checked" and "N: Backlash" in c.verdict.detail for c in bl)
 
 
 def test_relay_delay_scene_report_classifies_its_five_cycles(tmp_path):

@@ -387,10 +387,12 @@ def delay_loop(G, N, amplitude: float, frequency: float) -> DelayLoop:
     A, B, C = plant_matrices(G.system, what="the exact delay flow")
     model = element_model(N, amplitude)
     if not piecewise_constant(model):
-        raise ValueError(f"N: {type(N).__name__} with a pure delay in G is not supported by the exact engines: "
-                         "the exact delay flow needs an element whose output is constant between switches "
-                         "(Relay with hysteresis and dead zone, Quantizer); an element with sloped pieces makes "
-                         "the loop a delay differential equation (use delayed(G, T).pade(n) for an approximation)")
+        raise ValueError(f"N: {type(N).__name__} with a pure delay in G is not supported here: the exact delay flow "
+                         "needs an element whose output is constant between switches (Relay with hysteresis and "
+                         "dead zone, Quantizer); exact_cycle solves static elements with sloped pieces as a delay "
+                         "differential equation, but elements with memory (backlash) and time simulations of "
+                         "sloped elements with a delay are not available (use delayed(G, T).pade(n) for an "
+                         "approximation)")
     return DelayLoop(A, B, C, model, G.delay, 2.0 * math.pi / frequency)
 
 
@@ -508,8 +510,14 @@ def delay_orbit(G, N, A0: float, w0: float, *, tol: float = 1e-11, max_iteration
                 start=None) -> dict:
     """:func:`delay_periodic_orbit` with the prediction's errors and the ``max_deviation`` test: a dict of the
     fields of :class:`dfloop.exact.ExactCycle` (``ExactCycle(**delay_orbit(...))``)."""
-    out = delay_periodic_orbit(G, N, A0, w0, tol=tol, max_iterations=max_iterations, harmonics=harmonics,
-                               samples=samples, max_events=max_events, start=start)
+    from .dde import dde_orbit, smooth_static
+    from .elements import element_model
+
+    if not piecewise_constant(element_model(N, A0)) and smooth_static(N) is not None:
+        out = dde_orbit(G, N, A0, w0, harmonics=harmonics, samples=samples)   # sloped or smooth: a DDE
+    else:
+        out = delay_periodic_orbit(G, N, A0, w0, tol=tol, max_iterations=max_iterations, harmonics=harmonics,
+                                   samples=samples, max_events=max_events, start=start)
     out["predicted"] = (A0, w0)
     if not out["success"]:
         return {k: out[k] for k in ("success", "message", "predicted", "method", "residual", "iterations")
