@@ -27,7 +27,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     "dfloop.solve": (
         "predict_limit_cycles", "LimitCycle", "LimitCycles", "JumpCrossing", "Plant", "as_plant",
         "graphical_stability", "GridReport", "ContinuumError"),
-    "dfloop.solve.delay": ("DelayedSystem", "delayed", "delay_of"),
+    "dfloop.solve.delay": ("DelayedSystem", "delayed"),
     "dfloop.verify": ("LoopSimulation", "simulate_loop", "Verification", "verify_cycle"),
     "dfloop.plot": ("case_labels", "curve_with_gaps", "plot_loci", "plot_nyquist", "plot_residual_map",
                     "plot_time_response", "plot_collision_map"),
