@@ -62,3 +62,19 @@ def test_delay_equation_multipliers_and_exact_cycle_dispatch(orbits):
     assert e.amplitude == pytest.approx(orbits[128]["amplitude"], rel=1e-12)   # the default: 128 and 256 nodes
     assert e.largest_multiplier == pytest.approx(abs(fine[1]), rel=1e-9)
     np.testing.assert_allclose(np.max(np.abs(e.x)) / e.amplitude, 1.0, atol=0.1)   # a near-sinusoidal wave
+
+
+def test_time_simulation_of_the_delay_equation_settles_on_the_orbit(orbits):
+    # verify_cycle / simulate_loop run the same scheme as a time-stepping method of steps from the prediction
+    from dfloop.harmonics import steady_state
+    from dfloop.verify import simulate_loop
+
+    G = delayed(G0, T)
+    sim = simulate_loop(G, N, *PRED, periods=50, steps_per_period=200)
+    assert "method of steps" in sim.method and not sim.diverged
+    st = steady_state(sim.t, sim.x, 10)
+    ref = orbits[128]
+    assert st.frequency == pytest.approx(ref["frequency"], rel=1e-7)
+    assert st.amplitude == pytest.approx(ref["amplitude"], rel=1e-6)
+    v = df.verify_cycle(G, N, PRED, periods=40, steps_per_period=100)
+    assert v.verdict == "stable"

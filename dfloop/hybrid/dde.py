@@ -315,3 +315,82 @@ def dde_orbit(G, N, A0: float, w0: float, *, nodes: int = 128, tol: float = 1e-1
                 switching_times=np.empty(0), harmonics=X, multipliers=mu2, stable=stable, residual=res,
                 iterations=it, extra={"error_estimate": (abs(A2 / A1 - 1), abs(w2 / w1 - 1)),
                                       "multipliers_coarse": mu1, "nodes": 2 * nodes})
+
+
+def dde_simulation(G, N, amplitude: float, frequency: float, periods: float, steps_per_period: int,
+                   diverge: float = 1e6):
+    """Run the delayed loop with a static element by the same scheme as a time-stepping method of steps.
+
+    Start: the plant in the state the predicted sinusoid's fundamental drives it to, x's history over the
+    delay the sinusoid A sin(w t), t <= 0. Step h = P / max(steps_per_period, 3 P / T) (every delayed point in
+    the past); the quadrature is split where the delayed x crosses a kink of f, as in :class:`DelayDDE`.
+
+    Returns (t, x, y, diverged, method), x and y at the grid times; stops early when |x| exceeds ``diverge``
+    times the amplitude.
+    """
+    from .loop import plant_matrices
+
+    f = smooth_static(N)
+    if f is None:
+        raise ValueError(f"N: {type(N).__name__} has no static map; the delay equation solver needs a static "
+                         "element (StaticElement or a static NumericDF)")
+    A, B, C = plant_matrices(G.system, what="the delay equation solver")
+    T, P = G.delay, 2 * math.pi / frequency
+    if T < 3 * P / 4096:
+        raise ValueError(f"G: the delay {T:g} s is below 3/4096 of the period {P:g} s; use the plant without it")
+    steps = max(int(steps_per_period), int(math.ceil(3 * P / T)) + 1)
+    h = P / steps
+    bp = getattr(N, "breakpoints", None)
+    kinks = np.asarray(bp(64 * amplitude) if callable(bp) else (bp if bp is not None else []), float)
+    kinks = np.unique(np.concatenate([kinks, -kinks])) if kinks.size else kinks
+    dde = DelayDDE(A, B, C, f, T, h, ())
+    H = int(math.ceil(T / h)) + 3                              # history nodes before t = 0
+    n_steps = int(math.ceil(periods * steps))
+    x = np.empty(H + n_steps + 1)
+    x[:H + 1] = amplitude * np.sin(frequency * h * np.arange(-H, 1))
+    s = _start(A, B, C, f, T, amplitude, frequency, 1)[0]
+    x[H] = float(-C @ s)
+
+    def interp(times):                                        # times (s, absolute, <= current) -> x values
+        pos = times / h + H
+        o = np.floor(pos).astype(int)
+        th = pos - o
+        w = np.stack([-th * (th - 1) * (th - 2) / 6, (th + 1) * (th - 1) * (th - 2) / 2,
+                      -(th + 1) * th * (th - 2) / 2, (th + 1) * th * (th - 1) / 6], axis=-1)
+        return np.einsum("pj,pj->p", x[o[:, None] - 1 + np.arange(4)], w)
+
+    diverged = False
+    k_done = 0
+    for k in range(n_steps):
+        t0 = k * h
+        u_int = dde.E.T @ f(interp(t0 + dde.tau - T))
+        if kinks.size:
+            ends = interp(np.array([t0 - T, t0 + h - T]))
+            for b in kinks:
+                if (ends[0] - b) * (ends[1] - b) < 0:
+                    lo, hi = 0.0, h
+                    g0 = ends[0] - b
+                    for _ in range(60):
+                        mid = 0.5 * (lo + hi)
+                        if (interp(np.array([t0 + mid - T]))[0] - b > 0) == (g0 > 0):
+                            lo = mid
+                        else:
+                            hi = mid
+                    r = 0.5 * (lo + hi)
+                    u_int = np.zeros(dde.n)
+                    for a0, a1 in ((0.0, r), (r, h)):
+                        tq = a0 + _GL_NODES * (a1 - a0)
+                        Eq = np.array([expm(dde.A * (h - t)) @ dde.B for t in tq]) * ((a1 - a0) * _GL_WEIGHTS)[:, None]
+                        u_int += Eq.T @ f(interp(t0 + tq - T))
+                    break
+        s = dde.Phi @ s + u_int
+        x[H + k + 1] = float(-C @ s)
+        k_done = k + 1
+        if not math.isfinite(x[H + k + 1]) or abs(x[H + k + 1]) > diverge * amplitude:
+            diverged = True
+            break
+    xs = x[H:H + k_done + 1]
+    t = np.arange(xs.size) * h
+    method = (f"delay equation, method of steps ({steps} steps per period: exact plant flow, Gauss-Legendre input "
+              "split at the kinks, cubic history interpolation; 4th order)")
+    return t, xs, f(xs), diverged, method

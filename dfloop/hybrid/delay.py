@@ -389,10 +389,9 @@ def delay_loop(G, N, amplitude: float, frequency: float) -> DelayLoop:
     if not piecewise_constant(model):
         raise ValueError(f"N: {type(N).__name__} with a pure delay in G is not supported here: the exact delay flow "
                          "needs an element whose output is constant between switches (Relay with hysteresis and "
-                         "dead zone, Quantizer); exact_cycle solves static elements with sloped pieces as a delay "
-                         "differential equation, but elements with memory (backlash) and time simulations of "
-                         "sloped elements with a delay are not available (use delayed(G, T).pade(n) for an "
-                         "approximation)")
+                         "dead zone, Quantizer), static elements with sloped pieces run as a delay differential "
+                         "equation, but elements with memory (backlash) with a delay are not available (use "
+                         "delayed(G, T).pade(n) for an approximation)")
     return DelayLoop(A, B, C, model, G.delay, 2.0 * math.pi / frequency)
 
 
@@ -657,6 +656,11 @@ def delay_simulation(G, N, amplitude: float, frequency: float, periods: float, s
 
     Returns (t, x, y, diverged, method); the run stops early when |x| exceeds ``diverge`` times the amplitude.
     """
+    from .dde import dde_simulation, smooth_static
+    from .elements import element_model
+
+    if not piecewise_constant(element_model(N, amplitude)) and smooth_static(N) is not None:
+        return dde_simulation(G, N, amplitude, frequency, periods, steps_per_period, diverge)
     loop = delay_loop(G, N, amplitude, frequency)
     P = 2.0 * math.pi / frequency
     s, mode, u, queue, _ = predicted_start(loop, amplitude, frequency)
