@@ -88,3 +88,16 @@ def test_relay_delay_scene_report_classifies_its_five_cycles(tmp_path):
     assert [c.exact.stable for c in report.cycles] == [True, False, False, False, False]
     md = report.to_markdown()
     assert md.count("| confirmed |") == 5
+
+
+def test_nyquist_labels_carry_the_verdicts():
+    import matplotlib
+    matplotlib.use("Agg")
+    from dfloop.plot import plot_nyquist
+
+    G, N = ct.tf([5], [1, 1, 0]), df.Backlash(h=1.0)
+    cycles = df.predict_limit_cycles(G, N, exact=True)
+    texts = [t.get_text() for t in plot_nyquist(G, N, cycles).axes[0, 0].texts]
+    for c in cycles:
+        assert any(f"A={c.amplitude:.3g}" in t and c.verdict.kind in t for t in texts)
+    assert {c.verdict.kind for c in cycles} == {"artefact", "confirmed"}

@@ -135,7 +135,8 @@ def plot_nyquist(G, N, cycles=None, ax=None, *, omega=None, amplitude=None, n_lo
         add_direction_arrow(ax, loc.get_xdata() + 1j * loc.get_ydata(), loc.get_color())
     leg = legend(ax, fontsize=8)
     place_labels(ax, [(c.G.real, c.G.imag) for c in cycles] + [(j.G.real, j.G.imag) for j in jumps],
-                 [f"A={c.amplitude:.3g}, ω={c.frequency:.3g} rad/s\n{c.stability}" for c in cycles]
+                 [f"A={c.amplitude:.3g}, ω={c.frequency:.3g} rad/s\n{c.stability}"
+                  + (f", {c.verdict.kind}" if getattr(c, "exact", None) is not None else "") for c in cycles]
                  + [f"jump of N at A={j.amplitude:.3g}, ω={j.frequency:.3g} rad/s\n(no cycle)" for j in jumps],
                  ["black"] * len(cycles) + ["C1"] * len(jumps),
                  avoid=[(p.real, p.imag) for p in g_exact])
