@@ -348,3 +348,16 @@ def test_multipliers_equal_those_of_a_finite_difference_return_map(G, N):
         assert mu.size == mu_fd.size
         np.testing.assert_allclose(mu, mu_fd, atol=1e-6 * max(1.0, np.abs(mu).max(initial=0.0)))
     assert checked >= 2
+
+
+def test_confidence_carries_the_delay_in_every_harmonic():
+    from dfloop.confidence import cycle_confidence
+
+    G0 = ct.tf([2.0], [1.0, 2.0, 1.0])
+    N = df.Relay(1.0, hysteresis=0.05)
+    a = cycle_confidence(delayed(G0, 0.8), N, 0.9, 1.7)
+    # independent: the same plant as a callable G(jw) e^{-jwT}
+    b = cycle_confidence(lambda w: 2.0 / ((1j * w) ** 2 + 2j * w + 1.0) * np.exp(-0.8j * w), N, 0.9, 1.7)
+    np.testing.assert_allclose(a.harmonics, b.harmonics, rtol=1e-12, atol=1e-15)
+    assert a.amplitude_error == pytest.approx(b.amplitude_error, rel=1e-6)
+    assert a.frequency_error == pytest.approx(b.frequency_error, rel=1e-6)

@@ -73,9 +73,9 @@ def test_every_prediction_is_classified():
     text = repr(df.predict_limit_cycles(G, N, exact=True))
     assert "artefact" in text and "confirmed" in text
     assert df.predict_limit_cycles(G, N)[0].verdict.kind == "not checked"
-    # a delay with a sloped element has no exact engine: not checked, with the reason naming N
-    sat = df.predict_limit_cycles(delayed(ct.tf([4.0], [1.0, 1.0]), 0.5), df.Saturation(1.0), exact=True)
-    assert sat and all(c.verdict.kind == "not checked" and "N: Saturation" in c.verdict.detail for c in sat)
+    # a delay with an element with memory has no exact engine: not checked, with the reason naming N
+    bl = df.predict_limit_cycles(delayed(ct.tf([4.0], [1.0, 1.0, 0.0]), 0.3), df.Backlash(h=0.5), exact=True)
+    assert bl and all(c.verdict.kind == "not checked" and "N: Backlash" in c.verdict.detail for c in bl)
 
 
 def test_relay_delay_scene_report_classifies_its_five_cycles(tmp_path):
@@ -88,3 +88,18 @@ def test_relay_delay_scene_report_classifies_its_five_cycles(tmp_path):
     assert [c.exact.stable for c in report.cycles] == [True, False, False, False, False]
     md = report.to_markdown()
     assert md.count("| confirmed |") == 5
+
+
+def test_nyquist_labels_carry_the_verdicts():
+    import matplotlib
+    matplotlib.use("Agg")
+    from dfloop.plot import plot_nyquist
+
+    G, N = ct.tf([5], [1, 1, 0]), df.Backlash(h=1.0)
+    cycles = df.predict_limit_cycles(G, N, exact=True)
+    ax = plot_nyquist(cycles).axes[0, 0]
+    insets = [ch for ch in ax.get_children() if isinstance(ch, matplotlib.axes.Axes)]   # the zoom of a crowd
+    texts = [t.get_text() for a in [ax, *insets] for t in a.texts]
+    for c in cycles:
+        assert any(f"A={c.amplitude:.3g}" in t and c.verdict.kind in t for t in texts)
+    assert {c.verdict.kind for c in cycles} == {"artefact", "confirmed"}

@@ -31,6 +31,7 @@ from scipy.linalg import expm
 from scipy.optimize import brentq
 
 from ..describing.time_model import OUT_OF_RANGE, PiecewiseAffine
+from .dde import DDELoop, dde_orbit, dde_simulation
 from .run import LoopSimulation
 
 __all__ = ["DelayLoop", "DelayFlow", "DelayError", "piecewise_constant", "predicted_start", "return_map",
@@ -510,13 +511,17 @@ def _pack(s, queue):
     return np.concatenate([s, [q[0] for q in queue]])
 
 
-def delay_orbit(loop: DelayLoop, A0: float, w0: float, *, tol: float = 1e-11, max_iterations: int = 40,
+def delay_orbit(loop: DelayLoop | DDELoop, A0: float, w0: float, *, tol: float = 1e-11, max_iterations: int = 40,
                 harmonics: int = 15, samples: int = 512, max_events: int = 100_000, max_deviation: float = 0.5,
                 start=None) -> dict:
-    """:func:`delay_periodic_orbit` with the prediction's errors and the ``max_deviation`` test: a dict of the
+    """:func:`delay_periodic_orbit` (:func:`~dfloop.hybrid.dde.dde_orbit` for a
+    :class:`~dfloop.hybrid.dde.DDELoop`) with the prediction's errors and the ``max_deviation`` test: a dict of the
     fields of :class:`dfloop.exact.ExactCycle` (``ExactCycle(**delay_orbit(...))``)."""
-    out = delay_periodic_orbit(loop, A0, w0, tol=tol, max_iterations=max_iterations, harmonics=harmonics,
-                               samples=samples, max_events=max_events, start=start)
+    if isinstance(loop, DDELoop):   # a static element with sloped pieces or a smooth one: the delay equation
+        out = dde_orbit(loop, A0, w0, harmonics=harmonics, samples=samples)
+    else:
+        out = delay_periodic_orbit(loop, A0, w0, tol=tol, max_iterations=max_iterations, harmonics=harmonics,
+                                   samples=samples, max_events=max_events, start=start)
     out["predicted"] = (A0, w0)
     if not out["success"]:
         return {k: out[k] for k in ("success", "message", "predicted", "method", "residual", "iterations")
@@ -647,14 +652,17 @@ def _orbit_fields(loop, fl, J, s, mode, u, queue, section, P, residual, it, harm
                        "section": section, "delay": loop.delay})
 
 
-def delay_simulation(loop: DelayLoop, amplitude: float, frequency: float, periods: float, steps_per_period: int,
-                     diverge: float = 1e6, max_events: int = 10_000_000) -> LoopSimulation:
+def delay_simulation(loop: DelayLoop | DDELoop, amplitude: float, frequency: float, periods: float,
+                     steps_per_period: int, diverge: float = 1e6, max_events: int = 10_000_000) -> LoopSimulation:
     """Run the delayed loop from the predicted orbit of (amplitude, frequency) (:func:`predicted_start`, time 0
-    at the switch into the element's highest level) for ``periods`` periods; x and y sampled uniformly.
+    at the switch into the element's highest level) for ``periods`` periods; x and y sampled uniformly. A
+    :class:`~dfloop.hybrid.dde.DDELoop` runs its method of steps instead (:func:`dde_simulation`).
 
     Returns the :class:`~dfloop.hybrid.run.LoopSimulation`; the run stops early when |x| exceeds ``diverge``
     times the amplitude.
     """
+    if isinstance(loop, DDELoop):
+        return dde_simulation(loop, amplitude, frequency, periods, steps_per_period, diverge)
     P = 2.0 * math.pi / frequency
     s, mode, u, queue, _ = predicted_start(loop, amplitude, frequency)
     t_end = periods * P

@@ -135,7 +135,9 @@ def _inset_corner(ax, curves, size: float, keep):
 
 
 def _label_texts(cycles, jumps):
-    return ([f"A={c.amplitude:.3g}, ω={c.frequency:.3g} rad/s\n{c.stability}" for c in cycles]
+    # with exact orbits computed, each label carries the cycle's verdict (confirmed / artefact / not checked)
+    return ([f"A={c.amplitude:.3g}, ω={c.frequency:.3g} rad/s\n{c.stability}"
+             + (f", {c.verdict.kind}" if getattr(c, "exact", None) is not None else "") for c in cycles]
             + [f"jump of N at A={j.amplitude:.3g}, ω={j.frequency:.3g} rad/s\n(no cycle)" for j in jumps])
 
 

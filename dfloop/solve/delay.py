@@ -20,7 +20,7 @@ import numbers
 
 import numpy as np
 
-__all__ = ["DelayedSystem", "delayed", "delay_of"]
+__all__ = ["DelayedSystem", "delayed"]
 
 
 class DelayedSystem:

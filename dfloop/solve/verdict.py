@@ -58,5 +58,5 @@ def classify(cycle) -> Verdict:
     if outcome in _ARTEFACT_OUTCOMES:
         return Verdict(ARTEFACT, f"no periodic orbit near it: {_ARTEFACT_OUTCOMES[outcome]} ({ex.message})")
     if outcome == "not checked":
-        return Verdict(NOT_CHECKED, ex.message)
+        return Verdict(NOT_CHECKED, ex.message.removeprefix("not checked: "))
     return Verdict(NOT_CHECKED, f"inconclusive: {ex.message}")
