@@ -259,7 +259,6 @@ def multipliers(A, B, C, f, delay, S: np.ndarray, P: float, kinks=(), count: int
     time-stepping form of the same scheme (state: s_k and the node values of x the interpolation can reach)."""
     N, n = S.shape
     dde = DelayDDE(A, B, C, f, delay, P / N, kinks)
-    x = -(S @ dde.C)
     (k, E, idx, w), xi = _residual(dde, S)[1]
     fp = dde.slope(xi)
     rel = (idx - k[:, None] + N // 2) % N - N // 2          # node offsets relative to the step (<= 0)

@@ -80,7 +80,7 @@ class DelayFlow:
     ``t``: end time (s); ``s``, ``mode``, ``u``, ``queue``: end state (queue: list of [instant, level] of the
     pending switches of u, instants absolute); ``segments``: (start time, plant state, u) of every interval
     with constant u; ``switches``: (time, from mode, to mode) of every element switch; ``tangent``: the
-    variational matrix d(s, queue instants)(end) / d(s, queue instants)(0) (or None); ``field``: A s + B u at
+    variational matrix d(s, queue instants)(end) / d(s, queue instants)(0) (or None); ``rate``: A s + B u at
     the end; ``stopped``: the flow ended on the requested section event; ``diverged``: |x| passed the bound.
     """
 
@@ -92,7 +92,7 @@ class DelayFlow:
     segments: list = field(default_factory=list)
     switches: list = field(default_factory=list)
     tangent: np.ndarray | None = None
-    field: np.ndarray | None = None
+    rate: np.ndarray | None = None
     stopped: bool = False
     diverged: bool = False
     guard_row: np.ndarray | None = None
@@ -373,7 +373,7 @@ class DelayLoop:
                 flow.diverged = True
                 break
         flow.t, flow.s, flow.mode, flow.u, flow.queue, flow.tangent = t, s, mode, u, queue, W
-        flow.field = self.A @ s + self.B * u
+        flow.rate = self.A @ s + self.B * u
         return flow
 
     def sample(self, flow: DelayFlow, t: np.ndarray) -> np.ndarray:
@@ -498,7 +498,7 @@ def return_map(loop: DelayLoop, s, mode: int, u: float, queue, section: tuple, *
     J = None
     if tangent:
         n = loop.n
-        f, r = fl.field, fl.guard_row
+        f, r = fl.rate, fl.guard_row
         a = -r / float(r @ f)
         Pr = np.eye(n + len(q1))
         Pr[:n, :n] += np.outer(f, a)
@@ -618,6 +618,10 @@ def delay_periodic_orbit(loop: DelayLoop, A0: float, w0: float, *, tol: float = 
         if not accepted:
             return dict(success=False, message=f"Newton iteration {it}: no step reduces the residual "
                         f"{residual:.2e}", method=method, residual=residual, iterations=it)
+    else:
+        return dict(success=False, message=f"no consistent return in max_iterations = {max_iterations} (the "
+                    "switching pattern kept changing between returns); raise max_iterations", method=method,
+                    residual=residual, iterations=max_iterations)
     return _orbit_fields(loop, fl, J, s, mode, u, queue, section, t1, residual, it, harmonics, samples, method)
 
 
