@@ -26,6 +26,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     "dfloop.impact": ("DynamicBacklash", "ViscousDamping", "LoadSpring", "CoulombFriction"),
     # prediction, and the checks of a predicted cycle
     "dfloop.solve": ("predict_limit_cycles", "LimitCycle", "LimitCycles", "ContinuumError"),
+    "dfloop.solve.delay": ("delayed",),
     "dfloop.exact": ("ExactCycle", "exact_cycle"),
     "dfloop.verify": ("simulate_loop", "Verification", "verify_cycle"),
     "dfloop.solve.confidence": ("Confidence", "cycle_confidence"),

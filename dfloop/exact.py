@@ -70,7 +70,10 @@ class ExactCycle:
         Newton iterations used.
     extra : dict
         Engine details: ``z0`` (augmented state [plant state, element state, 1] at the shooting start, which is
-        not the waveform's t = 0) and ``mode0`` (the element's mode there), for re-running the flow.
+        not the waveform's t = 0) and ``mode0`` (the element's mode there), for re-running the flow. On the
+        exact delay flow: ``s0`` (plant state), ``mode0``, ``u0`` (plant input), ``queue0`` (pending switches
+        [instant (s), level] of the delay line), ``section`` (the switch the return map starts on) and ``delay``;
+        after a failed search that was globalised, ``outcome`` and ``motions`` (:mod:`dfloop.hybrid.globalise`).
     """
 
     success: bool
@@ -184,9 +187,11 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
 
     Parameters
     ----------
-    G : python-control tf or ss
+    G : python-control tf or ss, or ``delayed(G, T)``
         SISO plant (from the element's output y to c; x = -c), strictly proper (except around a dynamic
-        backlash, whose output x1 is a state).
+        backlash, whose output x1 is a state); with a pure delay (:func:`dfloop.solve.delay.delayed`) a
+        piecewise-constant element (relays, quantizer) runs on the exact delay flow
+        (:mod:`dfloop.hybrid.delay`: Newton on the return map to a switch), other elements raise ``ValueError``.
     N : DescribingFunction
         The element; its ``time_model`` decides the engine (:func:`dfloop.hybrid.loop_model`): piecewise-affine
         elements (relays, saturation, dead zone, backlash, quantizer, ...) run on the exact hybrid engine, a
@@ -207,12 +212,14 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
         detected on the settled motion). With 0 the shooting starts on the predicted sinusoidal orbit itself
         (right for unstable cycles, which a flow leaves); a few periods help a stable cycle that the DF places
         poorly. None (default): the loop model's own choice, 0 except for the dynamic backlash (200: the masses'
-        motion is not set by the prediction).
+        motion is not set by the prediction). Not used on the exact delay flow (its start is the exact periodic
+        response to the delayed output of the predicted sinusoid).
     max_events : int
         Bound on switches (impacts) per flow, >= 1 (a flow reaching it fails with a message that says so).
     nodes : int
         Multiple-shooting nodes per period (1: single shooting). Several nodes keep Newton's corrections
-        small on strongly unstable cycles, whose flow leaves the prediction within a period.
+        small on strongly unstable cycles, whose flow leaves the prediction within a period. Not used on the
+        exact delay flow (Newton on the return map to one switch).
     max_deviation : float
         An orbit whose amplitude or frequency differs from the prediction by more than this in log scale
         (0.5: a factor 1.65) is reported as another orbit (``success`` False, its numbers in the message).
@@ -220,10 +227,14 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     Returns
     -------
     ExactCycle
-        ``success`` False (with the reason) when no orbit was found near the prediction.
+        ``success`` False (with the reason) when no orbit was found near the prediction. Never a false "no
+        orbit": when shooting from the prediction fails, the loop is globalised (:mod:`dfloop.hybrid.globalise`:
+        fewer nodes, runs from three starts on the exact flow, shooting from every oscillation seen), and a "no
+        orbit" answer says where the motions went (``extra["outcome"]``, ``extra["motions"]``).
     """
     from ._checks import in_closed_interval
-    from .hybrid import ShootingError, loop_model, periodic_orbit
+    from .hybrid import ShootingError, delay_orbit, loop_model, periodic_orbit
+    from .hybrid.globalise import shoot_or_globalise
 
     N = as_element(N)
     A0, w0 = cycle_argument(cycle)
@@ -238,7 +249,17 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     max_events = int(in_closed_interval("max_events", max_events, 1, 10**9))
     m = int(in_closed_interval("nodes", nodes, 1, 1000))
 
+    # no false "no orbit": the whole search below runs inside the globalisation wrapper, which globalises a failure
+    options = dict(harmonics=harmonics, samples=samples, tol=tol, max_iterations=max_iterations,
+                   settle_periods=settle_periods, max_events=max_events, max_deviation=max_deviation, nodes=nodes)
+    outer = shoot_or_globalise(G, N, predicted, lambda c, **kw: exact_cycle(G, N, c, **{**options, **kw}),
+                               max_deviation)
+    if outer is not None:
+        return outer
     loop = loop_model(G, N, A0, w0, what="exact_cycle")
+    if loop.delay > 0:   # a pure delay: Newton on the return map of the exact delay flow (dfloop.hybrid.delay)
+        return ExactCycle(**delay_orbit(loop, A0, w0, tol=tol, max_iterations=max_iterations, harmonics=harmonics,
+                                        samples=samples, max_events=max_events, max_deviation=max_deviation))
     if not loop.exact:
         raise ValueError(f"N: {type(N).__name__} is known only through a sampled operator ({loop.method}): "
                          "exact_cycle needs an exact time model (piecewise affine, smooth or impact; implement "

@@ -19,7 +19,7 @@ import numpy as np
 from ._blas import single_threaded_blas
 from .describing.interop import as_element
 from .harmonics import SteadyState, steady_state
-from .hybrid import LoopSimulation, loop_model, simulate, start_on_prediction
+from .hybrid import LoopSimulation, delay_simulation, loop_model, simulate, start_on_prediction
 
 __all__ = ["LoopSimulation", "simulate_loop", "Verification", "verify_cycle"]
 
@@ -56,8 +56,11 @@ def simulate_loop(G, N, amplitude: float, frequency: float, *, periods: float = 
 
     Parameters
     ----------
-    G : python-control tf or ss
-        The plant (strictly proper, except around a dynamic backlash).
+    G : python-control tf or ss, or ``delayed(G, T)``
+        The plant (strictly proper, except around a dynamic backlash); with a pure delay, a piecewise-constant
+        element runs on the exact delay flow (:func:`dfloop.hybrid.delay_simulation`: the plant starts in the
+        exact periodic response to the delayed output of the predicted sinusoid, time 0 at the element's switch
+        into its highest level).
     N : DescribingFunction
         The element (any element with a time model or an operator).
     amplitude, frequency : float
@@ -79,6 +82,8 @@ def simulate_loop(G, N, amplitude: float, frequency: float, *, periods: float = 
     A0, w = positive("amplitude", amplitude), positive("frequency", frequency)
     periods, steps_per_period = _run_options(periods, steps_per_period)
     loop = loop_model(G, N, A0, w, steps_per_period=steps_per_period)
+    if loop.delay > 0:   # a pure delay: the exact delay flow from the predicted orbit's switches
+        return delay_simulation(loop, A0, w, periods, steps_per_period, diverge=_DIVERGED)
     z, mode = start_on_prediction(loop, N, A0, w)
     return simulate(loop, z, mode, 2 * np.pi / w, periods, steps_per_period, limit=_DIVERGED * A0)
 

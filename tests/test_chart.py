@@ -21,14 +21,14 @@ from scipy.optimize import brentq, minimize_scalar  # noqa: E402
 
 import dfloop as df  # noqa: E402
 from dfloop.chart import ChartAxis, design_chart  # noqa: E402
-from dfloop.scene.plant import DelayedPlant  # noqa: E402
+from dfloop.solve.delay import delayed  # noqa: E402
 
 G1 = ct.tf([1], [1, 1, 0])
 OMEGA = (0.05, 20.0)
 
 
 def delayed_saturation(K, T):
-    return DelayedPlant(K * G1, T), df.Saturation(1.0)
+    return delayed(K * G1, T), df.Saturation(1.0)
 
 
 class Servo:

@@ -107,7 +107,8 @@ def test_report_without_exact_leaves_the_exact_columns_empty(tmp_path):
     path.write_text(SCENE.replace("exact = true", "exact = false"))
     run_scene(load_scene(path), tmp_path, log=lambda _: None, progress=False)
     rows = _table_rows((tmp_path / "relay_conditional_report.md").read_text())
-    assert len(rows) == 2 and all(r[6:] == ["-"] * 5 for r in rows)
+    assert len(rows) == 2 and all(r[6:11] == ["-"] * 5 for r in rows)
+    assert all(r[11].startswith("not checked (no exact orbit asked for") for r in rows)   # the verdict column
 
 
 def test_nyquist_marks_each_exact_cycle_on_g_at_the_exact_frequency(cycles):

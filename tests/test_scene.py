@@ -11,7 +11,7 @@ def write(tmp_path, text):
     return path
 
 
-def test_plant_with_delay_is_a_frequency_response(tmp_path):
+def test_plant_with_delay_is_a_delayed_system(tmp_path):
     scene = load_scene(write(tmp_path, """
 [plant]
 num = [1.0]
@@ -23,7 +23,8 @@ limit = 1.0
 """))
     w = np.array([0.3, 2.0])
     expected = np.exp(-0.5j * w) / (1j * w + 1)
-    assert np.allclose(scene.plant(w), expected, rtol=1e-14)
+    assert scene.plant.delay == 0.5  # a DelayedSystem: evaluated at s like a python-control system
+    assert np.allclose(scene.plant(1j * w), expected, rtol=1e-14)
 
 
 def test_controller_multiplies_plant(tmp_path):

@@ -46,7 +46,7 @@ def loop(num0, delay=0.1):
     return G
 
 
-W = np.array([0.3, 1.0, 7.0])
+W = np.array([0.3, 1.0, 7.0])  # rad/s; the scene's delayed plant is evaluated at s = jW
 
 
 def test_element_parameter_is_replaced_and_plant_kept(tmp_path):
@@ -55,7 +55,7 @@ def test_element_parameter_is_replaced_and_plant_kept(tmp_path):
     for value in s.sweep_values:
         G, N = s.loop_at(value)
         assert N.h == value and N.k == 1.0
-        assert np.allclose(G(W), loop(5.0)(W), rtol=1e-13)
+        assert np.allclose(G(1j * W), loop(5.0)(W), rtol=1e-13)
 
 
 def test_plant_coefficient_is_replaced(tmp_path):
@@ -63,15 +63,15 @@ def test_plant_coefficient_is_replaced(tmp_path):
     assert np.allclose(s.sweep_values, [1.0, 2.0, 3.0, 4.0], rtol=0, atol=1e-15)
     for value in s.sweep_values:
         G, N = s.loop_at(value)
-        assert np.allclose(G(W), loop(value)(W), rtol=1e-13)
+        assert np.allclose(G(1j * W), loop(value)(W), rtol=1e-13)
         assert N.h == 1.0
 
 
 def test_delay_and_defaulted_parameter_can_be_swept(tmp_path):
     G, _ = scene(tmp_path, BASE, "plant.delay", "[0.0, 0.3]").loop_at(0.3)
-    assert np.allclose(G(W), loop(5.0, delay=0.3)(W), rtol=1e-13)
+    assert np.allclose(G(1j * W), loop(5.0, delay=0.3)(W), rtol=1e-13)
     G, _ = scene(tmp_path, BASE, "controller.delay", "[0.0, 0.2]").loop_at(0.2)  # not in the file: default 0
-    assert np.allclose(G(W), loop(5.0, delay=0.3)(W), rtol=1e-13)  # delays of controller and plant add up
+    assert np.allclose(G(1j * W), loop(5.0, delay=0.3)(W), rtol=1e-13)  # delays of controller and plant add up
     _, N = scene(tmp_path, BASE, "element.k", "[0.5, 2.0]").loop_at(2.0)  # k is not in the file: its default
     assert N.k == 2.0 and N.h == 1.0
 

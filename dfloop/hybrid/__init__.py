@@ -8,14 +8,23 @@ that time model into a loop model:
   rounding level (relays, saturation, dead zone, backlash, quantizer, ...);
 - smooth -> :class:`SmoothLoop`: DOP853 with the variational equation (cubic stiffness, a user's f);
 - impact -> :class:`ImpactLoop`: the compiled linear-mode impact engine (dynamic backlash);
-- sampled -> :class:`SampledLoop`: fixed step (an element with only an operator; not exact).
+- sampled -> :class:`SampledLoop`: fixed step (an element with only an operator; not exact);
+- a plant with a pure delay (:func:`dfloop.solve.delay.delayed`) and a piecewise-constant element ->
+  :class:`DelayLoop`: the exact delay flow (element switches delayed exactly). Its state holds the pending
+  switches of the delay line, so it has its own orbit finder and run (:func:`delay_orbit`,
+  :func:`delay_simulation`); ``delay`` > 0 says so (0 for every other loop model);
+- a plant with a pure delay and another static element (sloped pieces or smooth) -> :class:`DDELoop`: the delay
+  differential equation, discretised (4th-order periodic method of steps, :mod:`dfloop.hybrid.dde`), served by
+  the same two functions.
 
-Every loop model has ``size``, ``x_row``, ``method``, ``exact`` (flows carry a monodromy), ``settle_periods``
+Every other loop model has ``size``, ``x_row``, ``method``, ``exact`` (flows carry a monodromy), ``settle_periods``
 (periods to run before shooting), ``plant`` (A, B), ``start(s0, x_history)``, ``admissible_mode(z, mode)``,
 ``flow(z, mode, t_end, monodromy=, max_events=)`` -> :class:`Flow`, ``signals(flow, t)`` -> (x, y),
 ``fourier(flow, T, w, K)`` and (when ``exact``) ``field(z, mode)`` and ``states(flow, t)``.
 :mod:`dfloop.hybrid.shooting` finds periodic orbits of any exact loop model and :func:`simulate` runs any of them.
 """
+from .dde import DDELoop
+from .delay import DelayLoop, delay_orbit, delay_simulation
 from .impact import ImpactLoop
 from .loop import Flow, HybridError, HybridLoop, plant_matrices
 from .model import harmonic_balance_state, input_history, loop_model, start_on_prediction
@@ -24,6 +33,6 @@ from .sampled import SampledLoop
 from .shooting import Orbit, ShootingError, periodic_orbit
 from .smooth import SmoothLoop
 
-__all__ = ["Flow", "HybridError", "HybridLoop", "SmoothLoop", "ImpactLoop", "SampledLoop", "plant_matrices",
+__all__ = ["DDELoop", "DelayLoop", "delay_orbit", "delay_simulation", "Flow", "HybridError", "HybridLoop", "SmoothLoop", "ImpactLoop", "SampledLoop", "plant_matrices",
            "loop_model", "harmonic_balance_state", "input_history", "start_on_prediction", "LoopSimulation", "simulate",
            "Orbit", "ShootingError", "periodic_orbit"]

@@ -129,6 +129,7 @@ class LoopModel:
     """
 
     batched = False        # flow_many does more than one flow per node
+    delay = 0.0            # the plant's pure delay (s): only a DelayLoop (dfloop.hybrid.delay) has one
     switching = True       # flows switch modes (the shooting keeps its first node away from switches)
 
     def flow_many(self, zs, modes, t_end, *, monodromy: bool = False, max_events: int = 10_000) -> list:

@@ -6,6 +6,8 @@ import math
 import numpy as np
 
 from ..describing.time_model import Impact, PiecewiseAffine, Sampled, Smooth
+from .dde import DDELoop, static_map
+from .delay import DelayLoop, piecewise_constant, split_delay
 from .impact import ImpactLoop
 from .loop import HybridLoop, plant_matrices, plant_system
 from .sampled import SampledLoop
@@ -22,8 +24,13 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
 
     Parameters
     ----------
-    G : python-control tf or ss
-        The plant (strictly proper, except around an impact element whose output x1 is a state).
+    G : python-control tf or ss, or :class:`~dfloop.solve.delay.DelayedSystem`
+        The plant (strictly proper, except around an impact element whose output x1 is a state). With a pure
+        delay T > 0 (``delayed(G, T)``) the loop is a :class:`DelayLoop` (exact delay flow) for elements whose
+        output is piecewise constant (relays with hysteresis and dead zone, quantizer), a
+        :class:`~dfloop.hybrid.dde.DDELoop` (the delay differential equation, discretised) for other static
+        elements (saturation, dead zone, cubic stiffness, ...); elements with memory (backlash) or impacts
+        with a delay raise ``ValueError`` naming N.
     N : DescribingFunction
         The element; its ``time_model(amplitude)`` says how it behaves in time.
     amplitude, frequency : float
@@ -36,7 +43,8 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
     Raises
     ------
     ValueError
-        N has no time model (naming N), or G is not a suitable plant (naming G).
+        N has no time model (naming N), or G is not a suitable plant (naming G), or G has a delay and N's output
+        has memory (naming N).
     """
     if not callable(getattr(N, "time_model", None)):
         raise ValueError(f"N must be a DescribingFunction (with time_model()), got {type(N).__name__}")
@@ -46,6 +54,19 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
         raise ValueError(f"N: {type(N).__name__} has no time-domain model ({exc}); implement its "
                          "time_model() (dfloop.describing.time_model) or operator()") from None
     time_scale = 2.0 * math.pi / frequency
+    G, delay = split_delay(G)
+    if delay > 0.0:
+        A, B, C = plant_matrices(G, what=what)
+        if piecewise_constant(tm):     # relays, quantizer: the exact delay flow
+            return DelayLoop(A, B, C, tm, delay, time_scale)
+        f, kinks = static_map(tm)
+        if f is not None:              # sloped or smooth static elements: the delay differential equation
+            return DDELoop(A, B, C, f, kinks, delay, tm.name)
+        raise ValueError(f"N: {type(N).__name__} with a pure delay in G is not supported here: the exact delay flow "
+                         "needs an element whose output is constant between switches (Relay with hysteresis and "
+                         "dead zone, Quantizer), static elements with sloped pieces run as a delay differential "
+                         "equation, but elements with memory (backlash) with a delay are not available (use "
+                         "delayed(G, T).pade(n) for an approximation)")
     if isinstance(tm, Impact):
         A, B, C, D = plant_system(G, what=what)
         model = ImpactLoop(A, B, C, D, tm, amplitude, frequency)

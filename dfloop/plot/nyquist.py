@@ -142,10 +142,12 @@ def _inset_corner(ax, curves, size: float, keep):
 
 
 def _label_texts(cycles, jumps, N):
-    """Cycle labels in the element's own amplitude name and unit (``X=1.01 m``, ``F=31.8 N``)."""
+    """Cycle labels in the element's own amplitude name and unit (``X=1.01 m``, ``F=31.8 N``); with exact orbits
+    computed, each label carries the cycle's verdict (confirmed / artefact / not checked)."""
     name = getattr(N, "input_name", "A") or "A"
     unit = f" {N.input_unit}" if getattr(N, "input_unit", "") else ""
-    return ([f"{name}={c.amplitude:.3g}{unit}, ω={c.frequency:.3g} rad/s\n{c.stability}" for c in cycles]
+    return ([f"{name}={c.amplitude:.3g}{unit}, ω={c.frequency:.3g} rad/s\n{c.stability}"
+             + (f", {c.verdict.kind}" if getattr(c, "exact", None) is not None else "") for c in cycles]
             + [f"jump of N at {name}={j.amplitude:.3g}{unit}, ω={j.frequency:.3g} rad/s\n(no cycle)" for j in jumps])
 
 

@@ -11,7 +11,7 @@ the expected type. ``dfloop scene-keys`` prints every key; ``docs/scenes.md`` is
     type = "tf"                  # "tf" (num, den), "zpk" (zeros, poles, gain), "ss" (A, B, C, D)
     num = [5.0]
     den = [1.0, 1.0, 0.0]
-    delay = 0.0                  # optional pure delay in seconds (makes G a callable G(jw))
+    delay = 0.0                  # optional pure delay in seconds (the plant becomes delayed(G, delay))
 
     [element]
     type = "Backlash"            # any DescribingFunction class exported by dfloop

@@ -1,36 +1,17 @@
-"""Plants of scenes: python-control systems, and a picklable delayed frequency response."""
+"""Plants of scenes: python-control systems, with an optional pure delay (:class:`~dfloop.solve.delay.DelayedSystem`)."""
 from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
-
+from ..solve.delay import delayed
 from .errors import Problem, SceneError, dotted
 
-__all__ = ["DelayedPlant", "make_plant", "series"]
-
-
-class DelayedPlant:
-    """Frequency response G(jw) exp(-jw T) of a python-control system G with a pure delay T (seconds).
-
-    A callable of omega (rad/s, array) returning complex values, as the solver accepts for G; a class rather
-    than a closure so that loops built from scenes can be sent to other processes (executors).
-    """
-
-    def __init__(self, system: Any, delay: float):
-        self.system = system
-        self.delay = float(delay)
-
-    def __call__(self, omega) -> np.ndarray:
-        w = np.asarray(omega, dtype=float)
-        return np.asarray(self.system(1j * w), dtype=complex) * np.exp(-1j * w * self.delay)
-
-    def __repr__(self) -> str:
-        return f"DelayedPlant({self.system!r}, delay={self.delay:g})"
+__all__ = ["make_plant", "series"]
 
 
 def make_plant(spec: Any, loc: tuple = ("plant",)) -> Any:
-    """A python-control system, or a :class:`DelayedPlant` when ``delay > 0``, from a validated plant table."""
+    """A python-control system, or a :class:`~dfloop.solve.delay.DelayedSystem` when ``delay > 0``, from a
+    validated plant table."""
     import control as ct
 
     try:
@@ -45,12 +26,9 @@ def make_plant(spec: Any, loc: tuple = ("plant",)) -> Any:
             from None
     if system.ninputs != 1 or system.noutputs != 1:
         raise SceneError(None, Problem(dotted(loc), f"must be SISO, got {system.noutputs}x{system.ninputs}"))
-    return DelayedPlant(system, spec.delay) if spec.delay > 0 else system
+    return delayed(system, spec.delay) if spec.delay > 0 else system
 
 
 def series(controller: Any, plant: Any) -> Any:
     """The loop controller * plant; delays add up (the result is delayed if either part is)."""
-    systems = [p.system if isinstance(p, DelayedPlant) else p for p in (controller, plant)]
-    delay = sum(p.delay for p in (controller, plant) if isinstance(p, DelayedPlant))
-    system = systems[0] * systems[1]
-    return DelayedPlant(system, delay) if delay > 0 else system
+    return controller * plant

@@ -30,12 +30,13 @@ def _percent(value: float | None) -> str:
 def comparison_table(cycles: Any) -> list[str]:
     """Markdown rows, one per cycle: predicted A and w, the confidence (distortion, estimated errors) and, for
     cycles carrying an exact orbit, its A, w, Floquet stability (largest non-trivial |multiplier|) and the
-    DF's relative errors (predicted - exact) / exact. Amplitudes in the element's input unit, w in rad/s."""
+    DF's relative errors (predicted - exact) / exact, and its verdict (confirmed / artefact / not checked, the
+    reason of a "not checked"). Amplitudes in the element's input unit, w in rad/s."""
     from dfloop.solve.result import exact_words
 
     rows = ["| # | predicted A | predicted w [rad/s] | distortion | est. error A | est. error w | exact A | "
-            "exact w [rad/s] | exact stability (max non-trivial abs multiplier) | DF error A | DF error w |",
-            "|---|---|---|---|---|---|---|---|---|---|---|"]
+            "exact w [rad/s] | exact stability (max non-trivial abs multiplier) | DF error A | DF error w | verdict |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for i, c in enumerate(cycles):
         conf = c.confidence
         if conf is not None and conf.available:
@@ -52,8 +53,10 @@ def comparison_table(cycles: Any) -> list[str]:
             exact = [f"{ex.amplitude:.8g}", f"{ex.frequency:.8g}",
                      f"{'stable' if ex.stable else 'unstable'} ({ex.largest_multiplier:.4g})",
                      _percent(ex.amplitude_error), _percent(ex.frequency_error)]
-        rows.append("| " + " | ".join([str(i), f"{c.amplitude:.6g}", f"{c.frequency:.6g}", *confidence, *exact])
-                    + " |")
+        verdict = c.verdict   # confirmed / artefact / not checked (dfloop.solve.verdict)
+        reason = "" if verdict.kind == "confirmed" or ex is not None and not ex.success else f" ({verdict.detail})"
+        rows.append("| " + " | ".join([str(i), f"{c.amplitude:.6g}", f"{c.frequency:.6g}", *confidence, *exact,
+                                       verdict.kind + reason.replace("|", "\\|")]) + " |")
     return rows
 
 

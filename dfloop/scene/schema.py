@@ -56,7 +56,8 @@ class SceneMeta(_Table):
 
 
 class _Plant(_Table):
-    delay: float = Field(0.0, ge=0.0, description="Pure delay in seconds; G becomes a callable G(jw).")
+    delay: float = Field(0.0, ge=0.0, description="Pure delay in seconds: the plant becomes `delayed(G, delay)`, exact in "
+                                                    "prediction, exact cycles and verification.")
 
 
 class TfPlant(_Plant):

@@ -12,6 +12,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import DfloopError
+from .delay import DelayedSystem
 
 __all__ = ["Plant", "as_plant", "MAX_ORDER"]
 
@@ -39,7 +40,15 @@ class Plant:
     domain : (float, float)
         Frequencies where G can be evaluated at all (an frd's grid range; (0, inf) otherwise).
     lti : object or None
-        The python-control system, when one was given (used by time-domain verification).
+        The python-control system, when one was given without a delay (used by time-domain verification).
+    roots : (zeros, poles) or None
+        Of a rational G (tf, ss): its exact variation is then known (:meth:`log_variation`).
+    delay : float
+        Pure delay T (s) of a :class:`~dfloop.solve.delay.DelayedSystem`: ``response`` includes e^{-jwT}, and
+        ``log_slope`` / ``log_variation`` carry its exact phase turn; ``lti`` is then None (the delay-free part
+        is ``delay_free``), so no engine can drop the delay unnoticed.
+    delay_free : object or None
+        The python-control system without its delay (delayed plants only).
     """
 
     response: Callable[[np.ndarray], np.ndarray]
@@ -48,6 +57,8 @@ class Plant:
     domain: tuple[float, float] = (0.0, np.inf)
     lti: object = None
     roots: tuple[np.ndarray, np.ndarray] | None = None
+    delay: float = 0.0
+    delay_free: object = None
 
     def __call__(self, omega) -> np.ndarray:
         """G(j omega) as a complex array; raises ValueError if G is NaN or infinite anywhere, or if a
@@ -77,10 +88,10 @@ class Plant:
         return self.roots is not None
 
     def log_slope(self, omega) -> np.ndarray:
-        """d ln G / d ln w = sum_z jw / (jw - z) - sum_p jw / (jw - p) (exact; rational G only)."""
+        """d ln G / d ln w = sum_z jw / (jw - z) - sum_p jw / (jw - p) - jwT (exact; rational G, delay T)."""
         zeros, poles = self.roots
         s = 1j * np.asarray(omega, float)[..., None]
-        return (s / (s - zeros)).sum(axis=-1) - (s / (s - poles)).sum(axis=-1)
+        return (s / (s - zeros)).sum(axis=-1) - (s / (s - poles)).sum(axis=-1) - s[..., 0] * self.delay
 
     def log_variation(self, w0, w1) -> np.ndarray:
         """Upper bound on |ln G(w) - ln G(w0)| for every w in [w0, w1] (rational G only).
@@ -90,6 +101,8 @@ class Plant:
         minimum (at w = y). So the change of arg G over the interval lies between the sums of the
         negative and of the positive turns (zeros count +, poles -), the change of ln|G| likewise between
         the sums of the decreases and increases; the bound is the hypotenuse of the two extremes.
+        A pure delay T turns arg G by exactly -T (w1 - w0) and leaves |G| unchanged: it joins the negative
+        turns, so the bound stays exact (no aliasing, however fast the delay turns the phase).
         Infinite when a zero lies on the interval of the imaginary axis. Evaluated in chunks of intervals, so
         the work arrays (intervals x poles and zeros) stay below ~``_CHUNK_VALUES`` entries.
         """
@@ -115,7 +128,9 @@ class Plant:
             up, down = m1 - low, m0 - low  # total rise and fall of ln|jw - r| on the interval
             rise = np.where(sign > 0, up, down).sum(axis=-1)
             fall = np.where(sign > 0, down, up).sum(axis=-1)
-        arg = np.maximum(np.where(turn > 0, turn, 0).sum(axis=-1), -np.where(turn < 0, turn, 0).sum(axis=-1))
+        delay_turn = self.delay * (w1[..., 0] - w0[..., 0])
+        arg = np.maximum(np.where(turn > 0, turn, 0).sum(axis=-1),
+                         -np.where(turn < 0, turn, 0).sum(axis=-1) + delay_turn)
         return np.hypot(arg, np.maximum(rise, fall))
 
 
@@ -250,14 +265,32 @@ def _from_frd(sys) -> Plant:
     return Plant(response, (lo, hi), w, domain=(lo, hi), lti=sys)
 
 
-def as_plant(G) -> Plant:
-    """Adapt ``G`` (python-control tf/ss/frd, a callable G(omega), or a :class:`Plant`) to a :class:`Plant`.
+def _from_delayed(G) -> Plant:
+    base = as_plant(G.system)
+    T, inner = G.delay, base.response
+    if T == 0.0:
+        return base
 
-    A callable receives an array of frequencies in rad/s and must return G(j omega) of the same shape,
-    e.g. ``lambda w: np.exp(-1j * w * T) / (1j * w + 1)`` for a plant with a pure delay T.
+    def response(w):
+        return inner(w) * np.exp(-1j * np.asarray(w, float) * T)
+
+    return Plant(response, base.default_window, base.feature_frequencies, base.domain, lti=None,
+                 roots=base.roots, delay=T, delay_free=base.lti)
+
+
+def as_plant(G) -> Plant:
+    """Adapt ``G`` (python-control tf/ss/frd, a :class:`~dfloop.solve.delay.DelayedSystem`, a callable G(omega),
+    or a :class:`Plant`) to a :class:`Plant`.
+
+    A callable receives an array of frequencies in rad/s and must return G(j omega) of the same shape. A plant
+    with a pure delay T is best given as ``delayed(G, T)`` (:func:`dfloop.solve.delay.delayed`): its grid bound
+    stays exact and the exact engines can run it; a callable such as ``lambda w: np.exp(-1j * w * T) /
+    (1j * w + 1)`` is only sampled.
     """
     if isinstance(G, Plant):
         return G
+    if isinstance(G, DelayedSystem):
+        return _from_delayed(G)
     ct = sys.modules.get("control")  # an LTI exists only once python-control is imported
     if ct is not None and isinstance(G, ct.LTI):
         _check_siso(G)

@@ -341,10 +341,17 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
 
 def _attach_confidence(G, N, cycles: list[LimitCycle], exact: bool) -> list[LimitCycle]:
     """Every cycle with its confidence (computed on first access) and, when asked, its exact orbit."""
-    from ..exact import exact_cycle
+    from ..exact import ExactCycle, exact_cycle
+
+    def checked(c):   # a loop without an exact engine: the cycle is "not checked", with the reason
+        try:
+            return exact_cycle(G, N, c)
+        except ValueError as exc:
+            return ExactCycle(False, f"not checked: {exc}", (c.amplitude, c.frequency), "none",
+                              extra={"outcome": "not checked"})
 
     return [dataclasses.replace(c, _confidence=functools.partial(_confidence, G, N, c.amplitude, c.frequency),
-                                exact=exact_cycle(G, N, c) if exact else None) for c in cycles]
+                                exact=checked(c) if exact else None) for c in cycles]
 
 
 def _confidence(G, N, amplitude: float, frequency: float):

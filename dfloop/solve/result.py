@@ -3,36 +3,29 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from .verdict import classify
+
 __all__ = ["LimitCycle", "LimitCycles", "JumpCrossing", "GridReport"]
 
 
-_ARTEFACT_OUTCOMES = ("another cycle", "rest", "divergence", "not periodic")
-
-
 def exact_kind(cycle) -> tuple[str, str]:
-    """(``"confirmed"`` | ``"artefact"`` | ``"not checked"``, detail) of a cycle with ``exact`` attached."""
-    ex = cycle.exact
-    verdict = getattr(cycle, "verdict", None)
-    if verdict is not None:
-        return verdict.kind, verdict.detail
-    if ex.success:
-        return "confirmed", ""
-    outcome = (getattr(ex, "extra", None) or {}).get("outcome")
-    return ("artefact" if outcome in _ARTEFACT_OUTCOMES else "not checked"), str(ex.message)
+    """(``"confirmed"`` | ``"artefact"`` | ``"not checked"``, detail) of a predicted cycle: its
+    :attr:`LimitCycle.verdict` (:func:`dfloop.solve.verdict.classify`, the one place that decides)."""
+    v = cycle.verdict
+    return v.kind, v.detail
 
 
 def exact_words(cycle, long: bool = False) -> str:
-    """What the exact-orbit search established for a predicted cycle, in three words shared by every printout:
+    """What the exact-orbit search established for a predicted cycle, in the three words every printout shares:
 
-    ``confirmed`` (an exact orbit near the prediction: its amplitude, frequency and stability), ``artefact`` (no
-    periodic orbit near it, with the evidence: where the motions went) or ``not checked`` (why: no exact engine
-    for the loop, or a search that failed without evidence, which does not prove that no orbit exists).
-    The cycle's own ``verdict`` is used when it has one; otherwise the words are read from ``cycle.exact``
-    (its ``extra["outcome"]``). ``long`` keeps the whole reason (``str(cycle)``); the table shortens it.
+    ``confirmed: exact amplitude=..., frequency=... rad/s, stable`` for an orbit found; ``artefact (...)`` only
+    when the search gathered evidence that no orbit exists near the prediction (where the motions started on and
+    around it went); otherwise ``not checked (reason)``, since a failed search alone does not prove that no orbit
+    exists. ``long`` keeps the whole reason (``str(cycle)``); the table shortens it.
     """
     ex = cycle.exact
     kind, detail = exact_kind(cycle)
-    if ex.success:
+    if ex is not None and ex.success:
         return (f"{kind}: exact amplitude={ex.amplitude:.6g}, frequency={ex.frequency:.6g} rad/s, "
                 f"{'stable' if ex.stable else 'unstable'}")
     if not long and len(detail) > 60:
@@ -102,6 +95,12 @@ class LimitCycle:
             conf = conf()
             object.__setattr__(self, "_confidence", conf)
         return conf
+
+    @property
+    def verdict(self):
+        """Confirmed (an exact orbit near it), artefact (none; where the motions go) or not checked (why):
+        :func:`dfloop.solve.verdict.classify`."""
+        return classify(self)
 
     @property
     def stable(self) -> bool:

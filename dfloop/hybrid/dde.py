@@ -1,0 +1,416 @@
+"""Periodic orbits of a delayed loop with a static element with sloped pieces or a smooth one: a delay
+differential equation, discretised.
+
+Loop: s' = A s + B u(t), u(t) = f(x(t - T)), x = -C s (plant G e^{-sT}, static element y = f(x), e.g.
+saturation, dead zone, cubic stiffness). The state of such a loop is a function (the history of x over a delay),
+so the loop is discretised on a uniform grid t_k = k h, h = P / N over one period P:
+
+- the plant is integrated exactly for a given input: s_{k+1} = e^{Ah} s_k + int_0^h e^{A(h - r)} B u(t_k + r) dr;
+- the integral by 3-point Gauss-Legendre quadrature (exact matrices e^{A(h - r_q)} B);
+- the delayed input u(t_k + r_q) = f(x(t_k + r_q - T)) from cubic (4-point Lagrange) interpolation of x at the
+  grid nodes around t_k + r_q - T.
+
+Both are 4th order in h for a smooth input (the quadrature is 6th order, the interpolation 4th), so the scheme is
+a 4th-order method of steps when f is smooth; a kink of f (saturation, dead zone) crossed inside a step lowers
+the local order there. ``benchmarks/bench_delay_exact.py`` measures the order on both kinds.
+
+**Periodic orbit.** With h = P / N and the interpolation indices taken modulo N, the N steps of one period are a
+set of equations in (s_0..s_{N-1}, P), all independent given the unknowns: a periodic boundary value problem,
+solved by Newton with the exact Jacobian of the discrete equations (the period's column by a central
+difference), with the phase condition that x's fundamental is a sine at t = 0 (the :class:`~dfloop.exact.ExactCycle`
+time origin).
+
+**Multipliers.** The same scheme run as a time-stepping map has a finite state: s_k and the node values of x over
+the delay window (the nodes the interpolation can reach). Its Jacobian over N steps along the orbit is the
+monodromy of the discretised history; its eigenvalues approximate the dominant Floquet multipliers of the delay
+equation (the others cluster at 0). :func:`dde_orbit` computes them at N and at 2N and reports their change,
+the convergence test.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.linalg import expm
+
+from ..describing.time_model import PiecewiseAffine, Smooth
+from .run import LoopSimulation
+
+__all__ = ["DDELoop", "DelayDDE", "dde_orbit", "dde_simulation", "periodic_orbit", "multipliers", "static_map"]
+
+_GL_NODES = np.array([0.5 - math.sqrt(15) / 10, 0.5, 0.5 + math.sqrt(15) / 10])   # Gauss-Legendre on [0, 1]
+_GL_WEIGHTS = np.array([5.0, 8.0, 5.0]) / 18.0
+
+
+def static_map(tm):
+    """(f, kinks) of a static element's time model, or (None, None): a :class:`Smooth` model is y = f(x) without
+    kinks; a :class:`PiecewiseAffine` one is static when it has no state, every mode's output depends on x
+    alone, every guard is a threshold on x, and the modes' intervals of x tile the line without overlap (no
+    hysteresis): then f is its ``response`` and the kinks are the thresholds."""
+    if isinstance(tm, Smooth):
+        return tm.f, np.empty(0)
+    if not isinstance(tm, PiecewiseAffine) or tm.n_states:
+        return None, None
+    intervals = []
+    for m in tm.modes:
+        if m.ge != 0.0 or m.de != 0.0:
+            return None, None
+        lo, hi = -math.inf, math.inf
+        for g in m.guards:
+            if g.cxd != 0.0 or g.ce != 0.0 or g.reset is not None or g.cx == 0.0:
+                return None, None
+            level = -g.c1 / g.cx
+            if g.cx > 0:           # x >= level inside the mode
+                lo = max(lo, level)
+            else:                  # x <= level
+                hi = min(hi, level)
+        intervals.append((lo, hi))
+    intervals.sort()
+    if any(a[1] != b[0] for a, b in zip(intervals[:-1], intervals[1:])) or intervals[0][0] != -math.inf \
+            or intervals[-1][1] != math.inf:
+        return None, None            # overlapping (hysteretic) or gapped modes: not a static map
+    kinks = np.array([lo for lo, _ in intervals[1:]], float)
+    return (lambda x: np.asarray(tm.response(np.asarray(x, float)), float)), kinks
+
+
+class DDELoop:
+    """The loop of a plant (A, B, C) with a pure delay and a static element y = f(x) (kinks at ``kinks``): the
+    loop model :func:`dfloop.hybrid.loop_model` builds for a delayed plant and a static element that is not
+    piecewise constant (saturation, dead zone, cubic stiffness, ...). A delay differential equation: its orbit
+    by :func:`dde_orbit`, its run by :func:`dde_simulation` (``delay`` > 0 tells the callers)."""
+
+    exact = True            # a converged discretisation with an error estimate (not a flow to rounding level)
+    settle_periods = 0.0
+    method = ("delay differential equation (periodic method of steps: exact plant flow, Gauss-Legendre input split "
+              "at the element's kinks, cubic history interpolation; 4th order)")
+
+    def __init__(self, A, B, C, f, kinks, delay: float, name: str = ""):
+        self.A, self.B, self.C = (np.asarray(a, float) for a in (A, B, C))
+        self.n = self.A.shape[0]
+        self.f, self.kinks, self.delay, self.name = f, np.asarray(kinks, float), float(delay), name
+        self.plant = (self.A, self.B)
+
+
+class DelayDDE:
+    """The discretised delayed loop of a plant (A, B, C), a static map f with kinks at ``kinks`` (x values where
+    f' jumps; none for a smooth f), a delay T and a step h.
+
+    Each step k integrates the plant over [t_k, t_k + h] with quadrature points tau_p (3-point Gauss-Legendre;
+    in a step where the delayed x crosses a kink, 3 points on each side of the crossing, so the integrand is
+    smooth on every piece and the order is kept). A point's delayed value is the 4-point Lagrange interpolant of
+    the node values x_j around t_k + tau_p - T.
+    """
+
+    def __init__(self, A, B, C, f, delay: float, h: float, kinks=()):
+        self.A, self.B, self.C = (np.asarray(a, float) for a in (A, B, C))
+        self.n = self.A.shape[0]
+        self.f, self.delay, self.h = f, float(delay), float(h)
+        self.kinks = np.asarray(kinks, float)
+        self.Phi = expm(self.A * h)
+        # regular points: E_q = h w_q e^{A(h - r_q h)} B
+        self.tau = _GL_NODES * h
+        self.E = np.array([expm(self.A * (h - t)) @ self.B for t in self.tau]) * (h * _GL_WEIGHTS)[:, None]
+
+    def slope(self, x: np.ndarray) -> np.ndarray:
+        """df/dx by a central difference (never across a kink: the step shrinks to stay on one side)."""
+        d = 1e-7 * (1.0 + np.abs(x))
+        if self.kinks.size:
+            gap = np.min(np.abs(np.asarray(x)[..., None] - self.kinks), axis=-1)
+            d = np.where(gap > 0, np.minimum(d, 0.5 * gap), d)
+        return (self.f(x + d) - self.f(x - d)) / (2 * d)
+
+    def stencil(self, times: np.ndarray, N: int):
+        """(node indices mod N (.., 4), Lagrange weights (.., 4)) of x at ``times`` (s, on the periodic grid)."""
+        pos = np.asarray(times, float) / self.h
+        o = np.floor(pos)
+        th = pos - o
+        w = np.stack([-th * (th - 1) * (th - 2) / 6, (th + 1) * (th - 1) * (th - 2) / 2,
+                      -(th + 1) * th * (th - 2) / 2, (th + 1) * th * (th - 1) / 6], axis=-1)
+        idx = (o.astype(int)[..., None] - 1 + np.arange(4)) % N
+        return idx, w
+
+    def points(self, x: np.ndarray):
+        """Quadrature points of the N steps: (step k, E_p (n,), node indices (4,), weights (4,)) as arrays."""
+        N = x.size
+        k = np.arange(N)
+        times = k[:, None] * self.h + self.tau[None, :] - self.delay            # delayed times (N, 3)
+        idx, w = self.stencil(times, N)
+        ks, Es, idxs, ws = [np.repeat(k, 3)], [np.tile(self.E, (N, 1))], [idx.reshape(-1, 4)], [w.reshape(-1, 4)]
+        if self.kinks.size:
+            ends_i, ends_w = self.stencil(np.stack([k * self.h - self.delay, (k + 1) * self.h - self.delay], 1), N)
+            xe = np.einsum("kej,kej->ke", x[ends_i], ends_w)
+            keep = np.ones(N * 3, bool)
+            for b in self.kinks:
+                for kk in np.flatnonzero((xe[:, 0] - b) * (xe[:, 1] - b) < 0):
+                    r = self._crossing(x, kk, b)
+                    keep[3 * kk:3 * kk + 3] = False
+                    for a0, a1 in ((0.0, r), (r, self.h)):
+                        tq = a0 + _GL_NODES * (a1 - a0)
+                        Eq = np.array([expm(self.A * (self.h - t)) @ self.B for t in tq]) * \
+                            ((a1 - a0) * _GL_WEIGHTS)[:, None]
+                        i2, w2 = self.stencil(kk * self.h + tq - self.delay, N)
+                        ks.append(np.full(3, kk))
+                        Es.append(Eq)
+                        idxs.append(i2)
+                        ws.append(w2)
+            ks[0], Es[0], idxs[0], ws[0] = ks[0][keep], Es[0][keep], idxs[0][keep], ws[0][keep]
+        return np.concatenate(ks), np.concatenate(Es), np.concatenate(idxs), np.concatenate(ws)
+
+    def _crossing(self, x, k, b):
+        """Time into step k where the interpolated delayed x crosses b (bisection to rounding level)."""
+        N = x.size
+
+        def g(r):
+            i, w = self.stencil(np.array([k * self.h + r - self.delay]), N)
+            return float(x[i[0]] @ w[0]) - b
+
+        lo, hi = 0.0, self.h
+        glo = g(lo)
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            if (g(mid) > 0) == (glo > 0):
+                lo = mid
+            else:
+                hi = mid
+        return 0.5 * (lo + hi)
+
+
+def _residual(dde: DelayDDE, S: np.ndarray):
+    """Periodic equations R_k = s_{k+1} - Phi s_k - sum_p E_p f(xi_p) (indices mod N), and the points."""
+    x = -(S @ dde.C)
+    pts = dde.points(x)
+    k, E, idx, w = pts
+    xi = np.einsum("pj,pj->p", x[idx], w)
+    forcing = np.zeros_like(S)
+    np.add.at(forcing, k, E * dde.f(xi)[:, None])
+    R = np.roll(S, -1, axis=0) - S @ dde.Phi.T - forcing
+    return R, (pts, xi)
+
+
+def _jacobian_s(dde: DelayDDE, S: np.ndarray, data) -> np.ndarray:
+    """d R / d S (N n x N n), exact for the discrete equations at fixed quadrature points."""
+    (k, E, idx, w), xi = data
+    N, n = S.shape
+    J = np.zeros((N, n, N, n))
+    kk = np.arange(N)
+    J[kk, :, (kk + 1) % N, :] += np.eye(n)
+    J[kk, :, kk, :] -= dde.Phi
+    fp = dde.slope(xi)
+    for i in range(4):
+        # d R_k / d x_j = -E_p f'(xi_p) w_pi; x_j = -C s_j
+        blk = np.einsum("p,pa,b->pab", fp * w[:, i], E, dde.C)
+        np.add.at(J, (k, slice(None), idx[:, i], slice(None)), blk)
+    return J.reshape(N * n, N * n)
+
+
+def _phase(S: np.ndarray, C) -> float:
+    """Cosine part of x's fundamental over the period (0: x's fundamental is a sine at t = 0)."""
+    N = S.shape[0]
+    x = -(S @ C)
+    return float(np.cos(2 * np.pi * np.arange(N) / N) @ x) * 2.0 / N
+
+
+def periodic_orbit(A, B, C, f, delay, S0: np.ndarray, P0: float, *, kinks=(), tol: float = 1e-12,
+                   max_iterations: int = 40):
+    """Newton on the discrete periodic equations: (S, P, residual, iterations) or raises RuntimeError."""
+    S, P = np.array(S0, float), float(P0)
+    N, n = S.shape
+    res_prev = math.inf
+    for it in range(1, max_iterations + 1):
+        dde = DelayDDE(A, B, C, f, delay, P / N, kinks)
+        R, data = _residual(dde, S)
+        F = np.append(R.ravel(), _phase(S, C))
+        scale = max(float(np.abs(S).max()), 1e-300)
+        res = float(np.abs(F).max()) / scale
+        if res <= tol or (res <= 1e-9 and res > 0.5 * res_prev):
+            return S, P, res, it
+        res_prev = res
+        J = np.zeros((N * n + 1, N * n + 1))
+        J[:N * n, :N * n] = _jacobian_s(dde, S, data)
+        c = np.cos(2 * np.pi * np.arange(N) / N) * 2.0 / N
+        J[-1, :N * n] = np.kron(c, -np.asarray(C, float))
+        dP = 1e-7 * P
+        Rp = _residual(DelayDDE(A, B, C, f, delay, (P + dP) / N, kinks), S)[0]
+        Rm = _residual(DelayDDE(A, B, C, f, delay, (P - dP) / N, kinks), S)[0]
+        J[:N * n, -1] = ((Rp - Rm) / (2 * dP)).ravel()
+        try:
+            d = np.linalg.solve(J, -F)
+        except np.linalg.LinAlgError:
+            raise RuntimeError(f"singular Jacobian at iteration {it} (a marginal orbit)") from None
+        step = 1.0
+        for _ in range(12):
+            S_try, P_try = S + step * d[:-1].reshape(N, n), P + step * d[-1]
+            if P_try > 0:
+                R_try = _residual(DelayDDE(A, B, C, f, delay, P_try / N, kinks), S_try)[0]
+                F_try = np.append(R_try.ravel(), _phase(S_try, C))
+                if float(np.abs(F_try).max()) < float(np.abs(F).max()) * (1 - 1e-4 * step):
+                    break
+            step *= 0.5
+        else:
+            if res <= 1e-9:
+                return S, P, res, it
+            raise RuntimeError(f"Newton iteration {it}: no step reduces the residual {res:.2e}")
+        S, P = S_try, P_try
+    raise RuntimeError(f"Newton did not converge in max_iterations = {max_iterations} (residual {res:.2e})")
+
+
+def multipliers(A, B, C, f, delay, S: np.ndarray, P: float, kinks=(), count: int = 6) -> np.ndarray:
+    """The ``count`` largest eigenvalues of the monodromy of the discretised history along the orbit S: the
+    time-stepping form of the same scheme (state: s_k and the node values of x the interpolation can reach)."""
+    N, n = S.shape
+    dde = DelayDDE(A, B, C, f, delay, P / N, kinks)
+    (k, E, idx, w), xi = _residual(dde, S)[1]
+    fp = dde.slope(xi)
+    rel = (idx - k[:, None] + N // 2) % N - N // 2          # node offsets relative to the step (<= 0)
+    lo = int(rel.min())
+    H = -lo + 1                                              # history slots: x_{k+lo} .. x_k
+    D = n + H
+    M = np.eye(D)
+    order = np.argsort(k, kind="stable")
+    k, E, rel, w, fp = k[order], E[order], rel[order], w[order], fp[order]
+    bounds = np.searchsorted(k, np.arange(N + 1))
+    for step_k in range(N):
+        step = np.zeros((D, D))
+        step[:n, :n] = dde.Phi
+        for p in range(bounds[step_k], bounds[step_k + 1]):
+            for i in range(4):
+                step[:n, n + rel[p, i] - lo] += fp[p] * w[p, i] * E[p]
+        step[n:n + H - 1, n + 1:n + H] = np.eye(H - 1)
+        step[n + H - 1, :] = -dde.C @ step[:n, :]
+        M = step @ M
+    mu = np.linalg.eigvals(M)
+    return mu[np.argsort(-np.abs(mu))][:count]
+
+
+def _start(A, B, C, f, delay, A0, w0, N):
+    """Node states of the DF's sinusoidal orbit x = A0 sin(w0 t) (plant driven by the delayed fundamental)."""
+    theta = 2 * np.pi * np.arange(256) / 256
+    y = f(A0 * np.sin(theta))
+    Y1 = complex(2 * np.mean(y * np.sin(theta)) + 2j * np.mean(y * np.cos(theta)))
+    t = np.arange(N) * (2 * np.pi / w0) / N
+    X = np.linalg.solve(1j * w0 * np.eye(A.shape[0]) - A, B) * Y1
+    return (X[None, :] * np.exp(1j * w0 * (t[:, None] - delay))).imag
+
+
+def dde_orbit(loop: DDELoop, A0: float, w0: float, *, nodes: int = 128, tol: float = 1e-12, harmonics: int = 15,
+              samples: int = 512) -> dict:
+    """The periodic orbit of a delayed loop with a static element, by the discretised DDE (module notes).
+
+    Solves at ``nodes`` and at 2 ``nodes`` points per period; the orbit is the finer one, ``extra`` holds the
+    change of A and w between the two (the discretisation's error estimate, 4th order: the finer error is about
+    1/15 of it) and the multipliers at both resolutions. Returns a dict of :class:`dfloop.exact.ExactCycle`
+    fields (``success`` False with the reason when Newton fails).
+    """
+    A, B, C, f, kinks, T = loop.A, loop.B, loop.C, loop.f, loop.kinks, loop.delay
+    P0 = 2 * math.pi / w0
+    if T < 3 * P0 / 4096:
+        raise ValueError(f"G: the delay {T:g} s is below 3/4096 of the period {P0:g} s; the delay equation solver "
+                         "needs at least 3 grid steps per delay (use the plant without the delay)")
+    nodes = max(int(nodes), int(math.ceil(3 * P0 / T)) + 1)       # h <= T / 3: the history is in the past
+    method = (f"delay equation discretised ({nodes} and {2 * nodes} nodes per period: exact plant flow, "
+              "Gauss-Legendre input, cubic history interpolation; 4th order, error estimate in extra)")
+    out = {}
+    S, P = _start(A, B, C, f, T, A0, w0, nodes), 2 * math.pi / w0
+    for Nn in (nodes, 2 * nodes):
+        if S.shape[0] != Nn:     # refine the coarse orbit: interpolate it (periodic, spectral) to the finer grid
+            F = np.fft.rfft(S, axis=0)
+            S = np.fft.irfft(F, n=Nn, axis=0) * (Nn / S.shape[0])
+        try:
+            S, P, res, it = periodic_orbit(A, B, C, f, T, S, P, kinks=kinks, tol=tol)
+        except RuntimeError as exc:
+            return dict(success=False, message=f"{Nn} nodes: {exc}", method=method)
+        x = -(S @ C)
+        X = 2j * np.fft.rfft(x)[1:harmonics + 1] / Nn
+        mu = multipliers(A, B, C, f, T, S, P, kinks)
+        out[Nn] = (abs(X[0]), 2 * math.pi / P, mu, S, P, res, it, X)
+    (A1, w1, mu1, *_), (A2, w2, mu2, S, P, res, it, X) = out[nodes], out[2 * nodes]
+    # the trivial multiplier is the one closest to 1; the verdict uses the others
+    nontrivial = np.delete(mu2, int(np.argmin(np.abs(mu2 - 1.0))))
+    stable = bool(np.all(np.abs(nontrivial) < 1.0))
+    t_new = np.arange(samples) * (P / samples)
+    phase = float(np.angle(X[0]))
+    c = np.fft.rfft(-(S @ C))
+    c = c * np.exp(-1j * np.arange(c.size) * phase)               # time origin: x's fundamental a sine at 0
+    spec = np.zeros(samples // 2 + 1, complex)
+    m = min(c.size, spec.size)
+    spec[:m] = c[:m]
+    x_s = np.fft.irfft(spec, n=samples) * (samples / S.shape[0])
+    k = np.arange(1, X.size + 1)
+    X = X * np.exp(-1j * k * phase)
+    return dict(success=True, message=f"converged in {it} Newton iteration(s), residual {res:.1e}; change from "
+                f"{nodes} to {2 * nodes} nodes: A {abs(A2 / A1 - 1):.1e}, w {abs(w2 / w1 - 1):.1e}",
+                method=method, amplitude=float(abs(X[0])), frequency=2 * math.pi / P, period=P, t=t_new,
+                x=x_s, y=f(x_s),
+                switching_times=np.empty(0), harmonics=X, multipliers=mu2, stable=stable, residual=res,
+                iterations=it, extra={"error_estimate": (abs(A2 / A1 - 1), abs(w2 / w1 - 1)),
+                                      "multipliers_coarse": mu1, "nodes": 2 * nodes})
+
+
+def dde_simulation(loop: DDELoop, amplitude: float, frequency: float, periods: float, steps_per_period: int,
+                   diverge: float = 1e6) -> LoopSimulation:
+    """Run the delayed loop with a static element by the same scheme as a time-stepping method of steps.
+
+    Start: the plant in the state the predicted sinusoid's fundamental drives it to, x's history over the
+    delay the sinusoid A sin(w t), t <= 0. Step h = P / max(steps_per_period, 3 P / T) (every delayed point in
+    the past); the quadrature is split where the delayed x crosses a kink of f, as in :class:`DelayDDE`.
+
+    Returns the :class:`~dfloop.hybrid.run.LoopSimulation`, x and y at the grid times; stops early when |x|
+    exceeds ``diverge`` times the amplitude.
+    """
+    A, B, C, f, kinks, T = loop.A, loop.B, loop.C, loop.f, loop.kinks, loop.delay
+    P = 2 * math.pi / frequency
+    if T < 3 * P / 4096:
+        raise ValueError(f"G: the delay {T:g} s is below 3/4096 of the period {P:g} s; use the plant without it")
+    steps = max(int(steps_per_period), int(math.ceil(3 * P / T)) + 1)
+    h = P / steps
+    dde = DelayDDE(A, B, C, f, T, h, ())
+    H = int(math.ceil(T / h)) + 3                              # history nodes before t = 0
+    n_steps = int(math.ceil(periods * steps))
+    x = np.empty(H + n_steps + 1)
+    x[:H + 1] = amplitude * np.sin(frequency * h * np.arange(-H, 1))
+    s = _start(A, B, C, f, T, amplitude, frequency, 1)[0]
+    x[H] = float(-C @ s)
+
+    def interp(times):                                        # times (s, absolute, <= current) -> x values
+        pos = times / h + H
+        o = np.floor(pos).astype(int)
+        th = pos - o
+        w = np.stack([-th * (th - 1) * (th - 2) / 6, (th + 1) * (th - 1) * (th - 2) / 2,
+                      -(th + 1) * th * (th - 2) / 2, (th + 1) * th * (th - 1) / 6], axis=-1)
+        return np.einsum("pj,pj->p", x[o[:, None] - 1 + np.arange(4)], w)
+
+    diverged = False
+    k_done = 0
+    for k in range(n_steps):
+        t0 = k * h
+        u_int = dde.E.T @ f(interp(t0 + dde.tau - T))
+        if kinks.size:
+            ends = interp(np.array([t0 - T, t0 + h - T]))
+            for b in kinks:
+                if (ends[0] - b) * (ends[1] - b) < 0:
+                    lo, hi = 0.0, h
+                    g0 = ends[0] - b
+                    for _ in range(60):
+                        mid = 0.5 * (lo + hi)
+                        if (interp(np.array([t0 + mid - T]))[0] - b > 0) == (g0 > 0):
+                            lo = mid
+                        else:
+                            hi = mid
+                    r = 0.5 * (lo + hi)
+                    u_int = np.zeros(dde.n)
+                    for a0, a1 in ((0.0, r), (r, h)):
+                        tq = a0 + _GL_NODES * (a1 - a0)
+                        Eq = np.array([expm(dde.A * (h - t)) @ dde.B for t in tq]) * ((a1 - a0) * _GL_WEIGHTS)[:, None]
+                        u_int += Eq.T @ f(interp(t0 + tq - T))
+                    break
+        s = dde.Phi @ s + u_int
+        x[H + k + 1] = float(-C @ s)
+        k_done = k + 1
+        if not math.isfinite(x[H + k + 1]) or abs(x[H + k + 1]) > diverge * amplitude:
+            diverged = True
+            break
+    xs = x[H:H + k_done + 1]
+    t = np.arange(xs.size) * h
+    method = (f"delay equation, method of steps ({steps} steps per period: exact plant flow, Gauss-Legendre input "
+              "split at the kinks, cubic history interpolation; 4th order)")
+    return LoopSimulation(t, xs, f(xs), diverged, method)

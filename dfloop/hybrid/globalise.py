@@ -1,0 +1,209 @@
+"""Never a false "no orbit": what :func:`dfloop.exact_cycle` does when shooting from the prediction fails.
+
+Newton's method converges only near an orbit; a prediction that the describing function places poorly (high
+distortion, a Padé chain, a long delay) can leave it stalled although a true, attracting orbit lies close by.
+Before answering "no orbit", :func:`shoot_or_globalise`:
+
+1. shoots again from the prediction itself (no settling) with fewer multiple-shooting nodes (1 and 2: a node
+   set that straddles a fast switch can stall where single shooting converges);
+2. simulates the loop on the exact flow from the prediction and from starts 0.7 and 1.4 times its amplitude
+   (``RUN_PERIODS`` predicted periods each) and measures where each motion went: a periodic motion (amplitude,
+   frequency, periodicity), rest, divergence, or a motion not periodic within the run;
+3. shoots from every oscillating motion found (after settling on it for 20 more periods).
+
+An orbit found within ``max_deviation`` of the prediction is returned (its message says how it was found). A
+"no periodic orbit" answer carries the evidence: ``extra["motions"]`` (one dict per start) and
+``extra["outcome"]``, one of ``"another cycle"`` (the motions settle on an exact orbit far from the
+prediction; its numbers are in the message), ``"rest"``, ``"divergence"``, ``"not periodic"``, or
+``"shooting failed"`` (a periodic motion was seen but no shooting from it converged).
+"""
+from __future__ import annotations
+
+import contextvars
+import dataclasses
+import math
+
+import numpy as np
+
+from ..harmonics import steady_state
+from .delay import DelayError, delay_simulation, split_delay
+from .loop import HybridError
+from .model import loop_model, start_on_prediction
+
+__all__ = ["shoot_or_globalise", "RUN_PERIODS", "STARTS"]
+
+RUN_PERIODS = 200          # predicted periods per run
+STARTS = (1.0, 0.7, 1.4)   # start amplitudes, relative to the prediction
+_MEASURE = 10              # periods measured at the end of a run
+_PERIODIC = 1e-2           # relative spread of the per-period amplitudes (64 samples per predicted period, so a
+                           # coarse measure) below which a motion counts as periodic; shooting then decides
+_REST = 1e-6               # |x| below this fraction of the start amplitude: rest
+_DIVERGED = 1e6
+
+_INSIDE = contextvars.ContextVar("dfloop_exact_cycle_inside", default=False)
+
+
+def shoot_or_globalise(G, N, predicted: tuple, shoot, max_deviation: float):
+    """Run ``shoot(cycle, **options)`` (one :func:`dfloop.exact_cycle` call) and globalise when it fails.
+
+    Returns None when called from inside a shooting started here (the caller then shoots itself), otherwise
+    an :class:`~dfloop.exact.ExactCycle`.
+    """
+    if _INSIDE.get():
+        return None
+    token = _INSIDE.set(True)
+    try:
+        first = shoot(predicted)
+        if first.success:
+            return first
+        return _globalise(G, N, predicted, first, shoot, max_deviation)
+    finally:
+        _INSIDE.reset(token)
+
+
+def _simulate(G, N, A: float, w: float, periods: float):
+    """(t, x, diverged, method) of the loop run on its exact flow from the predicted orbit of (A, w), or None
+    when the loop has no exact flow (a run that fails part-way returns the part before the failure)."""
+    try:
+        loop = loop_model(G, N, A, w)
+    except ValueError:
+        return None
+    if not loop.exact:
+        return None
+    if loop.delay > 0:
+        try:
+            sim = delay_simulation(loop, A, w, periods, 64, diverge=_DIVERGED)
+        except DelayError as exc:
+            if "left the range" in str(exc):          # the quantizer's modelled range (64 A): a divergence
+                return np.array([0.0]), np.array([_DIVERGED * A]), True, str(exc)
+            if "never switches" in str(exc):          # the element stays at rest: so does its output
+                return np.array([0.0]), np.array([0.0]), False, str(exc)
+            return None
+        return sim.t, sim.x, sim.diverged, sim.method
+    P = 2.0 * math.pi / w
+    ts, xs = [], []
+    diverged = False
+    try:
+        z, mode = start_on_prediction(loop, N, A, w)
+        for p in range(int(periods)):
+            fl = loop.flow(z, mode, P, max_events=100_000)
+            tk = np.arange(64) * (P / 64)
+            xk = loop.signals(fl, tk)[0]
+            ts.append(p * P + tk)
+            xs.append(xk)
+            z, mode = fl.z, fl.mode
+            if not np.all(np.isfinite(xk)) or np.max(np.abs(xk)) > _DIVERGED * A:
+                diverged = True
+                break
+    except HybridError:
+        if not ts:
+            return None
+    return np.concatenate(ts), np.concatenate(xs), diverged, loop.method
+
+
+def _motion(G, N, A0: float, w0: float, factor: float) -> dict:
+    """Where the motion started on the predicted orbit scaled by ``factor`` went."""
+    A = factor * A0
+    run = _simulate(G, N, A, w0, RUN_PERIODS)
+    out = {"start_amplitude": A, "start_frequency": w0, "periods": RUN_PERIODS}
+    if run is None:
+        return {**out, "outcome": "no simulation"}
+    t, x, diverged, _ = run
+    if diverged:
+        return {**out, "outcome": "divergence", "amplitude": float(np.max(np.abs(x)))}
+    if t.size < 3:          # the element never switches from this start: its output stays at rest
+        return {**out, "outcome": "rest", "amplitude": 0.0, "note": run[3]}
+    tail = x[t > t[-1] - 0.1 * (t[-1] - t[0])]
+    if np.max(np.abs(tail)) < _REST * A:
+        return {**out, "outcome": "rest", "amplitude": float(np.max(np.abs(tail)))}
+    st = steady_state(t, x, _MEASURE)
+    if not st.oscillating:
+        return {**out, "outcome": "rest", "amplitude": float(st.amplitude)}
+    kind = "periodic" if st.periodicity < _PERIODIC else "not periodic"
+    return {**out, "outcome": kind, "amplitude": float(st.amplitude), "frequency": float(st.frequency),
+            "periodicity": float(st.periodicity)}
+
+
+def _words(m: dict) -> str:
+    start = f"from A={m['start_amplitude']:.4g}"
+    k = m["outcome"]
+    if k == "periodic":
+        return f"{start}: periodic, A={m['amplitude']:.6g}, w={m['frequency']:.6g} rad/s"
+    if k == "not periodic":
+        return (f"{start}: not periodic within {m['periods']} periods (A~{m['amplitude']:.4g}, "
+                f"w~{m['frequency']:.4g} rad/s, amplitude spread {m['periodicity']:.2g})")
+    if k == "rest":
+        if "note" in m:
+            return f"{start}: the element never switches ({m['note']})"
+        return f"{start}: decays to rest (|x| <= {m['amplitude']:.3g})"
+    if k == "divergence":
+        return f"{start}: diverges (|x| reached {m['amplitude']:.3g})"
+    return f"{start}: the loop cannot be simulated here"
+
+
+def _rebase(found, predicted, how: str):
+    """The orbit ``found`` (shot from another start) reported against the original prediction."""
+    A0, w0 = predicted
+    A, w = found.amplitude, found.frequency
+    return dataclasses.replace(found, predicted=predicted, amplitude_error=(A0 - A) / A, frequency_error=(w0 - w) / w,
+                               message=f"{found.message}; found by globalisation ({how})",
+                               extra={**found.extra, "outcome": "orbit", "globalised": how})
+
+
+def _globalise(G, N, predicted, first, shoot, max_deviation):
+    A0, w0 = predicted
+    tried = [f"shooting from the prediction: {first.message}"]
+    delayed = split_delay(G)[1] > 0
+    if not delayed:
+        for nodes in (1, 2):
+            try:
+                r = shoot(predicted, nodes=nodes, settle_periods=0.0)
+            except ValueError:
+                break
+            if r.success:
+                return _rebase(r, predicted, f"single/multiple shooting with {nodes} node(s) from the prediction")
+            tried.append(f"{nodes} node(s): {r.message}")
+    motions = [_motion(G, N, A0, w0, f) for f in STARTS]
+    others = []
+    for m in motions:
+        if m["outcome"] not in ("periodic", "not periodic"):
+            continue
+        r = None
+        for nodes in ((1,) if delayed else (1, 2)):
+            try:
+                r = shoot((m["amplitude"], m["frequency"]), settle_periods=20.0, nodes=nodes, max_deviation=0.5)
+            except ValueError:
+                continue
+            if r.success:
+                break
+        if r is None or not r.success:
+            continue
+        deviation = max(abs(math.log(r.amplitude / A0)), abs(math.log(r.frequency / w0)))
+        how = (f"the motion from A={m['start_amplitude']:.4g} settled at A={m['amplitude']:.6g}, "
+               f"w={m['frequency']:.6g} rad/s; shooting from there converged")
+        if deviation <= max_deviation:
+            return _rebase(r, predicted, how)
+        others.append(r)
+    if all(m["outcome"] == "no simulation" for m in motions):
+        return first      # no time-domain model to globalise with: the first answer stands
+    evidence = "; ".join(_words(m) for m in motions)
+    if others:
+        o = others[0]
+        outcome = "another cycle"
+        msg = (f"no periodic orbit near the prediction: the motions started on and around it go to another cycle, "
+               f"the exact orbit A={o.amplitude:.6g}, w={o.frequency:.6g} rad/s "
+               f"({'stable' if o.stable else 'unstable'}), farther than max_deviation = {max_deviation:g}")
+    else:
+        kinds = [m["outcome"] for m in motions]
+        outcome = ("shooting failed" if "periodic" in kinds else "divergence" if "divergence" in kinds
+                   else "not periodic" if "not periodic" in kinds else "rest")
+        msg = {"shooting failed": "a periodic motion was seen but no shooting from it converged (raise "
+                                  "max_iterations, or check the loop for sliding / grazing motion)",
+               "divergence": "no periodic orbit near the prediction: motions started on and around it diverge",
+               "not periodic": "no periodic orbit near the prediction found: the motions started on and around "
+                               "it are not periodic within the runs (chaotic, quasi-periodic or slowly settling)",
+               "rest": "no periodic orbit near the prediction: motions started on and around it decay to rest",
+               }[outcome]
+    extra = {**first.extra, "outcome": outcome, "motions": motions, "attempts": tried}
+    return dataclasses.replace(first, message=f"{msg}. Evidence: {evidence}. First attempt: {first.message}",
+                               extra=extra)

@@ -1,0 +1,62 @@
+"""Every prediction classified: confirmed by an exact orbit, an artefact of the describing function, or not checked.
+
+A :class:`~dfloop.solve.result.LimitCycle` from ``predict_limit_cycles(..., exact=True)`` carries the outcome of
+:func:`dfloop.exact_cycle` (``cycle.exact``); :func:`classify` reads it:
+
+- **confirmed**: an exact periodic orbit exists near the prediction; ``distance`` is the larger of |ln(A/A_exact)|
+  and |ln(w/w_exact)| (0.01 ~ 1 %), ``detail`` gives the orbit and its Floquet stability;
+- **artefact**: no periodic orbit near the prediction, with the evidence exact_cycle gathered (where the motions
+  started on and around it went: another cycle, rest, divergence, or a motion not periodic within the runs);
+- **not checked**: no exact orbit was asked for (``exact=False``), the loop has no exact engine here (the
+  reason), or the check was inconclusive (shooting failed from a motion that looked periodic).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = ["Verdict", "classify", "exact_kind", "CONFIRMED", "ARTEFACT", "NOT_CHECKED"]
+
+CONFIRMED, ARTEFACT, NOT_CHECKED = "confirmed", "artefact", "not checked"
+_ARTEFACT_OUTCOMES = {"another cycle": "the motions go to another cycle", "rest": "the motions decay to rest",
+                      "divergence": "the motions diverge",
+                      "not periodic": "the motions are not periodic within the runs"}
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What is known of one prediction: ``kind`` (``"confirmed"``, ``"artefact"``, ``"not checked"``), ``detail``
+    (the orbit, the evidence, or the reason), ``distance`` (confirmed only: max |ln(A/A_exact)|, |ln(w/w_exact)|)."""
+
+    kind: str
+    detail: str
+    distance: float | None = None
+
+    def __str__(self) -> str:
+        return f"{self.kind}: {self.detail}" if self.detail else self.kind
+
+
+def exact_kind(ex) -> str:
+    """The kind (``"confirmed"``, ``"artefact"``, ``"not checked"``) an :class:`~dfloop.exact.ExactCycle` alone
+    establishes."""
+    if ex.success:
+        return CONFIRMED
+    return ARTEFACT if (getattr(ex, "extra", None) or {}).get("outcome") in _ARTEFACT_OUTCOMES else NOT_CHECKED
+
+
+def classify(cycle) -> Verdict:
+    """The :class:`Verdict` of a predicted cycle (from its ``exact`` attachment; see the module notes)."""
+    ex = getattr(cycle, "exact", None)
+    if ex is None:
+        return Verdict(NOT_CHECKED, "no exact orbit asked for (predict_limit_cycles(..., exact=True) or exact_cycle)")
+    extra = getattr(ex, "extra", None) or {}
+    if ex.success:
+        d = max(abs(math.log(cycle.amplitude / ex.amplitude)), abs(math.log(cycle.frequency / ex.frequency)))
+        return Verdict(CONFIRMED, f"exact orbit A={ex.amplitude:.6g}, w={ex.frequency:.6g} rad/s, "
+                                  f"{'stable' if ex.stable else 'unstable'}, {100 * d:.3g} % away", d)
+    outcome = extra.get("outcome")
+    if outcome in _ARTEFACT_OUTCOMES:
+        return Verdict(ARTEFACT, f"no periodic orbit near it: {_ARTEFACT_OUTCOMES[outcome]} ({ex.message})")
+    if outcome == "not checked":
+        return Verdict(NOT_CHECKED, ex.message.removeprefix("not checked: "))
+    return Verdict(NOT_CHECKED, f"inconclusive: {ex.message}")
