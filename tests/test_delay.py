@@ -351,7 +351,7 @@ def test_multipliers_equal_those_of_a_finite_difference_return_map(G, N):
 
 
 def test_confidence_carries_the_delay_in_every_harmonic():
-    from dfloop.confidence import cycle_confidence
+    from dfloop.solve.confidence import cycle_confidence
 
     G0 = ct.tf([2.0], [1.0, 2.0, 1.0])
     N = df.Relay(1.0, hysteresis=0.05)

@@ -101,5 +101,5 @@ def test_nyquist_labels_carry_the_verdicts():
     insets = [ch for ch in ax.get_children() if isinstance(ch, matplotlib.axes.Axes)]   # the zoom of a crowd
     texts = [t.get_text() for a in [ax, *insets] for t in a.texts]
     for c in cycles:
-        assert any(f"A={c.amplitude:.3g}" in t and c.verdict.kind in t for t in texts)
+        assert any(f"{N.input_name}={c.amplitude:.3g}" in t and c.verdict.kind in t for t in texts)
     assert {c.verdict.kind for c in cycles} == {"artefact", "confirmed"}
