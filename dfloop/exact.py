@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._blas import single_threaded_blas
-from ._checks import positive
+from ._checks import integer_at_least, positive, scale
 from .describing.interop import as_element
 
 __all__ = ["ExactCycle", "exact_cycle"]
@@ -184,7 +184,7 @@ def cycle_argument(cycle, name: str = "cycle") -> tuple[float, float]:
             raise ValueError(f"{name} must be one LimitCycle or one (amplitude, frequency) pair, got "
                              f"{type(cycle).__name__} of {len(pair)} items (pass one cycle, e.g. cycles[0])")
         A0, w0 = pair
-    return positive(f"{name} amplitude", A0), positive(f"{name} frequency", w0)
+    return scale(f"{name} amplitude", A0), scale(f"{name} frequency", w0)
 
 
 def _harmonic_balance_state(G_matrices, N, A0: float, w: float, t: float = 0.0) -> np.ndarray:
@@ -253,6 +253,7 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     max_iterations = int(in_closed_interval("max_iterations", max_iterations, 1, 10_000))
     settle_periods = in_closed_interval("settle_periods", settle_periods, 0.0, 1000.0)
     max_deviation = positive("max_deviation", max_deviation)
+    max_events = integer_at_least("max_events", max_events, 1)
 
     from .impact import DynamicBacklash
     if isinstance(N, DynamicBacklash):

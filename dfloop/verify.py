@@ -74,10 +74,10 @@ def simulate_loop(G, N, amplitude: float, frequency: float, *, periods: float = 
         Samples per period of the returned signals (>= 20); the step of the fixed-step fallback only.
         ``periods * steps_per_period`` is at most ``MAX_SAMPLES`` (1e7).
     """
-    from ._checks import positive
+    from ._checks import scale
 
     N = as_element(N)  # anything else (a number, None) is a ValueError naming N, before any work
-    A0, w = positive("amplitude", amplitude), positive("frequency", frequency)
+    A0, w = scale("amplitude", amplitude), scale("frequency", frequency)
     periods, steps_per_period = _run_options(periods, steps_per_period)
     if hasattr(N, "simulate_loop"):  # elements with internal dynamics (dynamic backlash) simulate themselves
         return N.simulate_loop(G, A0, w, periods=periods, steps_per_period=steps_per_period)

@@ -27,6 +27,7 @@ from ..describing.base import DescribingFunction
 from . import cache as _cache
 from ._core import FREE as FREE_MODE
 from .extract import PERIODICITY_TOL
+from .kernel import effects_tuple
 from .limits import BETA_NO_IMPACT
 from ..progress import progress_bar
 from .table import Samples, Table1D, TableSettings, TableValues, settings_dict
@@ -45,18 +46,6 @@ _PRIOR_SIMULATIONS_PER_BLOCK = 60              # progress estimate (per start) b
 # alternative starts probed for coexisting motions, in similarity units (h = 1, w = 1, force beta):
 # (gap / h, u / (beta h w)) with x1 = v1 = 0; rest with a centred gap is the default start
 _STARTS = ((0.1, 1.5), (0.9, -1.5), (0.5, 3.0), (0.3, -0.75))
-
-
-def _effects_tuple(effects) -> tuple:
-    """Validated effects: a sequence of effect objects (each with a ``keeps_similarity`` attribute)."""
-    if isinstance(effects, (str, bytes)) or not hasattr(effects, "__iter__"):
-        raise ValueError(f"effects must be a sequence of effect objects (dfloop.impact.effects), got {effects!r}")
-    effects = tuple(effects)
-    for e in effects:
-        if not isinstance(getattr(e, "keeps_similarity", None), bool):
-            raise ValueError(f"effects: {e!r} is not an effect object (e.g. dfloop.impact.ViscousDamping(c=...)); "
-                             f"got effects={effects!r}")
-    return effects
 
 
 def _regime_label(period, impacts, sticking):
@@ -175,7 +164,7 @@ class DynamicBacklash(DescribingFunction):
         if eps is None and restitution is None:
             raise ValueError("restitution: the coefficient of restitution is required (restitution= or eps=)")
         self.restitution = _checks.in_closed_interval("restitution", restitution if eps is None else eps, 0.0, 1.0)
-        self.effects = _effects_tuple(effects)
+        self.effects = effects_tuple(effects)
         self.transient_periods = (None if transient_periods is None
                                   else _checks.integer_at_least("transient_periods", transient_periods, 0))
         self.max_transient_periods = _checks.integer_at_least("max_transient_periods", max_transient_periods, 1)
@@ -197,7 +186,9 @@ class DynamicBacklash(DescribingFunction):
                                        window_dx=_checks.positive("window_dx", window_dx),
                                        block_dx=_BLOCK_BASE_INTERVALS * base_dx, origin=_U_START)
         self._y_settings = TableSettings(tol=tol, method=method, base_dx=1.0, min_dx=max(min_dx, 1e-3))
-        self._use_cache = bool(cache)
+        self._use_cache = _checks.flag("cache", cache)
+        if not (progress is None or isinstance(progress, (bool, np.bool_)) or callable(progress)):
+            raise DfloopError(f"progress must be True, False, None or a callable(n, stage), got {_checks.show(progress)}")
         self._progress = progress
         self._tick = None
         self._table: Table1D | Table2D | None = None

@@ -26,7 +26,8 @@ from . import _core
 from ._core import IMPACT_A, IMPACT_B
 from .effects import EffectsRun
 from .kernel import (DEFAULT_CHATTER_TOL, EventLimitError, ImpactParameters, KernelRun, Trajectory,
-                     _event_limit_message, default_max_events, kernel_arrays)
+                     _event_limit_message, default_max_events, effects_tuple, initial_state, kernel_arrays,
+                     run_periods)
 from .limits import beta_lower_limit
 
 __all__ = ["ImpactDF", "ImpactDFBatch", "describing_function_from_trajectory", "impact_describing_function",
@@ -343,18 +344,18 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
     scaled back, N = h Xi1 / F, so extreme forces and clearances neither overflow nor lose precision as
     long as beta = F / (M2 h w^2) itself is a finite number.
     """
-    transient = None if transient_periods is None else int(_checks.nonnegative("transient_periods",
-                                                                                 transient_periods))
-    periods = int(_checks.positive("periods", periods))
-    max_transient = int(_checks.positive("max_transient_periods", max_transient_periods))
+    transient = None if transient_periods is None else _checks.integer_at_least("transient_periods",
+                                                                                 transient_periods, 0)
+    periods = _checks.integer_at_least("periods", periods, 1)
+    max_transient = _checks.integer_at_least("max_transient_periods", max_transient_periods, 1)
+    run_periods("transient_periods + periods", (max_transient if transient is None else transient) + periods)
     chatter_tol = _checks.positive("chatter_tol", chatter_tol)
+    effects = effects_tuple(effects)
     p = ImpactParameters(m1, m2, h, restitution, force, omega)
     longest = (max_transient if transient is None else transient) + periods
     if max_events is None:
         max_events = default_max_events(p.restitution, chatter_tol, longest)
-    if int(max_events) < 1:
-        raise ValueError(f"max_events must be >= 1, got {max_events}")
-    max_events = int(max_events)
+    max_events = _checks.integer_at_least("max_events", max_events, 1)
     if effects:
         if initial is not None or attractor is not None:
             raise ValueError("initial, attractor: supported by the paper's model only (no effects)")
@@ -395,7 +396,7 @@ def _similarity(p: ImpactParameters, initial):
     beta = math.exp(log_beta) if log_beta > -690.0 else 1e-300
     scaled = ImpactParameters.trusted(p.m1 / p.m2, 1.0, 1.0, p.restitution, beta, 1.0)
     if initial is not None:
-        x1, v1, gap, u = initial
+        x1, v1, gap, u = initial_state(initial, p.h)
         initial = (x1 / p.h, v1 / (p.h * p.omega), gap / p.h, u / (p.h * p.omega))
     return scaled, initial
 

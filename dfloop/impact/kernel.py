@@ -27,6 +27,8 @@ __all__ = ["ImpactParameters", "Trajectory", "simulate", "EventLimitError", "def
 
 DEFAULT_MAX_EVENTS = 5_000_000      # floor of the default event bound
 DEFAULT_CHATTER_TOL = 1e-9
+MAX_RUN_PERIODS = 10**7  # forcing periods of one run (the kernel steps through each: ~1 microsecond or more)
+_SEGMENT_BYTES = 8 * _core.N_FLOAT_COLUMNS + 2  # one stored segment: the float row, mode and cause
 _FREE_IMPACTS_PER_PERIOD = 64       # impacts per forcing period outside chatter sequences, in the default bound
 
 
@@ -48,6 +50,26 @@ def _event_limit_message(max_events: int, t: float, t_end: float, period: float)
     return (f"max_events = {max_events} reached at t = {t:.6g} s (t_end = {t_end:g} s, "
             f"{t / period:.6g} of {t_end / period:.6g} forcing periods): pass a larger max_events "
             f"(e.g. max_events={2 * max_events}) to simulate further")
+
+
+def run_periods(name: str, periods: float) -> float:
+    """``periods`` (forcing periods of one run) if at most ``MAX_RUN_PERIODS``; else a ValueError naming ``name``."""
+    if not periods <= MAX_RUN_PERIODS:
+        raise ValueError(f"{name} spans {periods:.3g} forcing periods, above the bound of {MAX_RUN_PERIODS:.0e} for one "
+                         "run (the kernel steps through every period); shorten the run")
+    return periods
+
+
+def effects_tuple(effects) -> tuple:
+    """Validated effects: a sequence of effect objects (each with a ``keeps_similarity`` attribute)."""
+    if isinstance(effects, (str, bytes)) or not hasattr(effects, "__iter__"):
+        raise ValueError(f"effects must be a sequence of effect objects (dfloop.impact.effects), got {effects!r}")
+    effects = tuple(effects)
+    for e in effects:
+        if not isinstance(getattr(e, "keeps_similarity", None), bool):
+            raise ValueError(f"effects: {e!r} is not an effect object (e.g. dfloop.impact.ViscousDamping(c=...)); "
+                             f"got effects={effects!r}")
+    return effects
 
 
 class EventLimitError(RuntimeError):
@@ -271,11 +293,12 @@ def simulate(m1: float, m2: float, h: float, restitution: float, force: float, o
     """
     p = ImpactParameters(m1, m2, h, restitution, force, omega)
     t_end = _checks.positive("t_end", t_end)
+    run_periods(f"t_end = {t_end:g} s at omega = {p.omega:g} rad/s", t_end / p.period)
     chatter_tol = _checks.positive("chatter_tol", chatter_tol)
+    effects = effects_tuple(effects)
     if max_events is None:
         max_events = default_max_events(p.restitution, chatter_tol, t_end / p.period)
-    if int(max_events) < 1:
-        raise ValueError(f"max_events must be >= 1, got {max_events}")
+    max_events = _checks.integer_at_least("max_events", max_events, 1)
     if effects:
         if initial is not None:
             raise ValueError("initial: a start other than rest is supported by the paper's model only "
@@ -342,7 +365,14 @@ class KernelRun:
                 self.forget()
 
     def _grow(self, capacity: int) -> None:
-        seg, mode, cause = _core.empty_buffers(capacity)
+        """Larger buffers, within the memory bound (``DFLOOP_MEMORY_LIMIT``): a run that needs more stops with
+        an EventLimitError saying so (the growth is otherwise sized from the periods left, not the events)."""
+        most = max(2, _checks.memory_limit() // _SEGMENT_BYTES)
+        if self._seg.shape[0] >= most:
+            raise EventLimitError(f"the run's record reached {self._n} segments ({self._n * _SEGMENT_BYTES / 2**30:.2g} "
+                                  f"GiB, the memory limit) at t = {float(self._state[0]):.6g} s; shorten the run, or "
+                                  "raise the limit with the environment variable DFLOOP_MEMORY_LIMIT (GiB)")
+        seg, mode, cause = _core.empty_buffers(min(capacity, most))
         n = self._n
         seg[:n], mode[:n], cause[:n] = self._seg[:n], self._mode[:n], self._cause[:n]
         self._seg, self._mode, self._cause = seg, mode, cause
@@ -367,13 +397,14 @@ class KernelRun:
 def kernel_arrays(p: ImpactParameters, chatter_tol: float = DEFAULT_CHATTER_TOL, initial=None):
     """(params, state) arrays of :func:`dfloop.impact._core.run_kernel` for a free-flight start at t = 0
     (``initial`` (x1, v1, gap, u) in m, m/s; default rest with a centred gap)."""
-    x1, v1, gap, u = (0.0, 0.0, 0.5 * p.h, 0.0) if initial is None else _initial_state(initial, p.h)
+    x1, v1, gap, u = (0.0, 0.0, 0.5 * p.h, 0.0) if initial is None else initial_state(initial, p.h)
     v_stick = chatter_tol * max(p.h * p.omega, p.force / (p.m2 * p.omega))
     return (np.array([p.m1, p.m2, p.h, p.force, p.omega, p.restitution, v_stick]),
             np.array([0.0, 0.0, x1, v1, gap, u, float(FREE), -1.0]))
 
 
-def _initial_state(initial, h: float) -> tuple[float, float, float, float]:
+def initial_state(initial, h: float) -> tuple[float, float, float, float]:
+    """``initial`` (x1, v1, gap, u) as four finite floats with the gap in [0, h]; else a ValueError."""
     try:
         x1, v1, gap, u = (float(v) for v in initial)
     except (TypeError, ValueError):
