@@ -31,6 +31,8 @@ import pytest
 import dfloop as df
 from dfloop import cli, harmonics
 from dfloop.confidence import cycle_confidence
+from dfloop.describing.base import negative_inverse
+from dfloop.solve.stability import graphical_stability
 from dfloop.errors import DfloopError
 from dfloop.impact.kernel import simulate
 from dfloop.plot.impact import plot_collision_map, plot_time_response
@@ -229,6 +231,8 @@ PROBES: list[Probe] = [
     Probe("DynamicBacklash.prepare(F, omega)", "F = -5", lambda: DB.prepare(-5.0, 30.0), DfloopError, ("F (amplitude) must be >= 0", "-5.0")),
     Probe("DynamicBacklash.save(path)", "before any evaluation", lambda: df.DynamicBacklash(1.0, 1.0, 0.1, 0.5).save(_SCRATCH / "t.npz"),
           ValueError, ("nothing to save",)),
+    Probe("negative_inverse(N, A, omega)", "N = 3", lambda: negative_inverse(3, 1.0), DfloopError,
+          ("N must be a dfloop DescribingFunction", "int")),
     Probe("negative_inverse(N, A, omega)", "A = -1", lambda: df.negative_inverse(SAT, -1.0), DfloopError, ("A (amplitude) must be >= 0", "-1.0")),
     # ------------------------------------------------------------------ solver
     Probe("predict_limit_cycles(G, N, ...)", "tol = None", lambda: df.predict_limit_cycles(G3, SAT, tol=None), ValueError,
@@ -294,6 +298,10 @@ PROBES: list[Probe] = [
           ValueError, ("omega window must be a real number", "True")),
     Probe("graphical_stability(G, N, amplitude, frequency)", "N frequency-dependent",
           lambda: df.graphical_stability(G3, MB, 1.0, 1.0), ValueError, ("N must be amplitude-only",)),
+    Probe("graphical_stability(G, N, amplitude, frequency)", "amplitude = None",
+          lambda: graphical_stability(G3, SAT, None, 1.0), ValueError, ("amplitude must be a real number", "None")),
+    Probe("graphical_stability(G, N, amplitude, frequency)", "N = 2.0",
+          lambda: graphical_stability(G3, 2.0, 1.0, 1.0), ValueError, ("N must be a dfloop DescribingFunction", "float")),
     Probe("as_plant(G)", "G = 3", lambda: df.as_plant(3), ValueError, ("G must be a python-control tf/ss/frd or a callable", "int")),
     Probe("as_plant(G)", "discrete-time G", lambda: df.as_plant(ct.tf([1.0], [1.0, -0.5], 0.1)), ValueError,
           ("continuous-time", "dt=0.1")),
@@ -385,6 +393,9 @@ PROBES: list[Probe] = [
     Probe("impact_describing_function(m1, m2, h, restitution, force, omega, ...)", "initial = nan",
           lambda: df.impact_describing_function(1.0, 1.0, 0.1, 0.5, 50.0, 30.0, initial=np.nan), ValueError,
           ("initial must be four numbers (x1, v1, gap, u)", "nan")),
+    Probe("impact_describing_function_batch(m1, m2, h, restitution, force, omega, ...)", "force = [50 + 1j]",
+          lambda: df.impact_describing_function_batch(1.0, 1.0, 0.1, 0.5, [50 + 1j], [30.0]), ValueError,
+          ("force must be real", "(50+1j)")),
     Probe("impact_describing_function_batch(m1, m2, h, restitution, force, omega, ...)", "force = [] (empty grid)",
           lambda: df.impact_describing_function_batch(1.0, 1.0, 0.1, 0.5, [], 30.0), ValueError, ("empty grid",)),
     Probe("beta_of(F, omega, m2, h)", "m2 = 0", lambda: df.beta_of(50.0, 30.0, 0.0, 0.1), DfloopError, ("m2 must be > 0", "0.0")),
@@ -407,6 +418,10 @@ PROBES: list[Probe] = [
     # ------------------------------------------------------------------ plots
     Probe("plot_loci(N, amplitudes, omega, ax)", "frequency-dependent N without omega", lambda: plot_loci(MB), ValueError,
           ("amplitudes and omega are required",)),
+    Probe("plot_loci(N, amplitudes, omega, ax)", "ax = 3", lambda: plot_loci(SAT, ax=3), ValueError,
+          ("ax must be a matplotlib Axes or None", "int")),
+    Probe("plot_loci(N, amplitudes, omega, ax)", "N = 'relay'", lambda: plot_loci("relay"), ValueError,
+          ("N must be a dfloop DescribingFunction", "str")),
     Probe("plot_nyquist(G, N, cycles, ...)", "omega = (0, 1)", lambda: plot_nyquist(G3, SAT, omega=(0.0, 1.0)), ValueError,
           ("omega window must be positive", "(0.0, 1.0)")),
     Probe("plot_time_response(traj, quantity, ...)", 'quantity = "v9"',

@@ -553,7 +553,9 @@ def impact_describing_function_batch(m1: float, m2: float, h: float, restitution
     """
     if on_event_limit not in ("raise", "record"):
         raise ValueError(f"on_event_limit must be 'raise' or 'record', got {on_event_limit!r}")
-    f, w = np.broadcast_arrays(np.asarray(force, dtype=float), np.asarray(omega, dtype=float))
+    f, w = np.broadcast_arrays(_checks.real_array(force, "force"), _checks.real_array(omega, "omega"))
+    if callback is not None and not callable(callback):
+        raise ValueError(f"callback must be callable (called after each point) or None, got {_checks.show(callback)}")
     if f.size == 0:
         raise ValueError("force, omega: empty grid")
     workers = (os.cpu_count() or 1) if workers is None else _checks.integer_at_least("workers", workers, 1)

@@ -4,8 +4,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..describing.base import DescribingFunction, negative_inverse
+from ..describing.interop import as_element
 from ._curves import add_direction_arrow, curve_with_gaps
-from ._labels import IMAG, REAL, legend
+from ._labels import IMAG, REAL, axes_or_new, legend
 
 __all__ = ["plot_loci", "default_amplitudes"]
 
@@ -52,12 +53,10 @@ def plot_loci(N: DescribingFunction, amplitudes=None, omega=None, ax=None, **kw)
     control.ControlPlot
         ``lines``: [the -1/N curves (Line2D)], [the -1 marker]; ``axes[0, 0]``, ``figure``.
     """
-    import matplotlib.pyplot as plt
-
     from .nyquist import _control_plot
 
-    if ax is None:
-        _, ax = plt.subplots()
+    N = as_element(N)
+    ax = axes_or_new(ax)
     curves = []
     if N.frequency_dependent:
         if amplitudes is None or omega is None:

@@ -12,7 +12,7 @@ from ..describing.base import negative_inverse
 from ..solve.plant import as_plant
 from ..solve.predict import predict_limit_cycles
 from ._curves import add_direction_arrow, curve_with_gaps
-from ._labels import FREQUENCY, IMAG, REAL, amplitude_label, legend, place_labels
+from ._labels import FREQUENCY, IMAG, REAL, amplitude_label, axes_or_new, legend, place_labels
 
 __all__ = ["plot_nyquist", "plot_residual_map"]
 
@@ -89,11 +89,8 @@ def plot_nyquist(G, N, cycles=None, ax=None, *, omega=None, amplitude=None, n_lo
         [jump-crossing markers], [exact-cycle markers], [the -1 marker]; ``axes[0, 0]`` the axes, ``figure``
         the figure.
     """
-    import matplotlib.pyplot as plt
-
     cycles, (w_lo, w_hi), (a_lo, a_hi) = _cycles_and_windows(G, N, cycles, omega, amplitude)
-    if ax is None:
-        ax = plt.figure().add_subplot()
+    ax = axes_or_new(ax)
     plant = as_plant(G)
     w = np.unique(np.concatenate([np.geomspace(w_lo, w_hi, 2000),
                                   plant.feature_frequencies[(plant.feature_frequencies >= w_lo)
@@ -154,8 +151,6 @@ def plot_residual_map(G, N, cycles=None, ax=None, *, omega=None, amplitude=None,
     control.ControlPlot
         ``lines[0]``: the cycle markers; the map is ``axes[0, 0].collections[0]``.
     """
-    import matplotlib.pyplot as plt
-
     given_w, given_a = omega, amplitude
     cycles, (w_lo, w_hi), (a_lo, a_hi) = _cycles_and_windows(G, N, cycles, omega, amplitude)
     if cycles:  # zoom to a decade around the cycles unless windows were given
@@ -165,8 +160,7 @@ def plot_residual_map(G, N, cycles=None, ax=None, *, omega=None, amplitude=None,
         if given_w is None:
             freqs = [c.frequency for c in cycles]
             w_lo, w_hi = max(w_lo, min(freqs) / 10), min(w_hi, max(freqs) * 10)
-    if ax is None:
-        ax = plt.figure().add_subplot()
+    ax = axes_or_new(ax)
     A = np.geomspace(a_lo, a_hi, int(shape[0]))
     w = np.geomspace(w_lo, w_hi, int(shape[1]))
     g = as_plant(G)(w)
