@@ -12,6 +12,8 @@ from typing import Callable
 
 import numpy as np
 
+from .._checks import positive, scale
+from ..describing.interop import as_element
 from .roots import Residual
 
 __all__ = ["loeb", "classify", "label_roots", "graphical_stability", "MARGINAL_TOL"]
@@ -109,10 +111,12 @@ def graphical_stability(G, N, amplitude: float, frequency: float, step: float = 
     """
     from .plant import as_plant
 
+    N = as_element(N)
     if N.frequency_dependent:
         raise ValueError("N must be amplitude-only for the graphical rule")
     g = as_plant(G)
-    w, A = float(frequency), float(amplitude)
+    w, A = scale("frequency", frequency), scale("amplitude", amplitude)
+    step = positive("step", step)
     dg = (g(np.array([w * (1 + step)])) - g(np.array([w * (1 - step)])))[0] / (2 * w * step)
     locus = -1.0 / N(np.array([A * (1 - step), A * (1 + step)]))
     dl = (locus[1] - locus[0]) / (2 * A * step)
