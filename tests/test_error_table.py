@@ -307,6 +307,8 @@ PROBES: list[Probe] = [
           lambda: graphical_stability(G3, MB, 1.0, 1.0), ValueError, ("N must be amplitude-only",)),
     Probe("graphical_stability(G, N, amplitude, frequency)", "amplitude = None",
           lambda: graphical_stability(G3, SAT, None, 1.0), ValueError, ("amplitude must be a real number", "None")),
+    Probe("graphical_stability(G, N, amplitude, frequency)", "step = 2",
+          lambda: graphical_stability(G3, SAT, 1.0, 1.0, step=2.0), ValueError, ("step must lie in [1e-12, 0.5]", "2.0")),
     Probe("graphical_stability(G, N, amplitude, frequency)", "N = 2.0",
           lambda: graphical_stability(G3, 2.0, 1.0, 1.0), ValueError, ("N must be a dfloop DescribingFunction", "float")),
     Probe("as_plant(G)", "G = 3", lambda: as_plant(3), ValueError, ("G must be a python-control tf/ss/frd or a callable", "int")),
