@@ -243,9 +243,10 @@ class KernelRun:
         an EventLimitError saying so (the growth is otherwise sized from the periods left, not the events)."""
         most = max(2, _checks.memory_limit() // _SEGMENT_BYTES)
         if self._seg.shape[0] >= most:
-            raise EventLimitError(f"the run's record reached {self._n} segments ({self._n * _SEGMENT_BYTES / 2**30:.2g} "
-                                  f"GiB, the memory limit) at t = {float(self._state[0]):.6g} s; shorten the run, or "
-                                  "raise the limit with the environment variable DFLOOP_MEMORY_LIMIT (GiB)")
+            gib = self._n * _SEGMENT_BYTES / 2**30
+            raise EventLimitError(f"the run's record reached {self._n} segments ({gib:.2g} GiB, the memory limit) "
+                                  f"at t = {float(self._state[0]):.6g} s; shorten the run, or raise the limit with "
+                                  "the environment variable DFLOOP_MEMORY_LIMIT (GiB)")
         seg, mode, cause = _core.empty_buffers(min(capacity, most))
         n = self._n
         seg[:n], mode[:n], cause[:n] = self._seg[:n], self._mode[:n], self._cause[:n]

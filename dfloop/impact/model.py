@@ -1,4 +1,5 @@
-"""The two-mass clearance system's parameters, event bounds and impact bookkeeping (no simulation).
+"""The two-mass clearance system's parameters, event and run bounds, run-setting checks and impact bookkeeping
+(no simulation).
 
 The lowest module of :mod:`dfloop.impact`: both simulators (the closed-form JIT kernel,
 :mod:`dfloop.impact.kernel`, and the linear-mode engine with effects, :mod:`dfloop.impact.effects`) and the DF
@@ -49,8 +50,8 @@ def event_limit_message(max_events: int, t: float, t_end: float, period: float) 
 def run_periods(name: str, periods: float) -> float:
     """``periods`` (forcing periods of one run) if at most ``MAX_RUN_PERIODS``; else a ValueError naming ``name``."""
     if not periods <= MAX_RUN_PERIODS:
-        raise ValueError(f"{name} spans {periods:.3g} forcing periods, above the bound of {MAX_RUN_PERIODS:.0e} for one "
-                         "run (the kernel steps through every period); shorten the run")
+        raise ValueError(f"{name} spans {periods:.3g} forcing periods, above the bound of {MAX_RUN_PERIODS:.0e} "
+                         "for one run (the kernel steps through every period); shorten the run")
     return periods
 
 

@@ -67,7 +67,8 @@ class TableStore:
         self._provenance, self._settings = dict(provenance or {}), dict(settings or {})
         self.use_cache = _checks.flag("cache", cache)
         if not (progress is None or isinstance(progress, (bool, np.bool_)) or callable(progress)):
-            raise DfloopError(f"progress must be True, False, None or a callable(n, stage), got {_checks.show(progress)}")
+            raise DfloopError("progress must be True, False, None or a callable(n, stage), got "
+                              f"{_checks.show(progress)}")
         self.progress = progress
         self.table: Table1D | Table2D | None = None
         self.loaded_from_cache = False
