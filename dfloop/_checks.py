@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import math
 import numbers
+import os
 
 import numpy as np
 
 from .errors import DfloopError
 
 __all__ = ["positive", "nonnegative", "finite", "in_closed_interval", "amplitude_array", "frequency_array",
-           "real_array", "integer_at_least", "window", "show"]
+           "real_array", "integer_at_least", "window", "show", "flag", "text",
+           "scale", "SCALE_RANGE",
+           "memory_limit", "MEMORY_LIMIT_GIB"]
 
 
 def _real(name: str, value, nan: bool = False) -> float:
@@ -146,3 +149,54 @@ def window(name: str, value) -> tuple[float, float]:
     if lo >= hi:
         raise DfloopError(f"{name} window must satisfy lo < hi; got ({lo}, {hi})")
     return lo, hi
+
+
+def flag(name: str, value, none: bool = False) -> bool | None:
+    """``value`` as a bool: True/False (numpy's too), or None when ``none`` allows it; "yes", 1, NaN raise."""
+    if value is None and none:
+        return None
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    raise DfloopError(f"{name} must be True or False{' (or None)' if none else ''}, got {show(value)}")
+
+
+def text(name: str, value) -> str:
+    """``value`` as a str (names and units shown in reports and plots)."""
+    if not isinstance(value, str):
+        raise DfloopError(f"{name} must be a string, got {show(value)} ({type(value).__name__})")
+    return value
+
+
+SCALE_RANGE = (1e-300, 1e300)
+"""Amplitudes and frequencies of a cycle handed to a simulation: beyond it, periods (2 pi / w) or ratios (1 / A)
+overflow or lose all precision in subnormal numbers."""
+
+
+def scale(name: str, value) -> float:
+    """``value`` as a float in ``SCALE_RANGE`` (a cycle's amplitude or frequency, > 0)."""
+    x = positive(name, value)
+    lo, hi = SCALE_RANGE
+    if not lo <= x <= hi:
+        raise DfloopError(f"{name} must lie in [{lo:g}, {hi:g}], got {x!r}")
+    return x
+
+
+MEMORY_LIMIT_GIB = 2.0
+"""Default bound (GiB) on the largest work arrays dfloop allocates (the solver's grid, an impact run's record);
+the environment variable ``DFLOOP_MEMORY_LIMIT`` (GiB) overrides it."""
+
+
+def memory_limit() -> int:
+    """The memory bound in bytes: ``DFLOOP_MEMORY_LIMIT`` (GiB, a positive number) or ``MEMORY_LIMIT_GIB``."""
+    env = os.environ.get("DFLOOP_MEMORY_LIMIT")
+    if env is None:
+        return int(MEMORY_LIMIT_GIB * 1024 ** 3)
+    try:
+        gib = float(env)
+    except ValueError:
+        gib = math.nan
+    if not (math.isfinite(gib) and gib > 0):
+        raise DfloopError(f"DFLOOP_MEMORY_LIMIT must be a positive number of GiB, got {env!r}")
+    return int(gib * 1024 ** 3)
+
+

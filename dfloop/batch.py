@@ -14,6 +14,7 @@ functions pickle; lambdas need an executor that uses cloudpickle (Dask does).
 from __future__ import annotations
 
 import concurrent.futures as cf
+import inspect
 import math
 from functools import partial
 from typing import Any, Callable, Iterable, Sequence
@@ -22,7 +23,7 @@ from . import _checks
 from .progress import progress_bar
 from .solve import LimitCycles, predict_limit_cycles
 
-__all__ = ["predict_many", "run_batch"]
+__all__ = ["predict_many", "run_batch", "solver_options"]
 
 _CHUNKS_PER_BATCH = 64  # default chunk size: about this many tasks per batch
 
@@ -75,8 +76,14 @@ def run_batch(fn: Callable[[Any], Any], items: Iterable, *, executor: cf.Executo
     list
         ``fn(item)`` for each item, in the order of ``items``.
     """
-    items = list(items)
+    try:
+        items = list(items)
+    except TypeError:
+        raise ValueError(f"items must be an iterable of work items; got {_checks.show(items)}") from None
     n = len(items)
+    if chunksize is not None:
+        chunksize = _checks.integer_at_least("chunksize", chunksize, 1)
+    progress = _checks.flag("progress", progress, none=True)
     if timeout is not None and not (isinstance(timeout, (int, float)) and not isinstance(timeout, bool)
                                     and timeout > 0):
         raise ValueError(f"timeout must be a positive number of seconds or None; got {timeout!r}")
@@ -111,6 +118,19 @@ def run_batch(fn: Callable[[Any], Any], items: Iterable, *, executor: cf.Executo
         return [r for s in starts for r in results[s]]
 
 
+def solver_options(options: dict, exclude: tuple[str, ...] = ()) -> dict:
+    """``options`` unchanged, after checking that each is a keyword of :func:`~dfloop.predict_limit_cycles`
+    (``exclude``: those the caller sets itself): an unknown one is a ValueError before any work (inside a batch
+    it would come out as a RuntimeError naming a TypeError)."""
+    known = [p.name for p in inspect.signature(predict_limit_cycles).parameters.values()
+             if p.kind is p.KEYWORD_ONLY and p.name not in exclude]
+    unknown = sorted(set(options) - set(known))
+    if unknown:
+        raise ValueError(f"unknown keyword argument(s) {', '.join(map(repr, unknown))}; the solver options are "
+                         f"{', '.join(known)}")
+    return options
+
+
 def _predict_pair(loop, options: dict) -> LimitCycles:
     G, N = loop
     return predict_limit_cycles(G, N, **options)
@@ -142,7 +162,11 @@ def predict_many(loops: Iterable, *, executor: cf.Executor | None = None, chunks
     list of LimitCycles
         One result per loop, in the order of ``loops``. A loop that fails raises, naming its index.
     """
-    loops = list(loops)
+    try:
+        loops = list(loops)
+    except TypeError:
+        raise ValueError(f"loops must be an iterable of (G, N) pairs; got {_checks.show(loops)}") from None
+    solver_options(options)
     for i, loop in enumerate(loops):
         if not (isinstance(loop, (tuple, list)) and len(loop) == 2):
             raise ValueError(f"loops[{i}] must be a pair (G, N); got {type(loop).__name__}")

@@ -27,7 +27,6 @@ birth. Points of a traced curve that the solver did not report are listed in ``S
 from __future__ import annotations
 
 import csv
-import inspect
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -37,7 +36,7 @@ from typing import Callable
 import numpy as np
 
 from . import _checks
-from .batch import run_batch
+from .batch import run_batch, solver_options as batch_solver_options
 from .describing.interop import as_element
 from .progress import progress_bar
 from .solve import LimitCycles, as_plant, predict_limit_cycles
@@ -1133,8 +1132,8 @@ def _predict_at(value: float, loop_at: Callable, options: dict) -> LimitCycles |
 def _check_values(values) -> np.ndarray:
     try:
         v = np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"values must be a 1-D sequence of numbers; got {values!r}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"values must be a 1-D sequence of numbers; got {_checks.show(values)}") from None
     if v.ndim != 1 or v.size < 2:
         raise ValueError(f"values must be a 1-D sequence of at least 2 numbers; got shape {v.shape}")
     if not np.all(np.isfinite(v)):
@@ -1194,12 +1193,9 @@ def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=No
     """
     vals = _check_values(values)
     max_steps = _checks.integer_at_least("max_steps", max_steps, 1)
-    known = [p.name for p in inspect.signature(predict_limit_cycles).parameters.values()
-             if p.kind is p.KEYWORD_ONLY and p.name not in ("omega", "amplitude")]
-    unknown = sorted(set(solver_options) - set(known))
-    if unknown:  # before any solve (a TypeError inside the batch would come out as a RuntimeError)
-        raise ValueError(f"sweep got unknown keyword argument(s) {', '.join(map(repr, unknown))}; the solver "
-                         f"options it passes on are {', '.join(known)}")
+    batch_solver_options(solver_options, exclude=("omega", "amplitude"))  # before any solve
+    parameter, unit = _checks.text("parameter", parameter), _checks.text("unit", unit)
+    progress = _checks.flag("progress", progress, none=True)
     if omega is not None:
         omega = _checks.window("omega", omega)
     if amplitude is not None:

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._blas import single_threaded_blas
-from ._checks import positive
+from ._checks import integer_at_least, positive, scale
 from .describing.interop import as_element
 
 __all__ = ["ExactCycle", "exact_cycle"]
@@ -172,7 +172,7 @@ def cycle_argument(cycle, name: str = "cycle") -> tuple[float, float]:
             raise ValueError(f"{name} must be one LimitCycle or one (amplitude, frequency) pair, got "
                              f"{type(cycle).__name__} of {len(pair)} items (pass one cycle, e.g. cycles[0])")
         A0, w0 = pair
-    return positive(f"{name} amplitude", A0), positive(f"{name} frequency", w0)
+    return scale(f"{name} amplitude", A0), scale(f"{name} frequency", w0)
 
 
 def _failure(message, predicted, method, residual=math.inf, iterations=0) -> ExactCycle:
@@ -246,6 +246,7 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     if settle_periods is not None:
         settle_periods = in_closed_interval("settle_periods", settle_periods, 0.0, 1000.0)
     max_deviation = positive("max_deviation", max_deviation)
+    max_events = integer_at_least("max_events", max_events, 1)  # 2.5 is refused, not truncated
     max_events = int(in_closed_interval("max_events", max_events, 1, 10**9))
     m = int(in_closed_interval("nodes", nodes, 1, 1000))
 

@@ -76,10 +76,10 @@ def simulate_loop(G, N, amplitude: float, frequency: float, *, periods: float = 
     LoopSimulation
         Uniform samples of x and y; ``diverged`` when |x| passed 1e6 times ``amplitude`` (the run stops there).
     """
-    from ._checks import positive
+    from ._checks import scale
 
     N = as_element(N)  # anything else (a number, None) is a ValueError naming N, before any work
-    A0, w = positive("amplitude", amplitude), positive("frequency", frequency)
+    A0, w = scale("amplitude", amplitude), scale("frequency", frequency)
     periods, steps_per_period = _run_options(periods, steps_per_period)
     loop = loop_model(G, N, A0, w, steps_per_period=steps_per_period)
     if loop.delay > 0:   # a pure delay: the exact delay flow from the predicted orbit's switches

@@ -303,3 +303,31 @@ def test_outputs_and_operators(el, x):
         except ValueError:
             continue
         assert isinstance(y, float)
+
+
+def _as_float(x) -> float:
+    try:
+        return float(x)
+    except (TypeError, ValueError, OverflowError):
+        return math.nan
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(periods=scalars, transient=st.one_of(st.none(), scalars), max_events=st.one_of(st.none(), scalars),
+       effects=st.one_of(st.just(()), scalars), initial=st.one_of(st.none(), values))
+def test_impact_describing_function_run_settings(periods, transient, max_events, effects, initial):
+    """Run lengths, event bounds, effects and the initial state: a ValueError, or a finite DF (periods = 1e12
+    was a MemoryError, transient_periods = 1e12 ran unbounded). Valid runs are kept short."""
+    from dfloop.impact.extract import impact_describing_function
+
+    assume(not (_as_float(periods) > 4 and _as_float(periods) <= 1e7))
+    assume(transient is None or not (_as_float(transient) > 20 and _as_float(transient) <= 1e7))
+    try:
+        out = impact_describing_function(1.0, 1.0, 0.1, 0.5, 50.0, 30.0, periods=periods, transient_periods=transient,
+                                         max_events=max_events, effects=effects, initial=initial)
+    except ValueError:
+        return
+    except RuntimeError as exc:  # the event bound of a valid run, reached: it must say how to raise it
+        assert "max_events" in str(exc)
+        return
+    assert np.isfinite(out.N)

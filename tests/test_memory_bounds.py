@@ -126,6 +126,23 @@ def test_a_plant_beyond_the_order_bound_is_refused_before_conversion():
     assert peak < n * n * 8 / 4  # less than a quarter of one n x n matrix: no conversion, no eigenvalues
 
 
+def test_an_impact_run_record_stops_at_the_memory_limit(monkeypatch):
+    """The record of a long run grows within the limit and stops with an error saying so (its growth was sized
+    from the periods left: t_end = 1e5 s asked for ~0.5 GB at once)."""
+    from dfloop.errors import EventLimitError
+    from dfloop.impact.kernel import simulate
+
+    simulate(1.0, 1.0, 0.1, 0.5, 50.0, 30.0, 1.0)  # warm: compilation is not the run's memory
+    limit = 4 * MiB
+    monkeypatch.setenv("DFLOOP_MEMORY_LIMIT", str(limit / 2**30))
+    exc, peak = traced_peak(lambda: simulate(1.0, 1.0, 0.1, 0.5, 50.0, 30.0, 1e5))
+    assert isinstance(exc, EventLimitError) and "the memory limit" in str(exc) and "DFLOOP_MEMORY_LIMIT" in str(exc)
+    assert peak < 3 * limit  # the record, the buffer it grows from, and the kernel's small arrays
+    monkeypatch.delenv("DFLOOP_MEMORY_LIMIT")
+    traj = simulate(1.0, 1.0, 0.1, 0.5, 50.0, 30.0, 5.0)  # a short run is unaffected
+    assert traj.t_end == 5.0
+
+
 def test_numeric_df_streams_amplitudes_and_shows_progress(monkeypatch):
     calls = []
 

@@ -250,6 +250,8 @@ class DescribingFunction(ABC):
 
 def negative_inverse(N: DescribingFunction, A, omega=None) -> np.ndarray:
     """-1/N(A, omega) for plots; entries where N = 0 give complex infinity (not NaN)."""
+    if not isinstance(N, DescribingFunction):
+        raise DfloopError(f"N must be a dfloop DescribingFunction (see dfloop.as_element), got {type(N).__name__}")
     n = N(A, omega)
     out = np.full(n.shape, complex(np.inf, 0.0))
     nz = n != 0

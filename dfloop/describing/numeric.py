@@ -17,7 +17,7 @@ from typing import Callable
 
 import numpy as np
 
-from .._checks import amplitude_array, in_closed_interval, integer_at_least
+from .._checks import amplitude_array, flag, in_closed_interval, integer_at_least, real_array, show, text
 from ..errors import DfloopError
 from ..progress import progress_bar
 from .base import DescribingFunction
@@ -285,6 +285,7 @@ class NumericDF(DescribingFunction):
         input_name: str = "A",
         input_unit: str = "",
     ):
+        hysteretic = flag("hysteretic", hysteretic, none=True)
         if isinstance(element, StaticElement) and not hysteretic:
             breakpoints = element.breakpoints if breakpoints is None else breakpoints
             element = element.output
@@ -310,9 +311,14 @@ class NumericDF(DescribingFunction):
         if method not in ("pieces", "sampled"):
             raise DfloopError(f"method must be 'pieces' or 'sampled', got {method!r}")
         self.rtol = in_closed_interval("rtol", rtol, 1e-16, 1e-2)
-        self.locate = breakpoints is None if locate is None else bool(locate)
+        if breakpoints is not None and not callable(breakpoints):
+            levels = real_array(breakpoints, "breakpoints")
+            if not np.all(np.isfinite(levels)):
+                raise DfloopError(f"breakpoints must be finite, got {show(breakpoints)}")
+        locate = flag("locate", locate, none=True)
+        self.locate = breakpoints is None if locate is None else locate
         self.nodes, self.samples, self.method = int(nodes), int(samples), method
-        self.input_name, self.input_unit = input_name, input_unit
+        self.input_name, self.input_unit = text("input_name", input_name), text("input_unit", input_unit)
 
     def time_model(self, amplitude: float):
         """A static f: piecewise affine between its breakpoints or smooth; a hysteretic operator with its own

@@ -7,8 +7,9 @@ limit frequencies of eqs. (10), (11), (12) with their measured counterparts.
 One way to each thing: :class:`DynamicBacklash` is the element a loop study uses (N(F, w) anywhere, from a
 table); :func:`impact_describing_function` is one exact run with its diagnostics, and
 :func:`impact_describing_function_batch` the same over a grid of (F, w) (arrays, threads, failures recorded).
-Modules, lowest first: ``model`` (parameters, event bounds) <- ``kernel`` / ``effects`` (the two simulators)
-<- ``extract`` (DF of a run) <- ``sampling`` (a table sample) <- ``dynamic_backlash`` (the element).
+Modules, lowest first: ``model`` (parameters, event and run bounds, run-setting checks) <- ``kernel`` /
+``effects`` (the two simulators) <- ``extract`` (DF of a run) <- ``sampling`` (a table sample) <-
+``dynamic_backlash`` (the element).
 """
 from .dynamic_backlash import DynamicBacklash, prepare_many
 from .effects import CoulombFriction, LoadSpring, ViscousDamping

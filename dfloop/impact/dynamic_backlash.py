@@ -35,7 +35,7 @@ from ..describing.time_model import Impact
 from ..progress import compile_pending
 from ..tables import Table1D, Table2D, TableSettings, TableStore, TableValues, settings_dict
 from .limits import BETA_NO_IMPACT
-from .model import DEFAULT_CHATTER_TOL
+from .model import DEFAULT_CHATTER_TOL, effects_tuple
 from .sampling import STARTS, ImpactSampler
 
 __all__ = ["DynamicBacklash", "prepare_many"]
@@ -60,24 +60,6 @@ def table_samples() -> int:
     """Table samples computed by every :class:`DynamicBacklash` in this process so far (each sample simulates
     one or more motions: from rest, and from alternative starts where coexisting motions are looked for)."""
     return _MOTIONS["samples"]
-
-
-def table_samples() -> int:
-    """Table samples computed by every :class:`DynamicBacklash` in this process so far (each sample simulates
-    one or more motions: from rest, and from alternative starts where coexisting motions are looked for)."""
-    return _MOTIONS["samples"]
-
-
-def _effects_tuple(effects) -> tuple:
-    """Validated effects: a sequence of effect objects (each with a ``keeps_similarity`` attribute)."""
-    if isinstance(effects, (str, bytes)) or not hasattr(effects, "__iter__"):
-        raise ValueError(f"effects must be a sequence of effect objects (dfloop.impact.effects), got {effects!r}")
-    effects = tuple(effects)
-    for e in effects:
-        if not isinstance(getattr(e, "keeps_similarity", None), bool):
-            raise ValueError(f"effects: {e!r} is not an effect object (e.g. dfloop.impact.ViscousDamping(c=...)); "
-                             f"got effects={effects!r}")
-    return effects
 
 
 class DynamicBacklash(DescribingFunction):
@@ -181,7 +163,7 @@ class DynamicBacklash(DescribingFunction):
         if eps is None and restitution is None:
             raise ValueError("restitution: the coefficient of restitution is required (restitution= or eps=)")
         self.restitution = _checks.in_closed_interval("restitution", restitution if eps is None else eps, 0.0, 1.0)
-        self.effects = _effects_tuple(effects)
+        self.effects = effects_tuple(effects)
         self.transient_periods = (None if transient_periods is None
                                   else _checks.integer_at_least("transient_periods", transient_periods, 0))
         self.max_transient_periods = _checks.integer_at_least("max_transient_periods", max_transient_periods, 1)

@@ -26,8 +26,8 @@ from . import _core
 from ._core import IMPACT_A, IMPACT_B
 from .effects import EffectsRun
 from .kernel import KernelRun, Trajectory, kernel_arrays
-from .model import (DEFAULT_CHATTER_TOL, EventLimitError, ImpactParameters, default_max_events,
-                    event_limit_message)
+from .model import (DEFAULT_CHATTER_TOL, EventLimitError, ImpactParameters, default_max_events, effects_tuple,
+                    event_limit_message, initial_state, run_periods)
 from .limits import beta_lower_limit
 
 __all__ = ["ImpactDF", "ImpactDFBatch", "describing_function_from_trajectory", "impact_describing_function",
@@ -344,18 +344,18 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
     scaled back, N = h Xi1 / F, so extreme forces and clearances neither overflow nor lose precision as
     long as beta = F / (M2 h w^2) itself is a finite number.
     """
-    transient = None if transient_periods is None else int(_checks.nonnegative("transient_periods",
-                                                                                 transient_periods))
-    periods = int(_checks.positive("periods", periods))
-    max_transient = int(_checks.positive("max_transient_periods", max_transient_periods))
+    transient = None if transient_periods is None else _checks.integer_at_least("transient_periods",
+                                                                                 transient_periods, 0)
+    periods = _checks.integer_at_least("periods", periods, 1)
+    max_transient = _checks.integer_at_least("max_transient_periods", max_transient_periods, 1)
+    run_periods("transient_periods + periods", (max_transient if transient is None else transient) + periods)
     chatter_tol = _checks.positive("chatter_tol", chatter_tol)
+    effects = effects_tuple(effects)
     p = ImpactParameters(m1, m2, h, restitution, force, omega)
     longest = (max_transient if transient is None else transient) + periods
     if max_events is None:
         max_events = default_max_events(p.restitution, chatter_tol, longest)
-    if int(max_events) < 1:
-        raise ValueError(f"max_events must be >= 1, got {max_events}")
-    max_events = int(max_events)
+    max_events = _checks.integer_at_least("max_events", max_events, 1)
     if effects:
         if initial is not None or attractor is not None:
             raise ValueError("initial, attractor: supported by the paper's model only (no effects)")
@@ -396,7 +396,7 @@ def _similarity(p: ImpactParameters, initial):
     beta = math.exp(log_beta) if log_beta > -690.0 else 1e-300
     scaled = ImpactParameters.trusted(p.m1 / p.m2, 1.0, 1.0, p.restitution, beta, 1.0)
     if initial is not None:
-        x1, v1, gap, u = initial
+        x1, v1, gap, u = initial_state(initial, p.h)
         initial = (x1 / p.h, v1 / (p.h * p.omega), gap / p.h, u / (p.h * p.omega))
     return scaled, initial
 
@@ -553,10 +553,13 @@ def impact_describing_function_batch(m1: float, m2: float, h: float, restitution
     """
     if on_event_limit not in ("raise", "record"):
         raise ValueError(f"on_event_limit must be 'raise' or 'record', got {on_event_limit!r}")
-    f, w = np.broadcast_arrays(np.asarray(force, dtype=float), np.asarray(omega, dtype=float))
+    f, w = np.broadcast_arrays(_checks.real_array(force, "force"), _checks.real_array(omega, "omega"))
+    if callback is not None and not callable(callback):
+        raise ValueError(f"callback must be callable (called after each point) or None, got {_checks.show(callback)}")
     if f.size == 0:
         raise ValueError("force, omega: empty grid")
     workers = (os.cpu_count() or 1) if workers is None else _checks.integer_at_least("workers", workers, 1)
+    effects = effects_tuple(effects)
 
     if attractor is not None:
         attractor = np.asarray(attractor, dtype=object)
@@ -621,8 +624,9 @@ def _adaptive_batch(base: ImpactParameters, f: np.ndarray, w: np.ndarray, chatte
         ok = np.isfinite(a) & (a > 0)
         if not np.all(ok):
             raise ValueError(f"{name} must be finite and > 0, got {a[~ok].ravel()[0]!r}")
-    periods = int(_checks.positive("periods", periods))
-    max_transient = int(_checks.positive("max_transient_periods", max_transient_periods))
+    periods = _checks.integer_at_least("periods", periods, 1)
+    max_transient = _checks.integer_at_least("max_transient_periods", max_transient_periods, 1)
+    run_periods("max_transient_periods + periods", max_transient + periods)
     chatter_tol = _checks.positive("chatter_tol", chatter_tol)
     max_events = (default_max_events(base.restitution, chatter_tol, max_transient + periods) if max_events is None
                   else int(_checks.integer_at_least("max_events", max_events, 1)))

@@ -13,7 +13,6 @@ With optional effects (see :mod:`dfloop.impact.effects`) the same interface is s
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,9 +22,12 @@ from . import _core
 from ._core import FREE, GAP, PHI0, STUCK_B, T0, U, U_POST, U_PRE, V1, V1_POST, V1_PRE, X1
 from .effects import simulate_with_effects
 from .model import (DEFAULT_CHATTER_TOL, EventLimitError, ImpactEvents, ImpactParameters, default_max_events,
-                    event_limit_message)
+                    effects_tuple, event_limit_message, initial_state, run_periods)
 
 __all__ = ["Trajectory", "simulate", "KernelRun", "kernel_arrays"]
+
+_SEGMENT_BYTES = 8 * _core.N_FLOAT_COLUMNS + 2  # one stored segment: the float row, mode and cause
+
 
 @dataclass(frozen=True, repr=False)
 class Trajectory(ImpactEvents):
@@ -166,18 +168,19 @@ def simulate(m1: float, m2: float, h: float, restitution: float, force: float, o
     """
     p = ImpactParameters(m1, m2, h, restitution, force, omega)
     t_end = _checks.positive("t_end", t_end)
+    run_periods(f"t_end = {t_end:g} s at omega = {p.omega:g} rad/s", t_end / p.period)
     chatter_tol = _checks.positive("chatter_tol", chatter_tol)
+    effects = effects_tuple(effects)
     if max_events is None:
         max_events = default_max_events(p.restitution, chatter_tol, t_end / p.period)
-    if int(max_events) < 1:
-        raise ValueError(f"max_events must be >= 1, got {max_events}")
+    max_events = _checks.integer_at_least("max_events", max_events, 1)
     if effects:
         if initial is not None:
             raise ValueError("initial: a start other than rest is supported by the paper's model only "
                              "(no effects)")
-        return simulate_with_effects(p, t_end, tuple(effects), int(max_events), chatter_tol)
+        return simulate_with_effects(p, t_end, effects, max_events, chatter_tol)
     run = KernelRun(p, chatter_tol, initial)
-    run.advance(t_end, int(max_events))
+    run.advance(t_end, max_events)
     return run.trajectory()
 
 
@@ -236,7 +239,15 @@ class KernelRun:
                 self.forget()
 
     def _grow(self, capacity: int) -> None:
-        seg, mode, cause = _core.empty_buffers(capacity)
+        """Larger buffers, within the memory bound (``DFLOOP_MEMORY_LIMIT``): a run that needs more stops with
+        an EventLimitError saying so (the growth is otherwise sized from the periods left, not the events)."""
+        most = max(2, _checks.memory_limit() // _SEGMENT_BYTES)
+        if self._seg.shape[0] >= most:
+            gib = self._n * _SEGMENT_BYTES / 2**30
+            raise EventLimitError(f"the run's record reached {self._n} segments ({gib:.2g} GiB, the memory limit) "
+                                  f"at t = {float(self._state[0]):.6g} s; shorten the run, or raise the limit with "
+                                  "the environment variable DFLOOP_MEMORY_LIMIT (GiB)")
+        seg, mode, cause = _core.empty_buffers(min(capacity, most))
         n = self._n
         seg[:n], mode[:n], cause[:n] = self._seg[:n], self._mode[:n], self._cause[:n]
         self._seg, self._mode, self._cause = seg, mode, cause
@@ -261,20 +272,7 @@ class KernelRun:
 def kernel_arrays(p: ImpactParameters, chatter_tol: float = DEFAULT_CHATTER_TOL, initial=None):
     """(params, state) arrays of :func:`dfloop.impact._core.run_kernel` for a free-flight start at t = 0
     (``initial`` (x1, v1, gap, u) in m, m/s; default rest with a centred gap)."""
-    x1, v1, gap, u = (0.0, 0.0, 0.5 * p.h, 0.0) if initial is None else _initial_state(initial, p.h)
+    x1, v1, gap, u = (0.0, 0.0, 0.5 * p.h, 0.0) if initial is None else initial_state(initial, p.h)
     v_stick = chatter_tol * max(p.h * p.omega, p.force / (p.m2 * p.omega))
     return (np.array([p.m1, p.m2, p.h, p.force, p.omega, p.restitution, v_stick]),
             np.array([0.0, 0.0, x1, v1, gap, u, float(FREE), -1.0]))
-
-
-def _initial_state(initial, h: float) -> tuple[float, float, float, float]:
-    try:
-        x1, v1, gap, u = (float(v) for v in initial)
-    except (TypeError, ValueError):
-        raise ValueError(f"initial must be four numbers (x1, v1, gap, u), got {initial!r}") from None
-    if not all(math.isfinite(v) for v in (x1, v1, gap, u)):
-        raise ValueError(f"initial must be finite, got {initial!r}")
-    if not 0.0 <= gap <= h:
-        raise ValueError(f"initial gap must lie in [0, h = {h:g}], got {gap!r}")
-    return x1, v1, gap, u
-

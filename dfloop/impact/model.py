@@ -1,4 +1,5 @@
-"""The two-mass clearance system's parameters, event bounds and impact bookkeeping (no simulation).
+"""The two-mass clearance system's parameters, event and run bounds, run-setting checks and impact bookkeeping
+(no simulation).
 
 The lowest module of :mod:`dfloop.impact`: both simulators (the closed-form JIT kernel,
 :mod:`dfloop.impact.kernel`, and the linear-mode engine with effects, :mod:`dfloop.impact.effects`) and the DF
@@ -16,10 +17,12 @@ from ..errors import EventLimitError
 from ._core import IMPACT_A, IMPACT_B
 
 __all__ = ["ImpactParameters", "ImpactEvents", "EventLimitError", "default_max_events", "event_limit_message",
-           "DEFAULT_MAX_EVENTS", "DEFAULT_CHATTER_TOL"]
+           "DEFAULT_MAX_EVENTS", "DEFAULT_CHATTER_TOL", "MAX_RUN_PERIODS", "run_periods", "effects_tuple",
+           "initial_state"]
 
 DEFAULT_MAX_EVENTS = 5_000_000      # floor of the default event bound
 DEFAULT_CHATTER_TOL = 1e-9
+MAX_RUN_PERIODS = 10**7  # forcing periods of one run (the kernel steps through each: ~1 microsecond or more)
 _FREE_IMPACTS_PER_PERIOD = 64       # impacts per forcing period outside chatter sequences, in the default bound
 
 
@@ -42,6 +45,39 @@ def event_limit_message(max_events: int, t: float, t_end: float, period: float) 
     return (f"max_events = {max_events} reached at t = {t:.6g} s (t_end = {t_end:g} s, "
             f"{t / period:.6g} of {t_end / period:.6g} forcing periods): pass a larger max_events "
             f"(e.g. max_events={2 * max_events}) to simulate further")
+
+
+def run_periods(name: str, periods: float) -> float:
+    """``periods`` (forcing periods of one run) if at most ``MAX_RUN_PERIODS``; else a ValueError naming ``name``."""
+    if not periods <= MAX_RUN_PERIODS:
+        raise ValueError(f"{name} spans {periods:.3g} forcing periods, above the bound of {MAX_RUN_PERIODS:.0e} "
+                         "for one run (the kernel steps through every period); shorten the run")
+    return periods
+
+
+def effects_tuple(effects) -> tuple:
+    """Validated effects: a sequence of effect objects (each with a ``keeps_similarity`` attribute)."""
+    if isinstance(effects, (str, bytes)) or not hasattr(effects, "__iter__"):
+        raise ValueError(f"effects must be a sequence of effect objects (dfloop.impact.effects), got {effects!r}")
+    effects = tuple(effects)
+    for e in effects:
+        if not isinstance(getattr(e, "keeps_similarity", None), bool):
+            raise ValueError(f"effects: {e!r} is not an effect object (e.g. dfloop.impact.ViscousDamping(c=...)); "
+                             f"got effects={effects!r}")
+    return effects
+
+
+def initial_state(initial, h: float) -> tuple[float, float, float, float]:
+    """``initial`` (x1, v1, gap, u) in m, m/s as four finite floats with the gap in [0, h]; else a ValueError."""
+    try:
+        x1, v1, gap, u = (float(v) for v in initial)
+    except (TypeError, ValueError):
+        raise ValueError(f"initial must be four numbers (x1, v1, gap, u), got {initial!r}") from None
+    if not all(math.isfinite(v) for v in (x1, v1, gap, u)):
+        raise ValueError(f"initial must be finite, got {initial!r}")
+    if not 0.0 <= gap <= h:
+        raise ValueError(f"initial gap must lie in [0, h = {h:g}], got {gap!r}")
+    return x1, v1, gap, u
 
 
 @dataclass(frozen=True)

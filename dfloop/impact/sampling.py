@@ -23,6 +23,7 @@ from ..tables import Samples
 from ._core import FREE
 from .extract import PERIODICITY_TOL, impact_describing_function_batch
 from .kernel import simulate
+from .model import run_periods
 
 __all__ = ["ImpactSampler", "STARTS", "FAILED", "OMEGA_REF", "regime_label", "matched_orbits"]
 
@@ -85,6 +86,8 @@ class ImpactSampler:
                  transient_periods: int | None = None, max_transient_periods: int = 4000, periods: int = 20,
                  max_events: int | None = None, starts: int = 2):
         self.m1, self.m2, self.h, self.restitution = m1, m2, h, restitution
+        transient = max_transient_periods if transient_periods is None else transient_periods
+        run_periods(f"{'max_' if transient_periods is None else ''}transient_periods + periods", transient + periods)
         self.effects = tuple(effects)
         self.transient_periods, self.max_transient_periods = transient_periods, max_transient_periods
         self.periods, self.max_events, self.starts = periods, max_events, starts

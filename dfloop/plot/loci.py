@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..describing.base import DescribingFunction, negative_inverse
+from ..describing.interop import as_element
 from ._curves import add_direction_arrow, curve_with_gaps
 from ._labels import axes_or_new, legend, plane_labels
 from .controlplot import control_plot
@@ -55,6 +56,7 @@ def plot_loci(N: DescribingFunction, amplitudes=None, omega=None, ax=None, **kw)
     """
     import matplotlib.pyplot as plt
 
+    N = as_element(N)
     ax = axes_or_new(ax)
     curves = []
     if N.frequency_dependent:

@@ -26,6 +26,12 @@ def make_plant(spec: Any, loc: tuple = ("plant",)) -> Any:
             from None
     if system.ninputs != 1 or system.noutputs != 1:
         raise SceneError(None, Problem(dotted(loc), f"must be SISO, got {system.noutputs}x{system.ninputs}"))
+    from ..solve.plant import MAX_ORDER  # the solver's bound, checked at load rather than after the others ran
+
+    order = system.nstates if isinstance(system, ct.StateSpace) else max(len(system.num[0][0]), len(system.den[0][0])) - 1
+    if order > MAX_ORDER:
+        raise SceneError(None, Problem(dotted(loc), f"order {order} is above the solver's bound of {MAX_ORDER}; "
+                                                    "reduce the model first (e.g. control.balred)"))
     return delayed(system, spec.delay) if spec.delay > 0 else system
 
 

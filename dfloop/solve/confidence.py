@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import positive, show
+from .._checks import scale, show
 from ..describing.interop import as_element
 
 __all__ = ["Confidence", "cycle_confidence"]
@@ -137,8 +137,8 @@ def cycle_confidence(G, N, amplitude: float, frequency: float | None = None, *, 
     if frequency is None:
         raise ValueError(f"frequency is required (rad/s): cycle_confidence(G, N, amplitude, frequency); got "
                          f"amplitude={show(amplitude)} and no frequency (for a LimitCycle c pass c.amplitude, c.frequency)")
-    A = positive("amplitude", amplitude)
-    w = positive("frequency", frequency)
+    A = scale("amplitude", amplitude)
+    w = scale("frequency", frequency)
     S = int(in_closed_interval("samples", samples, 64, 2**20))
     K = int(in_closed_interval("harmonics", harmonics, 2, S // 4))
     if N.frequency_dependent:

@@ -16,16 +16,15 @@ excluded by that certificate, so its winding number is exactly 0 (see ``_kernels
 """
 from __future__ import annotations
 
-import math
-import os
 from typing import Callable
 
 import numpy as np
 
+from .._checks import memory_limit
 from .plant import Plant
 
-__all__ = ["STEP", "FD_MIN_WIDTH", "MEMORY_LIMIT_GIB", "BYTES_PER_POINT", "resolve_plant", "resolve_sampled",
-           "check_memory", "memory_limit", "clog", "largest_step"]
+__all__ = ["STEP", "FD_MIN_WIDTH", "BYTES_PER_POINT", "resolve_plant", "resolve_sampled", "check_memory", "clog",
+           "largest_step"]
 
 STEP = 0.35
 """Largest change of the complex log of G (or N) allowed within one grid interval (|d ln| = |d ln|f|| + phase)."""
@@ -34,27 +33,11 @@ _MAX_ROUNDS = 64  # halvings of an interval; with the minimum width below, never
 _MIN_WIDTH = 1e-13  # intervals narrower than this (log units, relative to 1 + |x|) are not split (a jump)
 FD_MIN_WIDTH = 1e-6  # the same for a frequency-dependent N, whose jumps move with the amplitude
 _MAX_POINTS = 2_000_000  # nodes per axis
-MEMORY_LIMIT_GIB = 2.0
-"""Default bound (GiB) on the solver's work arrays over its tensor grid; ``DFLOOP_MEMORY_LIMIT`` (GiB) overrides it."""
 BYTES_PER_POINT = {False: 48, True: 160}
 """Upper bounds on the solver's peak memory per grid point (bytes), for an amplitude-only N (False) and a
 frequency-dependent N (True). Measured peaks (tracemalloc, tests/test_memory_bounds.py): ~23 and ~129: the
 amplitude-only solver works on the candidate cells and the products of two vectors, a frequency-dependent one
 on the whole tensor grid (G N, 1 + G N, phases, refinement masks, windings, tangent seeds)."""
-
-
-def memory_limit() -> int:
-    """The memory bound in bytes: ``DFLOOP_MEMORY_LIMIT`` (GiB, a positive number) or ``MEMORY_LIMIT_GIB``."""
-    env = os.environ.get("DFLOOP_MEMORY_LIMIT")
-    if env is None:
-        return int(MEMORY_LIMIT_GIB * 1024 ** 3)
-    try:
-        gib = float(env)
-    except ValueError:
-        gib = math.nan
-    if not (math.isfinite(gib) and gib > 0):
-        raise ValueError(f"DFLOOP_MEMORY_LIMIT must be a positive number of GiB, got {env!r}")
-    return int(gib * 1024 ** 3)
 
 
 def check_memory(na: int, nv: int, frequency_dependent: bool = False) -> None:

@@ -12,6 +12,8 @@ from typing import Callable
 
 import numpy as np
 
+from .._checks import in_closed_interval, scale
+from ..describing.interop import as_element
 from .roots import Residual
 
 __all__ = ["loeb", "classify", "label_roots", "graphical_stability", "MARGINAL_TOL"]
@@ -105,14 +107,18 @@ def graphical_stability(G, N, amplitude: float, frequency: float, step: float = 
     (increasing amplitude) leaves the region encircled by the Nyquist plot of G (increasing frequency),
     i.e. iff cross(dG/dw, d(-1/N)/dA) > 0 with cross(p, q) = Re p Im q - Im p Re q.
 
-    ``G`` is a :class:`~dfloop.solve.plant.Plant` or anything :func:`as_plant` accepts.
+    ``G`` is a :class:`~dfloop.solve.plant.Plant` or anything :func:`as_plant` accepts; ``step`` is the
+    relative step of the central differences in w and A, in [1e-12, 0.5] (w (1 - step) and A (1 - step) stay
+    positive).
     """
     from .plant import as_plant
 
+    N = as_element(N)
     if N.frequency_dependent:
         raise ValueError("N must be amplitude-only for the graphical rule")
     g = as_plant(G)
-    w, A = float(frequency), float(amplitude)
+    w, A = scale("frequency", frequency), scale("amplitude", amplitude)
+    step = in_closed_interval("step", step, 1e-12, 0.5)
     dg = (g(np.array([w * (1 + step)])) - g(np.array([w * (1 - step)])))[0] / (2 * w * step)
     locus = -1.0 / N(np.array([A * (1 - step), A * (1 + step)]))
     dl = (locus[1] - locus[0]) / (2 * A * step)

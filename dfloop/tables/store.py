@@ -16,6 +16,10 @@ import threading
 from pathlib import Path
 from typing import Any, Callable
 
+import numpy as np
+
+from .. import _checks
+from ..errors import DfloopError
 from ..progress import announce, progress_bar
 from . import cache as _cache
 from .table1d import Table1D
@@ -61,7 +65,10 @@ class TableStore:
         self.name, self.label = str(name), str(label)
         self._parameters, self._restore = parameters, restore
         self._provenance, self._settings = dict(provenance or {}), dict(settings or {})
-        self.use_cache = bool(cache)
+        self.use_cache = _checks.flag("cache", cache)
+        if not (progress is None or isinstance(progress, (bool, np.bool_)) or callable(progress)):
+            raise DfloopError("progress must be True, False, None or a callable(n, stage), got "
+                              f"{_checks.show(progress)}")
         self.progress = progress
         self.table: Table1D | Table2D | None = None
         self.loaded_from_cache = False
