@@ -619,7 +619,7 @@ def _exact_at(item, loop_at: Callable):
     found = []
     for A, w in seeds:
         try:
-            ex = exact_cycle(G, N, (A, w))
+            ex = exact_cycle(G, N, (A, w), globalise=False)   # the seeds are many: shooting alone from each
         except (ValueError, RuntimeError, ArithmeticError):  # no orbit from this seed (e.g. it collapses to rest)
             continue
         if ex.success and not any(abs(ex.amplitude / a - 1) < 1e-6 and abs(ex.frequency / f - 1) < 1e-6

@@ -182,7 +182,7 @@ def _failure(message, predicted, method, residual=math.inf, iterations=0) -> Exa
 @single_threaded_blas
 def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, tol: float = 1e-11,
                 max_iterations: int = 40, settle_periods: float | None = None, max_events: int = 10_000,
-                max_deviation: float = 0.5, nodes: int = 8) -> ExactCycle:
+                max_deviation: float = 0.5, nodes: int = 8, globalise: bool = True) -> ExactCycle:
     """Find the true periodic orbit near a predicted limit cycle, its Floquet multipliers and the DF's errors.
 
     Parameters
@@ -223,6 +223,10 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     max_deviation : float
         An orbit whose amplitude or frequency differs from the prediction by more than this in log scale
         (0.5: a factor 1.65) is reported as another orbit (``success`` False, its numbers in the message).
+    globalise : bool
+        When shooting from the prediction fails, look further before answering (default; see Returns). False
+        answers from the shooting alone (its failure is then "not checked", never "no orbit"): for callers that
+        try many seeds themselves, such as a design chart's exact samples.
 
     Returns
     -------
@@ -232,7 +236,7 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
         fewer nodes, runs from three starts on the exact flow, shooting from every oscillation seen), and a "no
         orbit" answer says where the motions went (``extra["outcome"]``, ``extra["motions"]``).
     """
-    from ._checks import in_closed_interval
+    from ._checks import flag, in_closed_interval
     from .hybrid import ShootingError, delay_orbit, loop_model, periodic_orbit
     from .hybrid.globalise import shoot_or_globalise
 
@@ -249,12 +253,13 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     max_events = integer_at_least("max_events", max_events, 1)  # 2.5 is refused, not truncated
     max_events = int(in_closed_interval("max_events", max_events, 1, 10**9))
     m = int(in_closed_interval("nodes", nodes, 1, 1000))
+    globalise = flag("globalise", globalise)
 
     # no false "no orbit": the whole search below runs inside the globalisation wrapper, which globalises a failure
     options = dict(harmonics=harmonics, samples=samples, tol=tol, max_iterations=max_iterations,
                    settle_periods=settle_periods, max_events=max_events, max_deviation=max_deviation, nodes=nodes)
-    outer = shoot_or_globalise(G, N, predicted, lambda c, **kw: exact_cycle(G, N, c, **{**options, **kw}),
-                               max_deviation)
+    outer = None if not globalise else shoot_or_globalise(
+        G, N, predicted, lambda c, **kw: exact_cycle(G, N, c, **{**options, **kw}), max_deviation)
     if outer is not None:
         return outer
     loop = loop_model(G, N, A0, w0, what="exact_cycle")
