@@ -27,6 +27,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     # prediction, and the checks of a predicted cycle
     "dfloop.solve": ("predict_limit_cycles", "LimitCycle", "LimitCycles", "ContinuumError"),
     "dfloop.exact": ("ExactCycle", "exact_cycle"),
+    "dfloop.hybrid.discrete": ("discrete_orbits",),
     "dfloop.verify": ("simulate_loop", "Verification", "verify_cycle"),
     "dfloop.confidence": ("Confidence", "cycle_confidence"),
     # many loops: a parameter sweep, a batch
