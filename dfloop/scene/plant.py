@@ -45,11 +45,32 @@ def make_plant(spec: Any, loc: tuple = ("plant",)) -> Any:
             from None
     if system.ninputs != 1 or system.noutputs != 1:
         raise SceneError(None, Problem(dotted(loc), f"must be SISO, got {system.noutputs}x{system.ninputs}"))
+    dt = getattr(spec, "dt", None)
+    if getattr(spec, "discrete", False) and dt is None:
+        raise SceneError(None, Problem(dotted(loc + ("discrete",)), "discrete = true needs the sampling period dt"))
+    if dt is not None:   # a digital loop (dfloop.solve.sampled): G(z), by a zero-order hold or given in z
+        if spec.delay > 0:
+            raise SceneError(None, Problem(dotted(loc + ("delay",)), "a delay and a sampling period dt together "
+                                           "are not supported; give the delay as z^-k in a discrete system"))
+        if spec.discrete:
+            system = ct.ss(system.A, system.B, system.C, system.D, dt) if isinstance(system, ct.StateSpace) else \
+                ct.tf(system.num[0][0], system.den[0][0], dt)
+        else:
+            system = ct.sample_system(system, dt, "zoh")
     return DelayedPlant(system, spec.delay) if spec.delay > 0 else system
 
 
 def series(controller: Any, plant: Any) -> Any:
-    """The loop controller * plant; delays add up (the result is delayed if either part is)."""
+    """The loop controller * plant; delays add up (the result is delayed if either part is). A digital controller
+    and a continuous plant: the plant is sampled behind a zero-order hold at the controller's period."""
+    import control as ct
+
+    c_dt, p_dt = (getattr(p, "dt", 0) or 0 for p in (controller, plant))
+    if c_dt and not p_dt and not isinstance(plant, DelayedPlant):
+        plant = ct.sample_system(plant, c_dt, "zoh")
+    elif c_dt and p_dt and c_dt != p_dt:
+        raise SceneError(None, Problem("controller.dt", f"the controller's sampling period {c_dt:g} s differs from "
+                                       f"the plant's {p_dt:g} s"))
     systems = [p.system if isinstance(p, DelayedPlant) else p for p in (controller, plant)]
     delay = sum(p.delay for p in (controller, plant) if isinstance(p, DelayedPlant))
     system = systems[0] * systems[1]
