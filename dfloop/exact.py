@@ -242,7 +242,7 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     from .hybrid.discrete import is_discrete
 
     if is_discrete(G):   # a digital loop: a finite-dimensional map (dfloop.hybrid.discrete)
-        return _discrete_result(G, N, predicted, harmonics, max_deviation)
+        return _discrete_result(G, N, predicted, harmonics, max_deviation, getattr(cycle, "stability", None))
     loop = loop_model(G, N, A0, w0, what="exact_cycle")
     if not loop.exact:
         raise ValueError(f"N: {type(N).__name__} is known only through a sampled operator ({loop.method}): "
@@ -268,13 +268,13 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     return out
 
 
-def _discrete_result(G, N, predicted, harmonics: int, max_deviation: float) -> ExactCycle:
+def _discrete_result(G, N, predicted, harmonics: int, max_deviation: float, stability=None) -> ExactCycle:
     """The ExactCycle of a digital loop: the orbit of the map nearest the prediction (its P samples as t, x, y;
     ``extra``: ``map`` True, ``samples_per_period`` P, ``harmonic`` m, ``orbit`` the DiscreteOrbit)."""
     from .hybrid.discrete import discrete_cycle
 
     A0, w0 = predicted
-    orbit, note = discrete_cycle(G, N, A0, w0, max_deviation=max_deviation)
+    orbit, note = discrete_cycle(G, N, A0, w0, max_deviation=max_deviation, stability=stability)
     method = f"digital loop (exact map): {note}"
     if orbit is None:
         return _failure(note, predicted, method)

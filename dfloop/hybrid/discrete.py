@@ -531,13 +531,14 @@ def _settled_orbit(A, B, C, dt, N, f, amplitude, frequency, lo, hi, v, max_sampl
 
 
 def discrete_cycle(G, N, amplitude: float, frequency: float, *, max_deviation: float = 0.5,
-                   max_nodes: int = 50_000):
+                   max_nodes: int = 50_000, stability: str | None = None):
     """The exact orbit of a digital loop nearest a predicted cycle (amplitude, frequency), or a message.
 
     Piecewise-constant element: the orbit a run from the prediction settles on (made exact by the periodic
     equations of its output sequence) when it lies within ``max_deviation``, else every orbit of period within a
     factor 1.5 of P0 = 2 pi / (frequency dt) samples (:func:`discrete_orbits`, ``max_nodes`` per period: an
-    incomplete search is said in the message); other static elements:
+    incomplete search is said in the message). A prediction whose ``stability`` is "unstable" skips the run (it
+    would settle on a stable orbit, not the predicted one). Other static elements:
     :func:`shoot_discrete` at periods round(P0) - 1 .. round(P0) + 1. The orbit whose dominant harmonic is nearest
     the prediction in log(amplitude) and log(frequency) is returned, if within ``max_deviation``.
 
@@ -561,9 +562,10 @@ def discrete_cycle(G, N, amplitude: float, frequency: float, *, max_deviation: f
     found, note = [], ""
     if parts is not None:
         lo, hi, v, f = parts
-        o = _settled_orbit(A, B, C, dt, N, f, amplitude, frequency, lo, hi, v, 20 * int(P0 + 2) + 400)
-        if o is not None and o.harmonic > 0 and deviation(o) <= max_deviation:
-            return o, "the orbit a run from the prediction settles on (stable; other orbits not enumerated)"
+        if stability != "unstable":
+            o = _settled_orbit(A, B, C, dt, N, f, amplitude, frequency, lo, hi, v, 20 * int(P0 + 2) + 400)
+            if o is not None and o.harmonic > 0 and deviation(o) <= max_deviation:
+                return o, "the orbit a run from the prediction settles on (stable; other orbits not enumerated)"
         periods = range(max(2, int(P0 / 1.5)), min(200, int(math.ceil(P0 * 1.5))) + 1)
         res = discrete_orbits(G, N, max_period=max(periods), bound=bound, max_nodes=max_nodes, periods=periods)
         found = res.oscillating()
