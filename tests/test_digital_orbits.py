@@ -182,3 +182,38 @@ def test_shooting_on_the_map_closed_form_saturation_orbit():
     assert np.allclose(ys, np.tile(o.y, 5), atol=1e-12)
     ex = exact_cycle(G, Saturation(1.0), c)
     assert ex.success and ex.amplitude == pytest.approx(o.amplitude) and ex.extra["samples_per_period"] == 4
+
+
+@pytest.mark.parametrize("seed", [0, 3, 6, 8, 9])
+def test_enumeration_equals_brute_force_over_all_sequences(seed):
+    """Random first- and second-order loops with a quantizer (5 levels within |x| <= 2.4): the orbits of period
+    <= 6 are exactly those a brute force over all 5^P output sequences finds (own periodic solve and check)."""
+    rng = np.random.default_rng(seed)
+    if seed % 2:
+        G = ct.tf([rng.uniform(0.6, 1.2)], [1.0, rng.uniform(-0.3, 0.5)], 1.0)
+    else:
+        G = ct.tf([rng.uniform(0.5, 1.5), rng.uniform(-0.5, 0.5)], [1.0, rng.uniform(-1.0, 0.2), rng.uniform(0.3, 0.8)], 1.0)
+    bound = 2.4
+    res = discrete_orbits(G, Quantizer(1.0), max_period=6, bound=bound)
+    assert res.complete
+    sys = ct.ss(G)
+    A, B, C = np.asarray(sys.A), np.asarray(sys.B)[:, 0], np.asarray(sys.C)[0]
+    n = A.shape[0]
+    levels = np.array([-2.0, -1.0, 0.0, 1.0, 2.0])
+    expect = set()
+    for P in range(1, 7):
+        AP = np.linalg.matrix_power(A, P)
+        for idx in np.ndindex(*([5] * P)):
+            y = levels[list(idx)]
+            s = np.linalg.solve(np.eye(n) - AP, sum(np.linalg.matrix_power(A, P - 1 - j) @ B * y[j] for j in range(P)))
+            ok = True
+            for k in range(P):
+                x = -C @ s
+                if abs(x) > bound or _rounding(x) != y[k]:
+                    ok = False
+                    break
+                s = A @ s + B * y[k]
+            if ok:
+                expect.add(_canon(tuple(y)))
+    assert {_canon(o.y) for o in res} == expect
+    assert any(len(e) > 1 for e in expect)      # these loops have oscillating orbits (periods 2, 3 or 4)
