@@ -40,7 +40,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     "dfloop.errors": ("DfloopError", "EventLimitError", "CacheWarning"),
 }
 _SUBMODULES = ("describing", "impact", "tables", "solve", "verify", "plot", "harmonics", "progress", "scene", "cli",
-               "cache_admin", "errors", "exact", "confidence", "hybrid", "batch", "continuation", "chart")
+               "cache_admin", "errors", "exact", "confidence", "hybrid", "batch", "continuation", "chart", "autotune")
 
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
 __all__ = [*_WHERE, "__version__"]

@@ -1,0 +1,133 @@
+"""The relay experiment of relay-feedback auto-tuning (Astrom-Hagglund), predicted two ways and checked.
+
+Put a relay of output level M (hysteresis a, optional) in the loop of plant G, read the oscillation's amplitude
+``a`` (the peak of the relay's input) and period Tu, and take Ku = 4 M / (pi a): the describing-function estimate of
+the ultimate gain, the gain at which G's loop would oscillate, with period Tu, at the frequency where arg G = -180
+deg. :func:`relay_experiment` predicts the experiment by the DF (:func:`dfloop.predict_limit_cycles`) and exactly
+(:func:`dfloop.exact_cycle`: the orbit the relay loop really settles on), gives (Ku, Tu) estimated from each, the
+true ultimate point of G (python-control's ``stability_margins``: gain margin and phase-crossover frequency) and
+the errors of the estimates. For an ideal relay the DF estimate is the true ultimate point itself (the DF equation
+1 + G N = 0 with N real says exactly arg G = -180 deg, |G| = 1 / N); the experiment (the exact orbit) is not, and
+its error is what a tuning inherits.
+
+Works for any plant ``exact_cycle`` takes: continuous tf/ss, and digital loops (discrete tf/ss: the experiment run
+by a sampled controller).
+"""
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from .describing.static import Relay
+from .exact import ExactCycle, exact_cycle
+from .solve.predict import predict_limit_cycles
+from .solve.result import LimitCycle
+
+__all__ = ["RelayExperiment", "relay_experiment"]
+
+
+@dataclass(frozen=True, repr=False)
+class RelayExperiment:
+    """The relay experiment on G: DF prediction, exact oscillation, ultimate-point estimates and the truth.
+
+    Attributes
+    ----------
+    prediction : LimitCycle
+        The DF's stable oscillation (amplitude of the fundamental of the relay input, rad/s).
+    exact : ExactCycle or None
+        The true orbit (None when ``exact=False``).
+    amplitude_exact : float or None
+        Peak |x - mean x| of the relay input over the exact orbit (its samples: 512 per period for a continuous
+        loop, the P samples of a digital one): what the experimenter reads as ``a``.
+    Ku_df, Tu_df : float
+        Ultimate gain 4 M / (pi A) and period 2 pi / w from the DF prediction.
+    Ku_experiment, Tu_experiment : float or None
+        The same read from the exact orbit (4 M / (pi a), its period (s)).
+    Ku, Tu : float
+        The true ultimate gain (gain margin) and period 2 pi / w_180 of G.
+    errors : dict
+        Relative errors (estimate - true) / true of ``Ku_df``, ``Tu_df``, ``Ku_experiment``, ``Tu_experiment``.
+    """
+
+    prediction: LimitCycle
+    exact: ExactCycle | None
+    amplitude_exact: float | None
+    Ku_df: float
+    Tu_df: float
+    Ku_experiment: float | None
+    Tu_experiment: float | None
+    Ku: float
+    Tu: float
+    errors: dict
+
+    def __repr__(self) -> str:
+        e = self.errors
+        exp = ("" if self.Ku_experiment is None else
+               f"; experiment Ku={self.Ku_experiment:.6g} ({100 * e['Ku_experiment']:+.3g} %), "
+               f"Tu={self.Tu_experiment:.6g} s ({100 * e['Tu_experiment']:+.3g} %)")
+        return (f"RelayExperiment(true Ku={self.Ku:.6g}, Tu={self.Tu:.6g} s; DF Ku={self.Ku_df:.6g} "
+                f"({100 * e['Ku_df']:+.3g} %), Tu={self.Tu_df:.6g} s ({100 * e['Tu_df']:+.3g} %){exp})")
+
+
+def _ultimate_point(G) -> tuple[float, float]:
+    import control as ct
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)   # python-control's "falling back to frd" notice
+        gm, _, _, w180, _, _ = ct.stability_margins(G)
+    if not (math.isfinite(gm) and math.isfinite(w180) and w180 > 0):
+        raise ValueError(f"G has no finite ultimate point (arg G never reaches -180 deg: gain margin {gm}, phase "
+                         f"crossover {w180}); a relay experiment needs one")
+    return float(gm), 2.0 * math.pi / float(w180)
+
+
+def relay_experiment(G, relay: Relay | None = None, *, exact: bool = True, omega=None) -> RelayExperiment:
+    """Predict the relay experiment on G (DF and exact), and the errors of its ultimate-point estimates.
+
+    Parameters
+    ----------
+    G : python-control tf or ss (SISO; continuous, or discrete with dt > 0)
+        The process, with the loop convention of dfloop (the relay sees x = -c).
+    relay : Relay, optional
+        The relay (default ``Relay(1.0)``, ideal); hysteresis and dead zone allowed.
+    exact : bool
+        Also compute the exact orbit (:func:`dfloop.exact_cycle`) and the experiment's estimates.
+    omega : (float, float), optional
+        Frequency window of the prediction (rad/s); default from G.
+
+    Returns
+    -------
+    RelayExperiment
+
+    Raises
+    ------
+    ValueError
+        ``relay`` is not a :class:`Relay`; G has no ultimate point; the DF predicts no stable oscillation.
+    """
+    relay = Relay(1.0) if relay is None else relay
+    if not isinstance(relay, Relay):
+        raise ValueError(f"relay must be a dfloop Relay, got {type(relay).__name__}")
+    if not isinstance(exact, (bool, np.bool_)):
+        raise ValueError(f"exact must be True or False; got {exact!r}")
+    Ku, Tu = _ultimate_point(G)
+    cycles = predict_limit_cycles(G, relay, omega=omega)
+    stable = [c for c in cycles if c.stability == "stable"]
+    if not stable:
+        raise ValueError(f"the DF predicts no stable oscillation of G with {relay!r} ({len(cycles)} cycle(s) in the "
+                         "window): no relay experiment")
+    c = max(stable, key=lambda c: c.amplitude)
+    Ku_df, Tu_df = 4.0 * relay.M / (math.pi * c.amplitude), 2.0 * math.pi / c.frequency
+    errors = {"Ku_df": (Ku_df - Ku) / Ku, "Tu_df": (Tu_df - Tu) / Tu}
+    ex, a_ex, Ku_ex, Tu_ex = None, None, None, None
+    if exact:
+        ex = exact_cycle(G, relay, c)
+        if not ex.success:
+            raise ValueError(f"no exact orbit near the DF's oscillation: {ex.message}")
+        a_ex = float(np.max(np.abs(ex.x - np.mean(ex.x))))
+        Ku_ex = 4.0 * relay.M / (math.pi * a_ex)
+        Tu_ex = 2.0 * math.pi / ex.frequency
+        errors.update({"Ku_experiment": (Ku_ex - Ku) / Ku, "Tu_experiment": (Tu_ex - Tu) / Tu})
+    return RelayExperiment(c, ex, a_ex, Ku_df, Tu_df, Ku_ex, Tu_ex, Ku, Tu, errors)

@@ -1,0 +1,68 @@
+"""The relay experiment (dfloop.autotune) against closed forms and an independent event-located simulation."""
+import math
+
+import control as ct
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from dfloop import Relay, Saturation
+from dfloop.autotune import relay_experiment
+
+G3 = ct.tf([1.0], [1.0, 3.0, 3.0, 1.0])
+
+
+def _relay_run(G, M, periods=40):
+    """Ideal relay y = M sign(x), x = -c, run with solve_ivp between located switches (each switch waits for the
+    crossing opposite to the previous one); (peak |x|, period) of the settled oscillation."""
+    sys = ct.ss(G)
+    A, B, C = np.asarray(sys.A), np.asarray(sys.B)[:, 0], np.asarray(sys.C)[0]
+    s = np.zeros(A.shape[0])
+    s[-1] = 0.1
+    c0 = float(C @ s)
+    y = -M * math.copysign(1.0, c0)
+    direction = 1.0 if c0 < 0 else -1.0      # c must cross zero upward first when it starts negative
+    t0, switches, peak = 0.0, [], 0.0
+    for i in range(2 * periods):
+        def ev(t, z):
+            return C @ z
+        ev.terminal, ev.direction = True, direction
+        sol = solve_ivp(lambda t, z: A @ z + B * y, (t0, t0 + 100.0), s, events=ev, rtol=1e-11, atol=1e-13,
+                        dense_output=True)
+        t1 = float(sol.t_events[0][0])
+        if i >= periods:
+            tt = np.linspace(t0, t1, 400)
+            peak = max(peak, float(np.max(np.abs(C @ sol.sol(tt)))))
+        switches.append(t1)
+        t0, s, y, direction = t1, sol.y_events[0][0], -y, -direction
+    T = 2.0 * float(np.mean(np.diff(switches[-20:])))
+    return peak, T
+
+
+def test_ideal_relay_df_estimate_is_the_ultimate_point():
+    """1/(s+1)^3: arg G = -180 deg at w = sqrt(3), |G| = 1/8 there, so Ku = 8, Tu = 2 pi / sqrt(3); the DF of an
+    ideal relay solves exactly arg G = -180 deg, |G| = pi A / (4 M): its estimate is the ultimate point."""
+    res = relay_experiment(G3, Relay(1.0), exact=False)
+    assert res.Ku == pytest.approx(8.0, rel=1e-9) and res.Tu == pytest.approx(2 * math.pi / math.sqrt(3), rel=1e-9)
+    assert res.Ku_df == pytest.approx(8.0, rel=1e-8) and res.Tu_df == pytest.approx(res.Tu, rel=1e-8)
+    assert res.exact is None and "Ku_experiment" not in res.errors
+
+
+def test_experiment_estimates_match_an_independent_relay_simulation():
+    res = relay_experiment(G3, Relay(1.0))
+    peak, T = _relay_run(G3, 1.0)
+    assert res.amplitude_exact == pytest.approx(peak, rel=1e-4)
+    assert res.Tu_experiment == pytest.approx(T, rel=1e-6)
+    assert res.Ku_experiment == pytest.approx(4 / (math.pi * peak), rel=1e-4)
+    # the experiment's error is what a tuning inherits: a few percent here, of known sign
+    assert -0.05 < res.errors["Ku_experiment"] < -0.01 and 0.005 < res.errors["Tu_experiment"] < 0.03
+
+
+def test_digital_relay_experiment_and_bad_input():
+    Gd = ct.sample_system(G3, 0.1)
+    res = relay_experiment(Gd)
+    assert res.exact.extra["map"] and res.Ku_df == pytest.approx(res.Ku, rel=1e-5)
+    with pytest.raises(ValueError, match="relay must be a dfloop Relay"):
+        relay_experiment(G3, Saturation(1.0))
+    with pytest.raises(ValueError, match="ultimate point"):
+        relay_experiment(ct.tf([1.0], [1.0, 1.0]))
