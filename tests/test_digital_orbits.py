@@ -217,3 +217,16 @@ def test_enumeration_equals_brute_force_over_all_sequences(seed):
                 expect.add(_canon(tuple(y)))
     assert {_canon(o.y) for o in res} == expect
     assert any(len(e) > 1 for e in expect)      # these loops have oscillating orbits (periods 2, 3 or 4)
+
+
+@pytest.mark.parametrize("kwargs, name", [({"max_period": 0}, "max_period"), ({"bound": -1.0}, "bound"),
+                                          ({"max_nodes": 0}, "max_nodes"), ({"periods": [0]}, "periods"),
+                                          ({"max_period": 4, "periods": [5]}, "periods")])
+def test_bad_arguments_name_the_parameter(kwargs, name):
+    kwargs = {"bound": 3.0, **kwargs}
+    with pytest.raises(ValueError, match=name):
+        discrete_orbits(ct.tf([0.8], [1.0, 0.0], 1.0), Quantizer(1.0), **kwargs)
+    with pytest.raises(ValueError, match="not a static piecewise-constant"):
+        discrete_orbits(ct.tf([0.8], [1.0, 0.0], 1.0), Saturation(1.0))
+    with pytest.raises(ValueError, match="strictly proper"):
+        discrete_orbits(ct.tf([1.0, 0.0], [1.0, 0.5], 1.0), Quantizer(1.0), bound=3.0)
