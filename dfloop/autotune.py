@@ -11,7 +11,8 @@ the errors of the estimates. For an ideal relay the DF estimate is the true ulti
 its error is what a tuning inherits.
 
 Works for any plant ``exact_cycle`` takes: continuous tf/ss, and digital loops (discrete tf/ss: the experiment run
-by a sampled controller).
+by a sampled controller); and for the first-order-plus-dead-time model K e^{-Ls} / (T s + 1) (``delay=L`` with a
+first-order G), whose exact relay cycle has a closed form (:func:`fopdt_relay_cycle`).
 """
 from __future__ import annotations
 
@@ -26,7 +27,7 @@ from .exact import ExactCycle, exact_cycle
 from .solve.predict import predict_limit_cycles
 from .solve.result import LimitCycle
 
-__all__ = ["RelayExperiment", "relay_experiment"]
+__all__ = ["RelayExperiment", "relay_experiment", "fopdt_relay_cycle", "fopdt_ultimate_point"]
 
 
 @dataclass(frozen=True, repr=False)
@@ -84,7 +85,54 @@ def _ultimate_point(G) -> tuple[float, float]:
     return float(gm), 2.0 * math.pi / float(w180)
 
 
-def relay_experiment(G, relay: Relay | None = None, *, exact: bool = True, omega=None) -> RelayExperiment:
+def fopdt_relay_cycle(K: float, T: float, L: float, M: float, a: float = 0.0) -> tuple[float, float]:
+    """Exact relay oscillation of K e^{-Ls} / (T s + 1) with a relay of level M and hysteresis a (switches at
+    x = +-a, x = -c): (peak |x|, period).
+
+    Let the relay switch to +M at t = 0 (c falls through -a); the plant input follows at t = L, when c is at its
+    extreme -c1; then c = K M - (K M + c1) e^{-(t - L)/T}. Symmetry gives c(L + h) = c1 (h the half period) and
+    the next switch c(h) = a. With q = e^{-h/T}: c1 = K M (1 - q) / (1 + q) and
+    q = (1 - a / (K M)) / (2 e^{L/T} - 1 + a / (K M)), so h = -T ln q, peak c1 = K M tanh(h / 2T), period 2h.
+    Valid when h > L (always for a = 0) and a < K M.
+    """
+    if not (K > 0 and T > 0 and L >= 0 and M > 0 and 0 <= a < K * M):
+        raise ValueError(f"fopdt_relay_cycle needs K, T, M > 0, L >= 0 and 0 <= a < K M; got K={K}, T={T}, L={L}, "
+                         f"M={M}, a={a}")
+    r = a / (K * M)
+    q = (1.0 - r) / (2.0 * math.exp(L / T) - 1.0 + r)
+    h = -T * math.log(q)
+    if h <= L:
+        raise ValueError(f"no symmetric relay oscillation of this form: half period {h:g} s <= delay {L:g} s")
+    return K * M * math.tanh(h / (2.0 * T)), 2.0 * h
+
+
+def fopdt_ultimate_point(K: float, T: float, L: float) -> tuple[float, float]:
+    """(Ku, Tu) of K e^{-Ls} / (T s + 1): atan(w T) + w L = pi, Ku = sqrt(1 + (w T)^2) / K, Tu = 2 pi / w."""
+    from scipy.optimize import brentq
+
+    if not (K > 0 and T > 0 and L > 0):
+        raise ValueError(f"fopdt_ultimate_point needs K, T, L > 0; got K={K}, T={T}, L={L}")
+    hi = math.pi / L
+    w = brentq(lambda w: math.atan(w * T) + w * L - math.pi, 1e-12 * hi, hi, xtol=1e-15, rtol=1e-15)
+    return math.sqrt(1.0 + (w * T) ** 2) / K, 2.0 * math.pi / w
+
+
+def _first_order(G) -> tuple[float, float]:
+    """(K, T) of K / (T s + 1) (ValueError otherwise)."""
+    import control as ct
+
+    if not isinstance(G, (ct.TransferFunction, ct.StateSpace)) or not G.isctime():
+        raise ValueError(f"with a delay, G must be a continuous first-order tf K/(T s + 1); got {type(G).__name__}")
+    tf = ct.tf(G)
+    num, den = np.trim_zeros(np.asarray(tf.num[0][0], float), "f"), np.trim_zeros(np.asarray(tf.den[0][0], float), "f")
+    if num.size != 1 or den.size != 2 or not (den[1] != 0 and den[0] / den[1] > 0 and num[0] / den[1] > 0):
+        raise ValueError(f"with a delay, G must be K/(T s + 1) with K, T > 0 (first order plus dead time); got "
+                         f"num={num.tolist()}, den={den.tolist()}")
+    return float(num[0] / den[1]), float(den[0] / den[1])
+
+
+def relay_experiment(G, relay: Relay | None = None, *, exact: bool = True, omega=None,
+                     delay: float = 0.0) -> RelayExperiment:
     """Predict the relay experiment on G (DF and exact), and the errors of its ultimate-point estimates.
 
     Parameters
@@ -96,7 +144,11 @@ def relay_experiment(G, relay: Relay | None = None, *, exact: bool = True, omega
     exact : bool
         Also compute the exact orbit (:func:`dfloop.exact_cycle`) and the experiment's estimates.
     omega : (float, float), optional
-        Frequency window of the prediction (rad/s); default from G.
+        Frequency window of the prediction (rad/s); default from G (with a delay: 1e-3/L .. 100/L).
+    delay : float
+        Dead time L (s) >= 0. With L > 0, G must be K/(T s + 1) (FOPDT): the exact cycle is the closed form
+        :func:`fopdt_relay_cycle` (relays without dead zone; ``exact`` is then the closed form's (peak, period)
+        and the ``exact`` attribute is None), the DF runs on G(jw) e^{-jwL}.
 
     Returns
     -------
@@ -107,13 +159,23 @@ def relay_experiment(G, relay: Relay | None = None, *, exact: bool = True, omega
     ValueError
         ``relay`` is not a :class:`Relay`; G has no ultimate point; the DF predicts no stable oscillation.
     """
+    from ._checks import nonnegative
+
     relay = Relay(1.0) if relay is None else relay
     if not isinstance(relay, Relay):
         raise ValueError(f"relay must be a dfloop Relay, got {type(relay).__name__}")
     if not isinstance(exact, (bool, np.bool_)):
         raise ValueError(f"exact must be True or False; got {exact!r}")
-    Ku, Tu = _ultimate_point(G)
-    cycles = predict_limit_cycles(G, relay, omega=omega)
+    delay = nonnegative("delay", delay)
+    if delay > 0:
+        K, T = _first_order(G)
+        Ku, Tu = fopdt_ultimate_point(K, T, delay)
+        plant = lambda w: K * np.exp(-1j * w * delay) / (1j * w * T + 1.0)   # noqa: E731
+        omega = omega if omega is not None else (1e-3 / delay, 100.0 / delay)
+    else:
+        Ku, Tu = _ultimate_point(G)
+        plant = G
+    cycles = predict_limit_cycles(plant, relay, omega=omega)
     stable = [c for c in cycles if c.stability == "stable"]
     if not stable:
         raise ValueError(f"the DF predicts no stable oscillation of G with {relay!r} ({len(cycles)} cycle(s) in the "
@@ -122,12 +184,18 @@ def relay_experiment(G, relay: Relay | None = None, *, exact: bool = True, omega
     Ku_df, Tu_df = 4.0 * relay.M / (math.pi * c.amplitude), 2.0 * math.pi / c.frequency
     errors = {"Ku_df": (Ku_df - Ku) / Ku, "Tu_df": (Tu_df - Tu) / Tu}
     ex, a_ex, Ku_ex, Tu_ex = None, None, None, None
-    if exact:
+    if exact and delay > 0:
+        if relay.dead_zone != 0:
+            raise ValueError("the closed-form FOPDT relay cycle is for relays without dead zone; got dead_zone="
+                             f"{relay.dead_zone!r}")
+        a_ex, Tu_ex = fopdt_relay_cycle(K, T, delay, relay.M, relay.hysteresis)
+    elif exact:
         ex = exact_cycle(G, relay, c)
         if not ex.success:
             raise ValueError(f"no exact orbit near the DF's oscillation: {ex.message}")
         a_ex = float(np.max(np.abs(ex.x - np.mean(ex.x))))
-        Ku_ex = 4.0 * relay.M / (math.pi * a_ex)
         Tu_ex = 2.0 * math.pi / ex.frequency
+    if a_ex is not None:
+        Ku_ex = 4.0 * relay.M / (math.pi * a_ex)
         errors.update({"Ku_experiment": (Ku_ex - Ku) / Ku, "Tu_experiment": (Tu_ex - Tu) / Tu})
     return RelayExperiment(c, ex, a_ex, Ku_df, Tu_df, Ku_ex, Tu_ex, Ku, Tu, errors)
