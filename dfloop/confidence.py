@@ -194,7 +194,7 @@ def cycle_confidence(G, N, amplitude: float, frequency: float | None = None, *, 
     spread, n_samples = None, None
     dt = getattr(plant, "dt", None)
     if dt is not None:   # a discrete-time plant: how much the phase of the samples moves the element's DF
-        from .solve.sampled import sampled_df_spread
+        from dfloop.solve.sampled import sampled_df_spread
 
         spread, n_samples = sampled_df_spread(response, A, w, dt, complex(N(A)))
         note += (f"; discrete time (dt={dt:g} s): {n_samples} samples per period, the sampled DF varies by "
