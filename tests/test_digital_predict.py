@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dfloop import Quantizer, Relay, predict_limit_cycles
-from dfloop.confidence import cycle_confidence
+from dfloop import cycle_confidence
 from dfloop.solve.plant import as_plant
 
 

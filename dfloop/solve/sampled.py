@@ -17,7 +17,7 @@ When is the DF of a sampled element questionable? The element sees the samples x
 the oscillation; with S = 2 pi / (w dt) samples per period the fundamental of its output depends on the phase
 phi of the samples (for a cycle of P samples exactly, phi is fixed by the orbit). :func:`sampled_df_spread`
 measures that dependence: the largest relative deviation from N(A) of the fundamental computed from P =
-round(S) samples, over phases phi. :func:`dfloop.confidence.cycle_confidence` reports it for a discrete plant.
+round(S) samples, over phases phi. :func:`dfloop.cycle_confidence` reports it for a discrete plant.
 """
 from __future__ import annotations
 
