@@ -27,7 +27,11 @@ from .exact import ExactCycle, exact_cycle
 from .solve.predict import predict_limit_cycles
 from .solve.result import LimitCycle
 
-__all__ = ["RelayExperiment", "relay_experiment", "fopdt_relay_cycle", "fopdt_ultimate_point"]
+__all__ = ["RelayExperiment", "relay_experiment", "fopdt_relay_cycle", "fopdt_ultimate_point", "Tuning", "tune",
+           "closed_loop_check"]
+
+RULES = ("zn-p", "zn-pi", "zn-pid", "simc-pi")
+_PADE_ORDER = 12
 
 
 @dataclass(frozen=True, repr=False)
@@ -199,3 +203,91 @@ def relay_experiment(G, relay: Relay | None = None, *, exact: bool = True, omega
         Ku_ex = 4.0 * relay.M / (math.pi * a_ex)
         errors.update({"Ku_experiment": (Ku_ex - Ku) / Ku, "Tu_experiment": (Tu_ex - Tu) / Tu})
     return RelayExperiment(c, ex, a_ex, Ku_df, Tu_df, Ku_ex, Tu_ex, Ku, Tu, errors)
+
+
+@dataclass(frozen=True)
+class Tuning:
+    """A tuned controller: ``controller`` (python-control tf, from the error to the plant input), the rule, and
+    Kp, Ti (s, inf without integral action), Td (s, 0 without derivative action)."""
+
+    rule: str
+    Kp: float
+    Ti: float
+    Td: float
+    controller: object
+
+
+def tune(rule: str = "zn-pid", *, Ku: float | None = None, Tu: float | None = None, model=None,
+         tau_c: float | None = None, derivative_filter: float = 10.0) -> Tuning:
+    """PID parameters from the ultimate point (Ziegler-Nichols) or from a FOPDT model (SIMC).
+
+    Parameters
+    ----------
+    rule : {"zn-p", "zn-pi", "zn-pid", "simc-pi"}
+        Ziegler-Nichols from (Ku, Tu): P Kp = 0.5 Ku; PI Kp = 0.45 Ku, Ti = Tu / 1.2; PID Kp = 0.6 Ku, Ti = Tu / 2,
+        Td = Tu / 8. Skogestad's SIMC PI from ``model`` = (K, T, L) of K e^{-Ls}/(T s + 1): Kp = T / (K (tau_c + L)),
+        Ti = min(T, 4 (tau_c + L)), tau_c = L by default.
+    Ku, Tu : float
+        Ultimate gain and period (s), e.g. from :func:`relay_experiment` (``Ku_experiment``, ``Tu_experiment``).
+    model : (K, T, L)
+        FOPDT gain, time constant (s), delay (s) for SIMC.
+    tau_c : float, optional
+        SIMC closed-loop time constant (s), > 0.
+    derivative_filter : float
+        N of the derivative's filter Td s / (Td / N s + 1), > 0.
+
+    Returns
+    -------
+    Tuning
+    """
+    import control as ct
+
+    from ._checks import positive
+
+    if rule not in RULES:
+        raise ValueError(f"rule must be one of {RULES}; got {rule!r}")
+    n_f = positive("derivative_filter", derivative_filter)
+    if rule.startswith("zn"):
+        Ku, Tu = positive("Ku", Ku), positive("Tu", Tu)
+        Kp, Ti, Td = {"zn-p": (0.5 * Ku, math.inf, 0.0), "zn-pi": (0.45 * Ku, Tu / 1.2, 0.0),
+                      "zn-pid": (0.6 * Ku, Tu / 2.0, Tu / 8.0)}[rule]
+    else:
+        try:
+            K, T, L = (positive(name, v) for name, v in zip(("model K", "model T", "model L"), model))
+        except TypeError:
+            raise ValueError(f"model must be (K, T, L) for rule {rule!r}; got {model!r}") from None
+        tc = L if tau_c is None else positive("tau_c", tau_c)
+        Kp, Ti, Td = T / (K * (tc + L)), min(T, 4.0 * (tc + L)), 0.0
+    s = ct.tf("s")
+    C = Kp * (1 + (0 if math.isinf(Ti) else 1 / (Ti * s)) + (0 if Td == 0 else Td * s / (Td / n_f * s + 1)))
+    return Tuning(rule, float(Kp), float(Ti), float(Td), ct.tf(C))
+
+
+def closed_loop_check(controller, G, *, delay: float = 0.0, t_end: float | None = None) -> dict:
+    """Margins and step response of the loop controller * G (unit negative feedback), a check of a tuning.
+
+    A delay is replaced by a 12th-order Pade approximation. Returns ``gain_margin``, ``phase_margin`` (deg),
+    ``stable`` (all closed-loop poles in the left half plane), ``overshoot`` (fraction) and ``final_value`` of
+    the step response over [0, ``t_end``] s (default 100 s).
+    """
+    import control as ct
+
+    from ._checks import nonnegative
+
+    delay = nonnegative("delay", delay)
+    loop = controller * G
+    if delay > 0:
+        num, den = ct.pade(delay, _PADE_ORDER)
+        loop = loop * ct.tf(num, den)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        gm, pm, _, _, _, _ = ct.stability_margins(loop)
+    cl = ct.feedback(loop, 1)
+    stable = bool(np.all(np.real(ct.poles(cl)) < 0))
+    t_end = 100.0 if t_end is None else float(t_end)
+    resp = ct.step_response(cl, T=np.linspace(0.0, t_end, 4001))
+    y = np.asarray(resp.outputs, float).ravel()
+    final = float(y[-1])
+    return {"gain_margin": float(gm), "phase_margin": float(pm), "stable": stable,
+            "overshoot": float(max(0.0, (y.max() - final) / abs(final))) if final else math.inf,
+            "final_value": final}

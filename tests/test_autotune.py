@@ -114,3 +114,38 @@ def test_fopdt_relay_experiment_against_python_control_margins():
     assert res.errors["Ku_experiment"] < -0.1          # the classic underestimate of Ku on lag-dominant FOPDT
     with pytest.raises(ValueError, match="first order"):
         relay_experiment(G3, delay=1.0)
+
+
+def test_simc_pi_on_fopdt_has_skogestads_margins():
+    """SIMC PI with tau_c = L on K e^{-Ls}/(T s + 1), T <= 8 L: Ti = T cancels the lag and the loop is
+    e^{-Ls} / (2 L s): gain crossover 1/(2L), phase margin pi/2 - 1/2 rad = 61.35 deg, gain margin pi (phase -180
+    deg at w L = pi/2, |loop| = 1/pi there). python-control's margins of the Pade model agree; the step settles."""
+    from dfloop.autotune import closed_loop_check, tune
+
+    K, T, L = 2.0, 3.0, 1.0
+    t = tune("simc-pi", model=(K, T, L))
+    assert t.Kp == pytest.approx(T / (K * 2 * L)) and t.Ti == pytest.approx(T) and t.Td == 0.0
+    check = closed_loop_check(t.controller, ct.tf([K], [T, 1.0]), delay=L, t_end=60.0)
+    assert check["gain_margin"] == pytest.approx(math.pi, rel=1e-3)
+    assert check["phase_margin"] == pytest.approx(math.degrees(math.pi / 2 - 0.5), rel=1e-3)
+    assert check["stable"] and check["final_value"] == pytest.approx(1.0, abs=1e-3)
+
+
+def test_ziegler_nichols_from_the_relay_experiment():
+    """ZN PID from the experiment's (Ku, Tu) on 1/(s+1)^3: the controller is Kp (1 + 1/(Ti s) + Td s/(Td/10 s + 1))
+    (evaluated by hand), and the closed loop is stable with the classic large overshoot."""
+    from dfloop.autotune import closed_loop_check, relay_experiment, tune
+
+    res = relay_experiment(G3)
+    t = tune("zn-pid", Ku=res.Ku_experiment, Tu=res.Tu_experiment)
+    assert (t.Kp, t.Ti, t.Td) == pytest.approx((0.6 * res.Ku_experiment, res.Tu_experiment / 2, res.Tu_experiment / 8))
+    for w in (0.1, 1.0, 7.0):
+        s = 1j * w
+        by_hand = t.Kp * (1 + 1 / (t.Ti * s) + t.Td * s / (t.Td / 10 * s + 1))
+        assert complex(t.controller(s)) == pytest.approx(by_hand, rel=1e-12)
+    check = closed_loop_check(t.controller, G3)
+    assert check["stable"] and 0.2 < check["overshoot"] < 0.8 and check["final_value"] == pytest.approx(1.0, abs=1e-3)
+    with pytest.raises(ValueError, match="rule"):
+        tune("amigo", Ku=1.0, Tu=1.0)
+    with pytest.raises(ValueError, match="Ku"):
+        tune("zn-pi", Ku=-1.0, Tu=1.0)
