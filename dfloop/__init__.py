@@ -28,6 +28,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     "dfloop.solve": ("predict_limit_cycles", "LimitCycle", "LimitCycles", "ContinuumError"),
     "dfloop.solve.delay": ("delayed",),
     "dfloop.exact": ("ExactCycle", "exact_cycle"),
+    "dfloop.hybrid.discrete": ("discrete_orbits",),
     "dfloop.verify": ("simulate_loop", "Verification", "verify_cycle"),
     "dfloop.solve.confidence": ("Confidence", "cycle_confidence"),
     # many loops: a parameter sweep, a batch
@@ -40,7 +41,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     "dfloop.errors": ("DfloopError", "EventLimitError", "CacheWarning"),
 }
 _SUBMODULES = ("describing", "impact", "tables", "solve", "verify", "plot", "harmonics", "progress", "scene", "cli",
-               "cache_admin", "errors", "exact", "confidence", "hybrid", "batch", "continuation", "chart")
+               "cache_admin", "errors", "exact", "confidence", "hybrid", "batch", "continuation", "chart", "autotune")
 
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
 __all__ = [*_WHERE, "__version__"]

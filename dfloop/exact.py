@@ -108,7 +108,8 @@ class ExactCycle:
         """Largest modulus among the non-trivial multipliers (None without an orbit)."""
         if self.multipliers is None:
             return None
-        return float(np.max(np.abs(_nontrivial(self.multipliers)), initial=0.0))
+        mu = self.multipliers if self.extra.get("map") else _nontrivial(self.multipliers)  # a map has no trivial one
+        return float(np.max(np.abs(mu), initial=0.0))
 
     def to_dict(self) -> dict:
         """Plain data keyed by the attribute names (arrays as lists, complex harmonics and multipliers as
@@ -255,6 +256,11 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     m = int(in_closed_interval("nodes", nodes, 1, 1000))
     globalise = flag("globalise", globalise)
 
+    from .hybrid.discrete import is_discrete
+
+    if is_discrete(G):   # a digital loop: a finite-dimensional map (dfloop.hybrid.discrete)
+        return _discrete_result(G, N, predicted, harmonics, max_deviation, getattr(cycle, "stability", None))
+
     # no false "no orbit": the whole search below runs inside the globalisation wrapper, which globalises a failure
     options = dict(harmonics=harmonics, samples=samples, tol=tol, max_iterations=max_iterations,
                    settle_periods=settle_periods, max_events=max_events, max_deviation=max_deviation, nodes=nodes)
@@ -288,6 +294,33 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
                         "orbit; raise max_deviation to accept it", predicted, loop.method, orbit.residual,
                         orbit.iterations)
     return out
+
+
+def _discrete_result(G, N, predicted, harmonics: int, max_deviation: float, stability=None) -> ExactCycle:
+    """The ExactCycle of a digital loop: the orbit of the map nearest the prediction (its P samples as t, x, y;
+    ``extra``: ``map`` True, ``samples_per_period`` P, ``harmonic`` m, ``orbit`` the DiscreteOrbit)."""
+    from .hybrid.discrete import discrete_cycle
+
+    A0, w0 = predicted
+    orbit, note = discrete_cycle(G, N, A0, w0, max_deviation=max_deviation, stability=stability)
+    method = f"digital loop (exact map): {note}"
+    if orbit is None:
+        return _failure(note, predicted, method)
+    P, m, dt = orbit.period, orbit.harmonic, orbit.dt
+    X = 2.0 * np.fft.fft(orbit.x) / P
+    k = np.arange(1, harmonics + 1) * m
+    Xk = np.where(k <= P // 2, X[np.minimum(k, P - 1)], 0.0) * 1j   # x ~ Im(X_k e^{j k m 2 pi n / P})
+    if P % 2 == 0:
+        Xk = np.where(k == P // 2, Xk / 2, Xk)
+    phase = float(np.angle(Xk[0]))
+    Xk = Xk * np.exp(-1j * np.arange(1, harmonics + 1) * phase)
+    Xk[0] = abs(Xk[0])
+    return ExactCycle(True, f"periodic orbit of {P} samples (harmonic {m}); {orbit.method}", predicted, method,
+                      amplitude=orbit.amplitude, frequency=orbit.frequency, period=P * dt / m, t=np.arange(P) * dt,
+                      x=orbit.x, y=orbit.y, switching_times=np.empty(0), harmonics=Xk, multipliers=orbit.multipliers,
+                      stable=orbit.stable, amplitude_error=(A0 - orbit.amplitude) / orbit.amplitude,
+                      frequency_error=(w0 - orbit.frequency) / orbit.frequency, residual=0.0, iterations=0,
+                      extra={"map": True, "samples_per_period": P, "harmonic": m, "orbit": orbit})
 
 
 def _result(loop, orbit, predicted, harmonics: int, samples: int) -> ExactCycle:

@@ -312,8 +312,8 @@ PROBES: list[Probe] = [
     Probe("graphical_stability(G, N, amplitude, frequency)", "N = 2.0",
           lambda: graphical_stability(G3, 2.0, 1.0, 1.0), ValueError, ("N must be a dfloop DescribingFunction", "float")),
     Probe("as_plant(G)", "G = 3", lambda: as_plant(3), ValueError, ("G must be a python-control tf/ss/frd or a callable", "int")),
-    Probe("as_plant(G)", "discrete-time G", lambda: as_plant(ct.tf([1.0], [1.0, -0.5], 0.1)), ValueError,
-          ("continuous-time", "dt=0.1")),
+    Probe("as_plant(G)", "discrete-time G without a sampling period", lambda: as_plant(ct.tf([1.0], [1.0, -0.5], True)),
+          ValueError, ("numeric sampling period dt > 0", "dt=True")),
     # ------------------------------------------------------------------ verification
     Probe("simulate_loop(G, N, amplitude, frequency, ...)", "amplitude = -1", lambda: df.simulate_loop(G3, SAT, -1.0, 1.0),
           DfloopError, ("amplitude must be > 0", "-1.0")),

@@ -22,7 +22,7 @@ LAYERS = (
     ("impact", ("dfloop.impact",)),
     ("solve", ("dfloop.solve",)),
     ("exact", ("dfloop.hybrid", "dfloop.exact", "dfloop.verify")),
-    ("many", ("dfloop.continuation", "dfloop.batch", "dfloop.chart")),
+    ("many", ("dfloop.continuation", "dfloop.batch", "dfloop.chart", "dfloop.autotune")),
     ("plot", ("dfloop.plot",)),
     ("application", ("dfloop.scene", "dfloop.cli", "dfloop.cache_admin")),
 )

@@ -39,9 +39,9 @@ def test_mimo_plant_rejected():
         df.predict_limit_cycles(G, df.Saturation(1.0))
 
 
-def test_discrete_plant_rejected():
-    with pytest.raises(ValueError, match="continuous-time"):
-        df.predict_limit_cycles(ct.tf([1], [1, 0.5], dt=0.1), df.Saturation(1.0))
+def test_discrete_plant_without_sampling_period_rejected():
+    with pytest.raises(ValueError, match="numeric sampling period dt > 0"):
+        df.predict_limit_cycles(ct.tf([1], [1, 0.5], dt=True), df.Saturation(1.0))
 
 
 def test_nan_in_G_rejected():

@@ -45,7 +45,8 @@ def plant_system(G, *, what: str = "the exact flow"):
     if sys.ninputs != 1 or sys.noutputs != 1:
         raise ValueError(f"G must be SISO for {what}, got {sys.ninputs} inputs and {sys.noutputs} outputs")
     if not sys.isctime():
-        raise ValueError(f"G must be a continuous-time system for {what}, got dt = {sys.dt!r}")
+        raise ValueError(f"G must be a continuous-time system for {what}, got dt = {sys.dt!r} (a digital loop is a "
+                         "map: exact_cycle and dfloop.hybrid.discrete find its orbits)")
     return (np.asarray(sys.A, float), np.asarray(sys.B, float)[:, 0], np.asarray(sys.C, float)[0],
             float(np.asarray(sys.D, float)[0, 0]))
 

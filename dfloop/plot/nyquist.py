@@ -154,6 +154,8 @@ def _label_texts(cycles, jumps, N):
 def plot_nyquist(cycles, ax=None, *, omega=None, amplitude=None, n_loci: int = 5, inset: bool = True):
     """Plot G(jw), the -1/N locus and the predicted limit cycles on the Nyquist plane.
 
+    For a discrete-time plant (``dt`` > 0) the curve is G(e^{jw dt}) for w in the window (0 < w < pi/dt).
+
     Parameters
     ----------
     cycles : LimitCycles
@@ -227,6 +229,9 @@ def plot_nyquist(cycles, ax=None, *, omega=None, amplitude=None, n_loci: int = 5
     exact = [c.exact for c in cycles if getattr(c, "exact", None) is not None and c.exact.success]
     g_exact = plant(np.array([e.frequency for e in exact], dtype=float)) if exact else np.empty(0, complex)
     groups = _draw_curves(ax, g, loci, cycles, jumps, g_exact, labelled=True)
+    dt = getattr(plant, "dt", None)
+    if dt:   # a discrete-time plant: G(e^{jw dt}) on 0 < w < pi/dt (dfloop.solve.sampled)
+        groups[0][0].set_label(f"G(e^{{jωΔt}}), Δt={dt:g} s, ω < π/Δt")
     marks = np.array([c.G for c in cycles] + [j.G for j in jumps] + list(g_exact), dtype=complex)
     xlim, ylim = _view(np.concatenate([g] + [z for z, _, _, _ in loci]), marks)
     ax.set_xlim(*xlim)

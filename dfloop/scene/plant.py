@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..solve.delay import delayed
+from ..solve.delay import DelayedSystem, delayed
 from .errors import Problem, SceneError, dotted
 
 __all__ = ["make_plant", "series"]
@@ -32,9 +32,33 @@ def make_plant(spec: Any, loc: tuple = ("plant",)) -> Any:
     if order > MAX_ORDER:
         raise SceneError(None, Problem(dotted(loc), f"order {order} is above the solver's bound of {MAX_ORDER}; "
                                                     "reduce the model first (e.g. control.balred)"))
+    dt = getattr(spec, "dt", None)
+    if getattr(spec, "discrete", False) and dt is None:
+        raise SceneError(None, Problem(dotted(loc + ("discrete",)), "discrete = true needs the sampling period dt"))
+    if dt is not None:   # a digital loop (dfloop.solve.sampled): G(z), by a zero-order hold or given in z
+        if spec.delay > 0:
+            raise SceneError(None, Problem(dotted(loc + ("delay",)), "a delay and a sampling period dt together "
+                                           "are not supported; give the delay as z^-k in a discrete system"))
+        if spec.discrete:
+            system = ct.ss(system.A, system.B, system.C, system.D, dt) if isinstance(system, ct.StateSpace) else \
+                ct.tf(system.num[0][0], system.den[0][0], dt)
+        else:
+            system = ct.sample_system(system, dt, "zoh")
     return delayed(system, spec.delay) if spec.delay > 0 else system
 
 
 def series(controller: Any, plant: Any) -> Any:
-    """The loop controller * plant; delays add up (the result is delayed if either part is)."""
+    """The loop controller * plant; delays add up (the result is delayed if either part is). A digital controller
+    and a continuous plant: the plant is sampled behind a zero-order hold at the controller's period."""
+    import control as ct
+
+    c_dt, p_dt = (getattr(p, "dt", 0) or 0 for p in (controller, plant))
+    if c_dt and isinstance(plant, DelayedSystem):
+        raise SceneError(None, Problem("plant.delay", "a delay and a digital controller together are not supported; "
+                                       "give the delay as z^-k in a discrete plant"))
+    if c_dt and not p_dt:
+        plant = ct.sample_system(plant, c_dt, "zoh")
+    elif c_dt and p_dt and c_dt != p_dt:
+        raise SceneError(None, Problem("controller.dt", f"the controller's sampling period {c_dt:g} s differs from "
+                                       f"the plant's {p_dt:g} s"))
     return controller * plant

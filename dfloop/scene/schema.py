@@ -58,6 +58,11 @@ class SceneMeta(_Table):
 class _Plant(_Table):
     delay: float = Field(0.0, ge=0.0, description="Pure delay in seconds: the plant becomes `delayed(G, delay)`, exact in "
                                                     "prediction, exact cycles and verification.")
+    dt: float | None = Field(None, gt=0.0, description="Sampling period in seconds of a digital loop: the system "
+                             "is sampled behind a zero-order hold (control.sample_system), or, with `discrete = "
+                             "true`, its coefficients are already in powers of z. The loop then uses G(e^{jw dt}).")
+    discrete: bool = Field(False, description="The coefficients (or matrices) are those of a discrete-time system in "
+                           "z with sampling period `dt` (a digital controller); requires `dt`.")
 
 
 class TfPlant(_Plant):

@@ -47,6 +47,12 @@ class Confidence:
         dynamic backlash, elements without an operator); ``note`` says why and the numbers are None.
     note : str
         How the numbers were obtained, or why they are missing.
+    sampled_spread, samples_per_period : float or int or None
+        Discrete-time plants only (:mod:`dfloop.solve.sampled`): the cycle has about ``samples_per_period``
+        samples per period, and the describing function computed from that many samples of A sin(w t + phi)
+        deviates from N(A) by up to ``sampled_spread`` (relative) over the phases phi of the samples. Above 5 %
+        the DF of the sampled element is questionable (not :attr:`reliable`): compare with
+        :func:`dfloop.hybrid.discrete.discrete_orbits`.
     """
 
     distortion: float | None
@@ -55,13 +61,16 @@ class Confidence:
     harmonics: np.ndarray | None
     available: bool
     note: str
+    sampled_spread: float | None = None
+    samples_per_period: int | None = None
 
     @property
     def reliable(self) -> bool:
         """True when the distortion is at most ``DISTORTION_LIMIT`` (5 %): the estimates and the bracket are
         then trustworthy. Above it the DF's premise fails and the errors may be several times the estimates
         (they still say the prediction is poor); ``benchmarks/bench_exact.py`` shows both cases."""
-        return self.available and self.distortion <= DISTORTION_LIMIT
+        return (self.available and self.distortion <= DISTORTION_LIMIT
+                and (self.sampled_spread is None or self.sampled_spread <= DISTORTION_LIMIT))
 
     @property
     def bracket(self) -> tuple[float, float] | None:
@@ -79,7 +88,8 @@ class Confidence:
 
         return {"distortion": plain(self.distortion), "amplitude_error": plain(self.amplitude_error),
                 "frequency_error": plain(self.frequency_error), "available": self.available,
-                "reliable": self.reliable, "note": self.note, "harmonics": plain(self.harmonics)}
+                "reliable": self.reliable, "note": self.note, "harmonics": plain(self.harmonics),
+                "sampled_spread": plain(self.sampled_spread), "samples_per_period": self.samples_per_period}
 
     def to_csv(self, path) -> None:
         """Write the scalars of :meth:`to_dict` as a one-row CSV file (the harmonics are in ``to_dict``)."""
@@ -91,6 +101,9 @@ class Confidence:
         if not self.available:
             return f"Confidence(unavailable: {self.note})"
         warn = "" if self.reliable else "; distortion above 5 %: the DF is unreliable here, errors may be larger"
+        if self.sampled_spread is not None and self.sampled_spread > DISTORTION_LIMIT:
+            warn = (f"; {self.samples_per_period} samples per period: the sampled element's DF varies by "
+                    f"{100 * self.sampled_spread:.3g} % with the phase of the samples, the DF is questionable here")
         return (f"Confidence(distortion {100 * self.distortion:.3g} %, estimated DF error: amplitude "
                 f"{100 * self.amplitude_error:+.3g} %, frequency {100 * self.frequency_error:+.3g} %{warn})")
 
@@ -178,4 +191,12 @@ def cycle_confidence(G, N, amplitude: float, frequency: float | None = None, *, 
                           "the balance is singular in (A, w) here (a marginal cycle): no error estimate")
     note = (f"{S} samples per period, {K} harmonics; errors from one two-term harmonic-balance step"
             + ("" if usable.all() else f"; G known for {int(usable.sum())} of {K} harmonics"))
-    return Confidence(distortion, float(-dA / (A + dA)), float(-dw / (w + dw)), X, True, note)
+    spread, n_samples = None, None
+    dt = getattr(plant, "dt", None)
+    if dt is not None:   # a discrete-time plant: how much the phase of the samples moves the element's DF
+        from dfloop.solve.sampled import sampled_df_spread
+
+        spread, n_samples = sampled_df_spread(response, A, w, dt, complex(N(A)))
+        note += (f"; discrete time (dt={dt:g} s): {n_samples} samples per period, the sampled DF varies by "
+                 f"{100 * spread:.3g} % with the phase of the samples")
+    return Confidence(distortion, float(-dA / (A + dA)), float(-dw / (w + dw)), X, True, note, spread, n_samples)

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..errors import DfloopError
 from .delay import DelayedSystem
+from .sampled import discrete_parts
 
 __all__ = ["Plant", "as_plant", "MAX_ORDER"]
 
@@ -49,6 +50,9 @@ class Plant:
         is ``delay_free``), so no engine can drop the delay unnoticed.
     delay_free : object or None
         The python-control system without its delay (delayed plants only).
+    frequency_map, map_slope, dt : callable, callable, float or None
+        Discrete-time G (:mod:`dfloop.solve.sampled`): ``roots`` belong to H with G(e^{jw dt}) = H(j nu(w)),
+        ``frequency_map`` is nu(w), ``map_slope`` d ln nu / d ln w, ``dt`` the sampling period (s).
     """
 
     response: Callable[[np.ndarray], np.ndarray]
@@ -59,6 +63,9 @@ class Plant:
     roots: tuple[np.ndarray, np.ndarray] | None = None
     delay: float = 0.0
     delay_free: object = None
+    frequency_map: Callable | None = None
+    map_slope: Callable | None = None
+    dt: float | None = None
 
     def __call__(self, omega) -> np.ndarray:
         """G(j omega) as a complex array; raises ValueError if G is NaN or infinite anywhere, or if a
@@ -90,8 +97,12 @@ class Plant:
     def log_slope(self, omega) -> np.ndarray:
         """d ln G / d ln w = sum_z jw / (jw - z) - sum_p jw / (jw - p) - jwT (exact; rational G, delay T)."""
         zeros, poles = self.roots
-        s = 1j * np.asarray(omega, float)[..., None]
-        return (s / (s - zeros)).sum(axis=-1) - (s / (s - poles)).sum(axis=-1) - s[..., 0] * self.delay
+        w = np.asarray(omega, float)
+        s = 1j * (w if self.frequency_map is None else self.frequency_map(w))[..., None]
+        slope = (s / (s - zeros)).sum(axis=-1) - (s / (s - poles)).sum(axis=-1)
+        if self.map_slope is not None:
+            slope = slope * self.map_slope(w)
+        return slope - 1j * w * self.delay
 
     def log_variation(self, w0, w1) -> np.ndarray:
         """Upper bound on |ln G(w) - ln G(w0)| for every w in [w0, w1] (rational G only).
@@ -106,6 +117,8 @@ class Plant:
         Infinite when a zero lies on the interval of the imaginary axis. Evaluated in chunks of intervals, so
         the work arrays (intervals x poles and zeros) stay below ~``_CHUNK_VALUES`` entries.
         """
+        if self.frequency_map is not None:   # along nu(w), monotone: the same bound for H(j nu)
+            w0, w1 = self.frequency_map(w0), self.frequency_map(w1)
         w0, w1 = np.broadcast_arrays(np.asarray(w0, float), np.asarray(w1, float))
         n_roots = max(1, sum(r.size for r in self.roots))
         size = max(1, _CHUNK_VALUES // n_roots)
@@ -138,9 +151,6 @@ def _check_siso(sys) -> None:
     nin, nout = getattr(sys, "ninputs", 1), getattr(sys, "noutputs", 1)
     if nin != 1 or nout != 1:
         raise ValueError(f"G must be SISO; got a system with {nin} inputs and {nout} outputs")
-    dt = getattr(sys, "dt", 0)
-    if dt not in (0, None):
-        raise ValueError(f"G must be a continuous-time system; got dt={dt}")
 
 
 def _feature_grid(roots: np.ndarray) -> tuple[np.ndarray, tuple[float, float] | None]:
@@ -238,6 +248,8 @@ def _from_tf(sys) -> Plant:
                              "narrow the omega window (or scale time so that the frequencies are near 1)")
         return top / bottom
 
+    if getattr(sys, "dt", 0) not in (0, None):  # discrete time: G(e^{jw dt}) on (0, pi/dt] (solve/sampled.py)
+        return Plant(feature_frequencies=np.empty(0), lti=sys, **discrete_parts(sys, num, den))
     zeros, poles = np.roots(num), np.roots(den)
     features, window = _feature_grid(np.concatenate([poles, zeros]))
     return Plant(response, window, features, lti=sys, roots=(zeros, poles))
@@ -282,6 +294,7 @@ def as_plant(G) -> Plant:
     """Adapt ``G`` (python-control tf/ss/frd, a :class:`~dfloop.solve.delay.DelayedSystem`, a callable G(omega),
     or a :class:`Plant`) to a :class:`Plant`.
 
+    A discrete-time tf/ss (``dt`` > 0) gives G(e^{jw dt}) on (0, pi/dt] (:mod:`dfloop.solve.sampled`).
     A callable receives an array of frequencies in rad/s and must return G(j omega) of the same shape. A plant
     with a pure delay T is best given as ``delayed(G, T)`` (:func:`dfloop.solve.delay.delayed`): its grid bound
     stays exact and the exact engines can run it; a callable such as ``lambda w: np.exp(-1j * w * T) /

@@ -304,7 +304,11 @@ class LimitCycles(list):
             distortion = f"{100 * conf.distortion:.2g} %" if available else "-"
             notes = ", ".join(n for n, on in (("on edge", c.on_edge),
                                                ("N not valid: average over irregular motion", not c.valid),
-                                               ("DF unreliable (distortion > 5 %)", available and not conf.reliable))
+                                               ("DF unreliable (distortion > 5 %)", available and not conf.reliable
+                                                and conf.distortion > 0.05),
+                                               (f"sampled DF questionable ({getattr(conf, 'samples_per_period', 0)} "
+                                                "samples/period)", available and not conf.reliable
+                                                and conf.distortion <= 0.05))
                               if on)
             if c.exact is not None:
                 notes += ("; " if notes else "") + exact_words(c)
