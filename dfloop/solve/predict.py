@@ -350,11 +350,39 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
         warnings.warn(f"{len(crossings)} jump crossing(s): G(jw) passes through the gap of a jump of -1/N at "
                       f"{where}{' ...' if len(crossings) > 5 else ''}; no limit cycle of the DF equation there "
                       "(see .jump_crossings)", stacklevel=2)
-    cycles = _attach_confidence(G, N, cycles, exact)
+    cycles = _open_loop_label(plant, _attach_confidence(G, N, cycles, exact))
     result = LimitCycles(cycles, (A_lo, A_hi), (w_lo, w_hi), {"amplitude": a_src, "omega": w_src},
                          (a.size, v.size), res.n_points, crossings, report)
     result.plant, result.element = G, N
     return result
+
+
+LOEB_ONLY = "loeb-stable only"
+"""The label of a Loeb-stable cycle of a loop whose plant has unstable real (non-oscillatory) poles."""
+
+
+def _open_loop_label(plant, cycles: list[LimitCycle]) -> list[LimitCycle]:
+    """Relabel Loeb-stable cycles of a plant with unstable real poles.
+
+    The Loeb criterion sees perturbations of the oscillation's amplitude and frequency only; a real open-loop
+    pole in the right half-plane is a non-oscillatory mode (a drift, a bias) it cannot see, and such loops can
+    diverge from both sides of a Loeb-stable cycle. Their "stable" becomes ``LOEB_ONLY`` unless the exact orbit
+    (``exact=True``) was found: then its Floquet multipliers decide ("stable" or "unstable"). Callable and frd
+    plants have no known poles: their labels are the Loeb criterion's.
+    """
+    if plant.roots is None or not cycles:
+        return cycles
+    poles = plant.roots[1]
+    if not np.any((poles.real > 0) & (np.abs(poles.imag) <= 1e-9 * np.abs(poles))):
+        return cycles
+    out = []
+    for c in cycles:
+        if c.stability == "stable":
+            ex = c.exact
+            label = (("stable" if ex.stable else "unstable") if ex is not None and ex.success else LOEB_ONLY)
+            c = dataclasses.replace(c, stability=label)
+        out.append(c)
+    return out
 
 
 def _attach_confidence(G, N, cycles: list[LimitCycle], exact: bool) -> list[LimitCycle]:
