@@ -102,7 +102,8 @@ def _amplitude_scan(N, lo, hi, n=3000):
     if isinstance(base, df.Quantizer):
         c = (np.arange(1, int(hi / base.step) + 2) - 0.5) * base.step
         c = c[(c > lo) & (c < hi)]
-        A = np.concatenate([A, c * (1 + 1e-12), c * (1 - 1e-12), (c[:-1] + c[1:]) / 2])
+        t = np.geomspace(1e-12, 0.2, 40)  # N rises like sqrt(A - c) just above each threshold c
+        A = np.concatenate([A, (c[:, None] * (1 + t)).ravel(), c * (1 - 1e-12), (c[:-1] + c[1:]) / 2])
     return np.unique(A[(A >= lo) & (A <= hi)])
 
 
