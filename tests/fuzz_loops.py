@@ -134,7 +134,7 @@ def reference_roots(G, poles, zeros, T, N, kind, omega, amplitude):
     if amplitude is None:
         lo, hi = (float(x) for x in N.amplitude_domain())
         s = _span(N, kind)
-        lo = lo * (1 + 1e-12) if lo > 0 else s * 1e-6
+        lo = lo * (1 + 1e-12) if lo > 0 else s * 1e-12
         hi = hi * (1 - 1e-9) if math.isfinite(hi) else s * 1e7
         if kind == "quantizer":
             # |N - 1| <= step / (2 A) (measured on a dense scan with every threshold): roots need
@@ -153,11 +153,12 @@ def reference_roots(G, poles, zeros, T, N, kind, omega, amplitude):
     return ref.amplitude_roots(Gf, lambda A: N(A), w_scan, _amplitude_scan(N, *amplitude, n=n))
 
 
-def run_case(seed: int, default_windows: bool | None = None):
+def run_case(seed: int, default_windows: bool | None = None, kind: str | None = None):
     """Solve one random case with dfloop and the reference; returns a dict of counts and details."""
     rng = np.random.default_rng(seed)
     G, poles, zeros, T = random_plant(rng)
-    kind = KINDS[int(rng.integers(len(KINDS)))]
+    drawn = KINDS[int(rng.integers(len(KINDS)))]
+    kind = drawn if kind is None else kind
     N = random_element(rng, kind)
     if default_windows is None:
         default_windows = bool(rng.random() < 0.5) and T == 0

@@ -112,8 +112,10 @@ def _default_amplitude_window(res: Residual, v: np.ndarray, eps_v: np.ndarray, d
     if bottom is not None:
         cand = np.concatenate([[bottom], cand[cand > bottom]])
     cand = np.unique(cand[(cand > lo) & (cand < hi)])
-    if cand.size < 2:
-        return (float(lo * (1 + 1e-9)), float(min(hi * (1 - 1e-9), lo * 2))), "default: N's amplitude domain"
+    if cand.size < 2:  # the limit arguments leave no amplitude of the domain for a root: a token window
+        a0 = lo * (1 + 1e-9) if lo > 0 else (hi / 2 if math.isfinite(hi) else 1.0)
+        a1 = min(hi * (1 - 1e-9), a0 * 2) if math.isfinite(hi) else a0 * 2
+        return (float(a0), float(a1)), "default: no root possible by N's limits (a token window)"
     if res.frequency_dependent:
         sub = v[np.unique(np.linspace(0, v.size - 1, min(v.size, 2000)).astype(int))]
         P = res.grid(np.log(cand), sub)
