@@ -11,6 +11,7 @@ import numpy as np
 from .._checks import finite, window as checked_window
 from ..describing.base import DescribingFunction
 from ..describing.interop import as_element
+from ..describing.static import StaticElement
 from ._kernels import candidate_cells
 from .grid import FD_MIN_WIDTH, STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
 from .plant import as_plant
@@ -154,8 +155,6 @@ _MAX_BREAKPOINTS = 200_000
 def _breakpoints(N, A_lo: float, A_hi: float) -> np.ndarray:
     """The amplitudes inside (A_lo, A_hi) where a static element's f or its slope jumps (where N has a kink);
     empty for other elements or when there are more than ``_MAX_BREAKPOINTS`` (then sampling alone follows N)."""
-    from ..describing.static import StaticElement
-
     if not isinstance(N, StaticElement):
         return np.empty(0)
     step = getattr(N, "step", None)  # a quantizer: count its thresholds before asking for them
