@@ -85,6 +85,10 @@ def amplitude_roots(G, N, w_scan, A_scan):
     g = G(w_scan)
     gm = np.abs(g)
     roots = []
+    A_scan = np.asarray(A_scan, float)
+    n_scan = N(A_scan)
+    if np.all(np.abs(n_scan.imag) <= 1e-14 * np.abs(n_scan)):  # real N: phase crossovers first, then A
+        return _real_roots(G, N, w_scan, A_scan)
     for grid, mg in _pieces(Nmag, np.asarray(A_scan, float)):
         inc = mg[-1] > mg[0]
         lo_m, hi_m = (mg[0], mg[-1]) if inc else (mg[-1], mg[0])
@@ -131,6 +135,26 @@ def amplitude_roots(G, N, w_scan, A_scan):
                 seen.add(j0)
                 w = brentq(h_exact, w_scan[j0], w_scan[j1], xtol=1e-15 * w_scan[j0], rtol=1e-15)
                 roots.append((A_of(w, abs(G(np.array([w]))[0])), float(w)))
+    return sorted(roots, key=lambda r: (r[1], r[0]))
+
+
+def _real_roots(G, N, w_scan, A_scan):
+    """Real N: G(jw) must be real, Im G = 0 (brentq on the scan), then N(A) = -1/G(w) on each monotone piece."""
+    g = G(w_scan)
+    roots = []
+    im = g.imag
+    for k in np.flatnonzero(np.sign(im[:-1]) != np.sign(im[1:])):
+        if abs(g[k].imag) > abs(g[k].real) or abs(g[k + 1].imag) > abs(g[k + 1].real):
+            continue  # a sign change of Im G through a pole or far from the real axis
+        w = brentq(lambda x: G(np.array([x]))[0].imag, w_scan[k], w_scan[k + 1], xtol=1e-15 * w_scan[k], rtol=1e-15)
+        gw = G(np.array([w]))[0].real
+        target = -1.0 / gw
+        f = lambda x: N(np.array([np.exp(x)]))[0].real - target  # noqa: E731
+        vals = N(A_scan).real - target
+        idx = np.flatnonzero(np.sign(vals[:-1]) * np.sign(vals[1:]) < 0)
+        for j in idx:
+            roots.append((float(np.exp(brentq(f, np.log(A_scan[j]), np.log(A_scan[j + 1]), xtol=1e-15, rtol=1e-15))),
+                          float(w)))
     return sorted(roots, key=lambda r: (r[1], r[0]))
 
 

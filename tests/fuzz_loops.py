@@ -102,7 +102,8 @@ def _amplitude_scan(N, lo, hi, n=3000):
     if isinstance(base, df.Quantizer):
         c = (np.arange(1, int(hi / base.step) + 2) - 0.5) * base.step
         c = c[(c > lo) & (c < hi)]
-        A = np.concatenate([A, c * (1 + 1e-12), c * (1 - 1e-12), (c[:-1] + c[1:]) / 2])
+        t = np.geomspace(1e-12, 0.2, 40)  # N rises like sqrt(A - c) just above each threshold c
+        A = np.concatenate([A, (c[:, None] * (1 + t)).ravel(), c * (1 - 1e-12), (c[:-1] + c[1:]) / 2])
     return np.unique(A[(A >= lo) & (A <= hi)])
 
 
@@ -133,7 +134,7 @@ def reference_roots(G, poles, zeros, T, N, kind, omega, amplitude):
     if amplitude is None:
         lo, hi = (float(x) for x in N.amplitude_domain())
         s = _span(N, kind)
-        lo = lo * (1 + 1e-12) if lo > 0 else s * 1e-6
+        lo = lo * (1 + 1e-12) if lo > 0 else s * 1e-12
         hi = hi * (1 - 1e-9) if math.isfinite(hi) else s * 1e7
         if kind == "quantizer":
             # |N - 1| <= step / (2 A) (measured on a dense scan with every threshold): roots need
@@ -152,11 +153,12 @@ def reference_roots(G, poles, zeros, T, N, kind, omega, amplitude):
     return ref.amplitude_roots(Gf, lambda A: N(A), w_scan, _amplitude_scan(N, *amplitude, n=n))
 
 
-def run_case(seed: int, default_windows: bool | None = None):
+def run_case(seed: int, default_windows: bool | None = None, kind: str | None = None):
     """Solve one random case with dfloop and the reference; returns a dict of counts and details."""
     rng = np.random.default_rng(seed)
     G, poles, zeros, T = random_plant(rng)
-    kind = KINDS[int(rng.integers(len(KINDS)))]
+    drawn = KINDS[int(rng.integers(len(KINDS)))]
+    kind = drawn if kind is None else kind
     N = random_element(rng, kind)
     if default_windows is None:
         default_windows = bool(rng.random() < 0.5) and T == 0

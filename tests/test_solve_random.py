@@ -83,3 +83,23 @@ def test_random_loops_residual_bound_and_scale_invariance(plant, N, k):
         assert d.amplitude == np.float64(c.amplitude) or abs(d.amplitude / c.amplitude - 1) < 1e-7
         assert abs(d.frequency / c.frequency - 1) < 1e-7
         assert d.stability == c.stability
+
+
+# ------------------------------------------------------------------------------------------- standing fuzz
+# Every element kind, default and explicit windows, against the independent 1-D reference of df_reference.py
+# (brentq on dense scans, written apart from the solver). The longer run is benchmarks/fuzz_solver.py.
+
+import fuzz_loops  # noqa: E402
+
+import pytest  # noqa: E402
+
+FUZZ_KINDS = [k for k in fuzz_loops.KINDS if k != "numeric_hysteretic"]  # ~6 ms per N: benchmarks/ only
+
+
+@pytest.mark.parametrize("kind", FUZZ_KINDS)
+@pytest.mark.parametrize("seed, default", [(11, True), (12, False), (13, True), (14, False)])
+def test_fuzz_every_root_against_independent_reference(kind, seed, default):
+    out = fuzz_loops.run_case(seed, default_windows=default, kind=kind)
+    assert out["error"] in (None, "continuum", "outside domain"), out["error"]
+    assert out["misses"] == [] and out["extras"] == [], (out["misses"], out["extras"])
+    assert out["bad_residual"] == []

@@ -473,8 +473,8 @@ class CubicStiffness(StaticElement):
         return _domain(0.0, hi, omega)
 
     def head_bound(self, A):
-        """|N - k1| = (3/4) |k3| A^2."""
-        return 0.75 * (1 + 1e-12) * abs(self.k3) * np.asarray(A, float) ** 2
+        """|N - k1| = (3/4) |k3| A^2 (plus the rounding of k1 + 3 k3 A^2 / 4, a few ulp of k1)."""
+        return 0.75 * (1 + 1e-12) * abs(self.k3) * np.asarray(A, float) ** 2 + 4 * np.spacing(self.k1)
 
 
 class Quantizer(StaticElement):

@@ -21,9 +21,10 @@ __all__ = ["plot_nyquist", "plot_residual_map", "EXACT_LABEL"]
 
 _STYLE = {"stable": dict(marker="o", mfc="C3", mec="C3"),
           "unstable": dict(marker="o", mfc="none", mec="C3"),
-          "marginal": dict(marker="D", mfc="none", mec="C1")}
+          "marginal": dict(marker="D", mfc="none", mec="C1"),
+          "loeb-stable only": dict(marker="o", mfc="C1", mec="C3")}  # unstable real open-loop poles
 _KIND_LABEL = {"stable": "stable cycle (filled)", "unstable": "unstable cycle (hollow)",
-               "marginal": "marginal cycle (diamond)"}
+               "marginal": "marginal cycle (diamond)", "loeb-stable only": "Loeb-stable only (unstable open loop)"}
 _EXACT = dict(marker="*", ms=11, mfc="C4", mec="k", mew=0.6, ls="none", zorder=4)
 EXACT_LABEL = "exact orbit, G(jω) at its frequency"
 CRITICAL_LABEL = "-1 (critical point)"

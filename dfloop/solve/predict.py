@@ -11,6 +11,7 @@ import numpy as np
 from .._checks import finite, integer_at_least, window as checked_window
 from ..describing.base import DescribingFunction
 from ..describing.interop import as_element
+from ..describing.static import StaticElement
 from ._kernels import candidate_cells
 from .grid import FD_MIN_WIDTH, STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
 from .plant import as_plant
@@ -60,15 +61,16 @@ def _limit_reach(res: Residual, v: np.ndarray, eps_v: np.ndarray, end: str):
     element's :meth:`tail_bound` / :meth:`head_bound`, or None when the element states no bound, or its limit
     there is 0 or infinite (then |N| alone limits the window), or G N(limit) reaches -1 in the window.
 
-    A root needs |G| |N - N_lim| >= |1 + G N_lim| (N_lim = N(inf, w) or N(0, w)). |1 + G N_lim| is taken on
-    the frequency nodes refined 16-fold (fewer for very large grids) less the most G can move between the fine
-    nodes (|G(w) - G(w_k)| <= |G(w_k)| (e^eps - 1), eps the resolved bound on |d ln G| per interval / 16).
+    A root at w needs |G(w)| |N - N_lim| >= |1 + G(w) N_lim(w)| (N_lim = N(inf, w) or N(0, w)), so the bound
+    must reach r(w) = |1 + G N_lim| / |G| there. r is taken on the frequency nodes refined up to 256-fold, less
+    what G can move between the fine nodes (|G(w) - G(w_k)| <= |G(w_k)| (e^eps - 1), eps the resolved bound on
+    |d ln G| per interval over the refinement); half of the smallest r is required, for margin.
     """
     N = res.N
     bound = N.tail_bound if end == "inf" else N.head_bound
     if bound(np.ones(1)) is None:
         return None
-    k = int(np.clip(200_000 // max(v.size, 1), 1, 16))
+    k = int(np.clip(1_000_000 // max(v.size, 1), 1, 256))
     t = np.linspace(0.0, 1.0, k, endpoint=False)
     vf = np.concatenate([(v[:-1, None] + np.diff(v)[:, None] * t[None, :]).ravel(), v[-1:]])
     w = np.exp(vf)
@@ -77,21 +79,22 @@ def _limit_reach(res: Residual, v: np.ndarray, eps_v: np.ndarray, end: str):
         n_lim = N(np.full(w.shape, A_lim), w) if res.frequency_dependent else N(A_lim)
     except ValueError:
         return None
-    P = res.plant(w) * n_lim
+    g = res.plant(w)
+    P = g * n_lim
     if not (np.all(np.isfinite(P)) and np.any(P)):
         return None
     finite_eps = eps_v[np.isfinite(eps_v)]
     slack = math.expm1((float(finite_eps.max()) if finite_eps.size else STEP) / k)
-    gap = float(np.min(np.abs(1 + P) - np.abs(P) * slack))
-    if not gap > 0:
+    room = np.abs(1 + P) - np.abs(P) * slack
+    if not np.all(room > 0):
         return None
-    g_max = float(np.max(np.abs(res.plant(w)) * (1 + slack)))
+    r = float(np.min(room / (np.abs(g) * (1 + slack))))
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        dev = bound(_REACH_GRID) * g_max
+        dev = bound(_REACH_GRID)
     if end == "inf":
-        ok = np.flatnonzero(dev < 0.5 * gap)
+        ok = np.flatnonzero(dev < 0.5 * r)
         return float(_REACH_GRID[ok[0]]) if ok.size else None
-    ok = np.flatnonzero(~(dev < 0.5 * gap))
+    ok = np.flatnonzero(~(dev < 0.5 * r))
     return float(_REACH_GRID[ok[0] - 1]) if ok.size and ok[0] > 0 else None
 
 
@@ -114,8 +117,10 @@ def _default_amplitude_window(res: Residual, v: np.ndarray, eps_v: np.ndarray, d
     if bottom is not None:
         cand = np.concatenate([[bottom], cand[cand > bottom]])
     cand = np.unique(cand[(cand > lo) & (cand < hi)])
-    if cand.size < 2:
-        return (float(lo * (1 + 1e-9)), float(min(hi * (1 - 1e-9), lo * 2))), "default: N's amplitude domain"
+    if cand.size < 2:  # the limit arguments leave no amplitude of the domain for a root: a token window
+        a0 = lo * (1 + 1e-9) if lo > 0 else (hi / 2 if math.isfinite(hi) else 1.0)
+        a1 = min(hi * (1 - 1e-9), a0 * 2) if math.isfinite(hi) else a0 * 2
+        return (float(a0), float(a1)), "default: no root possible by N's limits (a token window)"
     if res.frequency_dependent:
         sub = v[np.unique(np.linspace(0, v.size - 1, min(v.size, 2000)).astype(int))]
         P = res.grid(np.log(cand), sub)
@@ -146,6 +151,21 @@ def _default_amplitude_window(res: Residual, v: np.ndarray, eps_v: np.ndarray, d
     i0, i1 = max(idx[0] - 2, 0), min(idx[-1] + 2, cand.size - 1)
     return ((float(cand[i0]), float(cand[i1])),
             f"default: where |G N| can reach 1 within N's amplitude domain{limits}")
+
+
+_MAX_BREAKPOINTS = 200_000
+
+
+def _breakpoints(N, A_lo: float, A_hi: float) -> np.ndarray:
+    """The amplitudes inside (A_lo, A_hi) where a static element's f or its slope jumps (where N has a kink);
+    empty for other elements or when there are more than ``_MAX_BREAKPOINTS`` (then sampling alone follows N)."""
+    if not isinstance(N, StaticElement):
+        return np.empty(0)
+    step = getattr(N, "step", None)  # a quantizer: count its thresholds before asking for them
+    if step is not None and A_hi / step > _MAX_BREAKPOINTS:
+        return np.empty(0)
+    bp = np.asarray(N.breakpoints(A_hi), float)
+    return bp[(bp > A_lo) & (bp < A_hi)]
 
 
 def _split_mask(P: np.ndarray, axis: int, x: np.ndarray) -> np.ndarray:
@@ -272,7 +292,7 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     if not plant.exact:  # rational plants need no hints: their grid is placed from the poles and zeros
         features = plant.feature_frequencies[(plant.feature_frequencies > w_lo) & (plant.feature_frequencies < w_hi)]
         v = np.unique(np.concatenate([v, np.log(features)]))
-    v, g, eps_v, n_eval = resolve_plant(plant, v)
+    v, g, eps_v, n_eval, uncertified = resolve_plant(plant, v)
     if not np.any(g):
         raise ValueError(f"G is zero at every frequency of the window ({w_lo:g}, {w_hi:g}) rad/s: no loop")
 
@@ -297,17 +317,20 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
         # N turns along w too (a delay inside N): resolve G N along w at _FD_ROWS initial amplitudes, then
         # N along A at _FD_ROWS frequencies, then refine the tensor grid near |G N| = 1
         A0 = np.exp(a[np.unique(np.linspace(0, a.size - 1, min(a.size, _FD_ROWS)).astype(int))])
-        v, _, eps_v, n_gn = resolve_sampled(lambda w: res.plant(w)[:, None] * res._n(A0[None, :], w[:, None]),
-                                            v, "G N along omega", min_width=FD_MIN_WIDTH)
+        v, _, eps_v, n_gn, _ = resolve_sampled(lambda w: res.plant(w)[:, None] * res._n(A0[None, :], w[:, None]),
+                                               v, "G N along omega", min_width=FD_MIN_WIDTH, slopes=True)
         w_sub = np.exp(v[np.unique(np.linspace(0, v.size - 1, min(v.size, _FD_ROWS)).astype(int))])
-        a, _, eps_a, n_n = resolve_sampled(lambda A: res._n(A[:, None], w_sub[None, :]), a, "N along the amplitude",
-                                           min_width=FD_MIN_WIDTH)
+        a, _, eps_a, n_n, _ = resolve_sampled(lambda A: res._n(A[:, None], w_sub[None, :]), a,
+                                              "N along the amplitude", min_width=FD_MIN_WIDTH)
         n_eval += n_gn * A0.size + n_n * w_sub.size
         check_memory(a.size, v.size, True)
         a, v, P = _resolve_grid(res, a, v)
         cells, a_rule, n_cand, n = None, f"sampled at {w_sub.size} frequencies, then 2-D near |G N| = 1", None, None
     else:
-        a, n, eps_a, n_n = resolve_sampled(lambda A: res._n(A, None), a, "N along the amplitude")
+        bp = _breakpoints(N, A_lo, A_hi)
+        if bp.size:  # kinks of N (a quantizer's thresholds) as nodes: N is smooth between them
+            a = np.unique(np.concatenate([a, np.log(bp)]))
+        a, n, eps_a, n_n, _ = resolve_sampled(lambda A: res._n(A, None), a, "N along the amplitude", monotone=True)
         n_eval += n_n
         check_memory(a.size, v.size, False)
         P = n[:, None] * g[None, :]
@@ -321,7 +344,8 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
                         amplitude_rule=a_rule, max_step_frequency=largest_step(eps_v),
                         max_step_amplitude=largest_step(eps_a),
                         n_jumps=int(np.count_nonzero(eps_v > STEP) + np.count_nonzero(eps_a > STEP)),
-                        candidate_cells=n_cand, n_evaluations=int(n_eval))
+                        candidate_cells=n_cand, n_evaluations=int(n_eval),
+                        uncertified=tuple((float(np.exp(lo)), float(np.exp(hi))) for lo, hi in uncertified))
     window = (a[0], a[-1], v[0], v[-1])
     ra, rv, jumps = find_roots(res, a, v, P, tol, cells)
     cycles, rejected = _build(res, ra, rv, window, marginal_tol, tol)
@@ -332,11 +356,39 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
         warnings.warn(f"{len(crossings)} jump crossing(s): G(jw) passes through the gap of a jump of -1/N at "
                       f"{where}{' ...' if len(crossings) > 5 else ''}; no limit cycle of the DF equation there "
                       "(see .jump_crossings)", stacklevel=2)
-    cycles = _attach_confidence(G, N, cycles, exact)
+    cycles = _open_loop_label(plant, _attach_confidence(G, N, cycles, exact))
     result = LimitCycles(cycles, (A_lo, A_hi), (w_lo, w_hi), {"amplitude": a_src, "omega": w_src},
                          (a.size, v.size), res.n_points, crossings, report)
     result.plant, result.element = G, N
     return result
+
+
+LOEB_ONLY = "loeb-stable only"
+"""The label of a Loeb-stable cycle of a loop whose plant has unstable real (non-oscillatory) poles."""
+
+
+def _open_loop_label(plant, cycles: list[LimitCycle]) -> list[LimitCycle]:
+    """Relabel Loeb-stable cycles of a plant with unstable real poles.
+
+    The Loeb criterion sees perturbations of the oscillation's amplitude and frequency only; a real open-loop
+    pole in the right half-plane is a non-oscillatory mode (a drift, a bias) it cannot see, and such loops can
+    diverge from both sides of a Loeb-stable cycle. Their "stable" becomes ``LOEB_ONLY`` unless the exact orbit
+    (``exact=True``) was found: then its Floquet multipliers decide ("stable" or "unstable"). Callable and frd
+    plants have no known poles: their labels are the Loeb criterion's.
+    """
+    if plant.roots is None or not cycles:
+        return cycles
+    poles = plant.roots[1]
+    if not np.any((poles.real > 0) & (np.abs(poles.imag) <= 1e-9 * np.abs(poles))):
+        return cycles
+    out = []
+    for c in cycles:
+        if c.stability == "stable":
+            ex = c.exact
+            label = (("stable" if ex.stable else "unstable") if ex is not None and ex.success else LOEB_ONLY)
+            c = dataclasses.replace(c, stability=label)
+        out.append(c)
+    return out
 
 
 def _attach_confidence(G, N, cycles: list[LimitCycle], exact: bool) -> list[LimitCycle]:

@@ -44,7 +44,10 @@ class LimitCycle:
     frequency : float
         Angular frequency w in rad/s.
     stability : str
-        ``"stable"``, ``"unstable"`` or ``"marginal"`` (tangent / double root: sign not decidable).
+        ``"stable"``, ``"unstable"`` or ``"marginal"`` (tangent / double root: sign not decidable), or
+        ``"loeb-stable only"``: the Loeb criterion says stable but the plant has unstable real poles, a
+        non-oscillatory mode the criterion cannot see (such loops can diverge); ``exact=True`` decides by
+        the exact orbit's Floquet multipliers instead.
     residual : float
         |1 + G N| at the answer; ``relative_residual`` divides it by 1 + |G N|.
     loeb_determinant : float

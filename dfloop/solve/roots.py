@@ -43,6 +43,7 @@ _JUMP_SIZE = 1e-3  # ... across which R changes by more than this times 1 + |G N
 # about sqrt(rounding) (1.5e-8) along its degenerate direction, where Re R or Im R stays at rounding level and zeros
 # appear on many box edges; distinct simple roots are isolated by winding long before their boxes number thousands
 _MULTIPLE_ROOT_SPAN = 1e-6
+_JUMP_KEEP = 0.9  # ... and one of whose halves still carries this fraction of the change (not a steep slope)
 JUMP_BOX = 1e-7  # a winding box narrower than this (log units) touching a discontinuity is a jump crossing
 _JUMP_DOMINANCE = 4.0  # a grid step of G N this many times larger than both neighbouring steps is a jump
 _MEMO_BATCH = 64  # batches of at most this many points are remembered by Residual.slopes ...
@@ -189,7 +190,9 @@ def edge_phases(res: Residual, a0, v0, a1, v1, P0, P1) -> tuple[np.ndarray, list
 
     Segments whose phase step exceeds pi/2 are bisected (vectorised, at most 50 levels), except across
     a discontinuity of N (a segment shorter than ``_JUMP_LENGTH`` over which R still changes by more than
-    ``_JUMP_SIZE`` (1 + |G N|)), where the step along the chord is taken. Returns the phase changes,
+    ``_JUMP_SIZE`` (1 + |G N|), and one of whose halves still carries ``_JUMP_KEEP`` of that change: a
+    continuous R, however steep, shares it between the halves and is bisected on), where the step along the
+    chord is taken. Returns the phase changes,
     the midpoints of segments still unresolved at the last level (a root on the edge) and the midpoints
     of the discontinuities met.
     """
@@ -207,6 +210,12 @@ def edge_phases(res: Residual, a0, v0, a1, v1, P0, P1) -> tuple[np.ndarray, list
         short = np.maximum(np.abs(a1 - a0), np.abs(v1 - v0)) < _JUMP_LENGTH
         jump = split & short & (np.abs(R1 - R0) > _JUMP_SIZE * (1 + np.maximum(np.abs(R0 - 1), np.abs(R1 - 1))))
         if jump.any():
+            # a discontinuity keeps (nearly) its whole change in one half; a steep but continuous R (a resonance
+            # of damping 1e-6, N's dead-band edge) shares it between the halves: that one is bisected further
+            k = np.flatnonzero(jump)
+            Rh = 1.0 + res.terms((a0[k] + a1[k]) / 2, (v0[k] + v1[k]) / 2)
+            whole = np.abs(R1[k] - R0[k])
+            jump[k] = np.maximum(np.abs(Rh - R0[k]), np.abs(R1[k] - Rh)) >= _JUMP_KEEP * whole
             jumps.extend(zip(((a0 + a1) / 2)[jump], ((v0 + v1) / 2)[jump]))
             split &= ~jump
         if depth == _MAX_EDGE_DEPTH and split.any():
