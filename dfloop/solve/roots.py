@@ -37,12 +37,12 @@ _EARLY_CONTINUUM_CHECK = 64  # edge zeros + multiple windings on the grid beyond
 _MERGE_RADIUS = 1e-12  # refined points closer than this (log units) plus their uncertainty are one root
 _TANGENT_THRESHOLD = 0.1  # local minima of |R|^2 / (1 + |GN|^2) below this are searched for hidden roots
 _MAX_TANGENT_SEEDS = 5000
-_JUMP_LENGTH = 1e-9  # segments shorter than this (log units, i.e. relative in A and w) ...
-_JUMP_SIZE = 1e-3  # ... across which R changes by more than this times 1 + |G N| are discontinuities
 # live boxes crowding in a region this small (log units) are one multiple root: a double root is located only to
 # about sqrt(rounding) (1.5e-8) along its degenerate direction, where Re R or Im R stays at rounding level and zeros
 # appear on many box edges; distinct simple roots are isolated by winding long before their boxes number thousands
 _MULTIPLE_ROOT_SPAN = 1e-6
+_JUMP_LENGTH = 1e-9  # segments shorter than this (log units, i.e. relative in A and w) ...
+_JUMP_SIZE = 1e-3  # ... across which R changes by more than this times 1 + |G N| are discontinuities
 _JUMP_KEEP = 0.9  # ... and one of whose halves still carries this fraction of the change (not a steep slope)
 JUMP_BOX = 1e-7  # a winding box narrower than this (log units) touching a discontinuity is a jump crossing
 _JUMP_DOMINANCE = 4.0  # a grid step of G N this many times larger than both neighbouring steps is a jump
