@@ -34,7 +34,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     # many loops: a parameter sweep, a batch
     "dfloop.continuation": ("sweep", "SweepResult"),
     "dfloop.batch": ("predict_many",),
-    "dfloop.chart": ("design_chart", "ChartResult"),
+    "dfloop.chart": ("design_chart",),
     # the picture, the scene files
     "dfloop.plot": ("plot_nyquist",),
     "dfloop.scene": ("SceneError", "load_scene", "run_scene"),

@@ -15,6 +15,7 @@ import numpy as np
 
 import dfloop as df
 from dfloop.describing.numeric import NumericDF
+from dfloop.solve import as_plant
 
 import df_reference as ref
 
@@ -119,11 +120,11 @@ def _span(N, kind):
 
 def reference_roots(G, poles, zeros, T, N, kind, omega, amplitude):
     """Reference roots in the given windows (amplitude None: the element's whole domain up to 1e7 scales)."""
-    g = df.as_plant(G) if T == 0 else None
-    Gf = (lambda w: g(w)) if T == 0 else (lambda w: np.exp(-1j * w * T) * df.as_plant(G)(w))
+    g = as_plant(G) if T == 0 else None
+    Gf = (lambda w: g(w)) if T == 0 else (lambda w: np.exp(-1j * w * T) * as_plant(G)(w))
     w_scan = ref.frequency_scan(omega[0], omega[1], poles, zeros, T)
     if kind in ("linear_then_static", "mass_backlash"):
-        glin = df.as_plant(N.linear) if kind == "linear_then_static" else (lambda w: -1.0 / ((N.m1 + N.m2) * w ** 2) + 0j)
+        glin = as_plant(N.linear) if kind == "linear_then_static" else (lambda w: -1.0 / ((N.m1 + N.m2) * w ** 2) + 0j)
         lin_poles = [] if kind == "mass_backlash" else list(np.roots(N.linear.den[0][0]))
         w_scan = np.unique(np.concatenate([w_scan, ref.frequency_scan(omega[0], omega[1], lin_poles, [], 0.0, 2000)]))
         Ns = N.static
@@ -170,7 +171,7 @@ def run_case(seed: int, default_windows: bool | None = None, kind: str | None = 
         if kind == "mass_backlash":
             s = s * (N.m1 + N.m2)
         amplitude = (s * 10 ** rng.uniform(-1, 0.2), s * 10 ** rng.uniform(0.5, 2))
-    plant = G if T == 0 else (lambda w, G=G, T=T: np.exp(-1j * w * T) * df.as_plant(G)(w))
+    plant = G if T == 0 else (lambda w, G=G, T=T: np.exp(-1j * w * T) * as_plant(G)(w))
     if T and omega is None:
         omega = (0.05, 20.0)
     out = {"seed": seed, "kind": kind, "G": G, "T": T, "N": N, "omega": omega, "amplitude": amplitude,
