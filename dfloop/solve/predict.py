@@ -103,10 +103,12 @@ def _default_amplitude_window(res: Residual, v: np.ndarray, eps_v: np.ndarray, d
     lo, hi, lo_max = dom
     top, bottom = _limit_reach(res, v, eps_v, "inf"), _limit_reach(res, v, eps_v, "zero")
     if lo > 0:
-        reach = top if top is not None else (lo_max * 1e8 if math.isfinite(lo_max) else hi)
-        cand = np.concatenate([lo * (1 + np.logspace(-9, 8, 171)), np.geomspace(lo, max(reach, lo * 2), 200)])
-        if lo_max > lo:  # a domain that moves with w (MassBacklash: h/2 m w^2): dense near each lower end
-            cand = np.concatenate([cand, np.geomspace(lo, lo_max, 200)])
+        cand = lo * (1 + np.logspace(-9, 8, 171))
+        if top is not None:  # up to the limit argument's reach
+            cand = np.concatenate([cand, np.geomspace(lo, max(top, lo * 2), 200)])
+        if lo_max > lo:  # a domain that moves with w (MassBacklash: h/2 m w^2): dense from each lower end on
+            reach = top if top is not None else lo_max * 1e8
+            cand = np.concatenate([cand, np.geomspace(lo, lo_max, 200), np.geomspace(lo_max, max(reach, lo_max * 2), 200)])
     else:
         cand = np.logspace(-30, 30, 601)
     if math.isfinite(hi):
