@@ -259,10 +259,6 @@ class Saturation(StaticElement):
         """|N| <= (4/pi) k limit / A (f(u) <= 4 u / pi)."""
         return (4.0 / np.pi) * (1 + 1e-12) * self.k * self.limit / np.asarray(A, float)
 
-    def head_bound(self, A):
-        """N = k exactly for A <= limit: |N - k| <= k beyond (0 below)."""
-        return np.where(np.asarray(A, float) <= self.limit, 0.0, self.k)
-
 
 class DeadZone(StaticElement):
     """Dead zone: y = 0 for |x| <= delta, y = k (x - delta sign x) beyond.

@@ -62,7 +62,7 @@ def _limit_reach(res: Residual, v: np.ndarray, eps_v: np.ndarray, end: str):
     there is 0 or infinite (then |N| alone limits the window), or G N(limit) reaches -1 in the window.
 
     A root at w needs |G(w)| |N - N_lim| >= |1 + G(w) N_lim(w)| (N_lim = N(inf, w) or N(0, w)), so the bound
-    must reach r(w) = |1 + G N_lim| / |G| there. r is taken on the frequency nodes refined up to 256-fold, less
+    must reach r(w) = |1 + G N_lim| / |G| there. r is taken on the frequency nodes refined up to 64-fold, less
     what G can move between the fine nodes (|G(w) - G(w_k)| <= |G(w_k)| (e^eps - 1), eps the resolved bound on
     |d ln G| per interval over the refinement); half of the smallest r is required, for margin.
     """
@@ -70,15 +70,18 @@ def _limit_reach(res: Residual, v: np.ndarray, eps_v: np.ndarray, end: str):
     bound = N.tail_bound if end == "inf" else N.head_bound
     if bound(np.ones(1)) is None:
         return None
-    k = int(np.clip(1_000_000 // max(v.size, 1), 1, 256))
+    A_lim = np.inf if end == "inf" else 0.0
+    try:  # a limit of 0 or inf is settled by |N| alone: nothing to compute (checked on the nodes first)
+        n0 = N(np.full(v.shape, A_lim), np.exp(v)) if res.frequency_dependent else N(A_lim)
+    except ValueError:
+        return None
+    if not (np.all(np.isfinite(n0)) and np.any(n0)):
+        return None
+    k = int(np.clip(200_000 // max(v.size, 1), 1, 64))
     t = np.linspace(0.0, 1.0, k, endpoint=False)
     vf = np.concatenate([(v[:-1, None] + np.diff(v)[:, None] * t[None, :]).ravel(), v[-1:]])
     w = np.exp(vf)
-    A_lim = np.inf if end == "inf" else 0.0
-    try:
-        n_lim = N(np.full(w.shape, A_lim), w) if res.frequency_dependent else N(A_lim)
-    except ValueError:
-        return None
+    n_lim = N(np.full(w.shape, A_lim), w) if res.frequency_dependent else n0
     g = res.plant(w)
     P = g * n_lim
     if not (np.all(np.isfinite(P)) and np.any(P)):
@@ -104,10 +107,12 @@ def _default_amplitude_window(res: Residual, v: np.ndarray, eps_v: np.ndarray, d
     lo, hi, lo_max = dom
     top, bottom = _limit_reach(res, v, eps_v, "inf"), _limit_reach(res, v, eps_v, "zero")
     if lo > 0:
-        reach = top if top is not None else (lo_max * 1e8 if math.isfinite(lo_max) else hi)
-        cand = np.concatenate([lo * (1 + np.logspace(-9, 8, 171)), np.geomspace(lo, max(reach, lo * 2), 200)])
-        if lo_max > lo:  # a domain that moves with w (MassBacklash: h/2 m w^2): dense near each lower end
-            cand = np.concatenate([cand, np.geomspace(lo, lo_max, 200)])
+        cand = lo * (1 + np.logspace(-9, 8, 171))
+        if top is not None:  # up to the limit argument's reach
+            cand = np.concatenate([cand, np.geomspace(lo, max(top, lo * 2), 200)])
+        if lo_max > lo:  # a domain that moves with w (MassBacklash: h/2 m w^2): dense from each lower end on
+            reach = top if top is not None else lo_max * 1e8
+            cand = np.concatenate([cand, np.geomspace(lo, lo_max, 200), np.geomspace(lo_max, max(reach, lo_max * 2), 200)])
     else:
         cand = np.logspace(-30, 30, 601)
     if math.isfinite(hi):
