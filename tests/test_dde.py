@@ -80,3 +80,26 @@ def test_time_simulation_of_the_delay_equation_settles_on_the_orbit(orbits):
     assert st.amplitude == pytest.approx(ref["amplitude"], rel=1e-6)
     v = df.verify_cycle(G, N, PRED, periods=40, steps_per_period=100)
     assert v.verdict == "stable"
+
+
+def test_the_dispatcher_picks_the_delay_engine_from_the_time_model():
+    # loop_model reads the element's time model only: a static map (checked against the element's own output and
+    # breakpoints) -> the delay equation; piecewise constant -> the exact delay flow; memory -> ValueError naming N
+    from dfloop.hybrid import DDELoop, DelayLoop
+    from dfloop.hybrid.dde import static_map
+
+    G = delayed(G0, T)
+    x = np.linspace(-4.0, 4.0, 2001)
+    for el in (df.Saturation(1.0, k=2.0), df.DeadZone(0.5), df.CubicStiffness(1.0, 0.3), df.PreloadedSpring(1.0, 0.3)):
+        loop = loop_model(G, el, 2.0, 2.0)
+        assert isinstance(loop, DDELoop) and loop.delay == T
+        np.testing.assert_allclose(loop.f(x), el.output(x), rtol=1e-13, atol=1e-13)
+        bp = el.breakpoints(64 * 2.0)
+        expected = np.unique(np.concatenate([-np.asarray(bp, float), np.asarray(bp, float)])) if bp is not None \
+            else np.empty(0)
+        np.testing.assert_array_equal(np.sort(loop.kinks), expected)
+    for el in (df.Relay(1.0), df.Relay(1.0, hysteresis=0.1, dead_zone=0.2), df.Quantizer(0.5)):
+        assert isinstance(loop_model(G, el, 2.0, 2.0), DelayLoop)
+    assert static_map(df.Relay(1.0, hysteresis=0.1).time_model(2.0)) == (None, None)   # hysteretic: not a map
+    with pytest.raises(ValueError, match="N: Backlash"):
+        loop_model(G, df.Backlash(h=0.5), 2.0, 2.0)
