@@ -17,8 +17,9 @@ How each element is evaluated:
   f(e) = c0 + c1 e + sum_i (dc0_i + dc1_i e) H(e - L_i), each step contributes through the exact integrals over
   {theta : e > L} = (alpha, pi - alpha), alpha = asin(clip((L - B) / A)):
   I0 = pi - 2 alpha, I1 = int sin = 2 cos alpha, I2 = int sin^2 = (pi - 2 alpha) / 2 + sin alpha cos alpha;
-- relays with hysteresis (any dead zone): exact, from the switching phases (where e crosses the switching levels)
-  and the output level held between them (read from the element's operator on a warmed-up period);
+- relays with hysteresis: exact, from the switching phases (where e crosses the switching levels): in closed form
+  without a dead zone, and with one from the output level held between them (read from the element's operator on
+  a warmed-up period; a Python loop over the points);
 - :class:`~dfloop.Backlash`: exact: the play operator's periodic orbit commutes with a shift of its input, so
   m = k B and N_A(B, A) = N(A);
 - any other static function (a :class:`~dfloop.describing.static.StaticElement` or a callable f(x) with optional
@@ -218,6 +219,8 @@ class DualInputDF:
         if self._affine is not None:
             return self._closed(b, a)
         if self._relay is not None:
+            if self._relay.dead_zone == 0.0:
+                return self._two_state(b, a)
             return self._switching(b, a)
         if self._f is None:  # backlash: shift invariance of the play operator
             el = self.element
@@ -265,6 +268,19 @@ class DualInputDF:
         fs = np.sum(wt * y * np.sin(theta), axis=(1, 2))
         fc = np.sum(wt * y * np.cos(theta), axis=(1, 2))
         return (total / (2 * np.pi)).reshape(b.shape), ((fs + 1j * fc) / (np.pi * af)).reshape(b.shape)
+
+    def _two_state(self, b, a):
+        """Relay with hysteresis a and no dead zone (output +-M): +M from the rising crossing of +a,
+        theta_on = asin((a - B) / A), to the falling crossing of -a, theta_off = pi - asin((-a - B) / A)."""
+        M, h = self._relay.M, self._relay.hysteresis
+        with np.errstate(invalid="ignore"):
+            t_on = np.arcsin(np.clip((h - b) / a, -1.0, 1.0))
+            t_off = np.pi - np.arcsin(np.clip((-h - b) / a, -1.0, 1.0))
+        width = t_off - t_on
+        m = M * (width - np.pi) / np.pi
+        n = 2 * M * ((np.cos(t_on) - np.cos(t_off)) + 1j * (np.sin(t_off) - np.sin(t_on))) / (np.pi * a)
+        held = np.where(b >= 0, b - a >= -h, b + a <= h)  # never switches: holds the level on B's side
+        return np.where(held, np.where(b >= 0, M, -M), m), np.where(held, 0.0, n)
 
     def _switching(self, b, a):
         """Relays with hysteresis: the output is constant between the phases where e crosses a switching level;

@@ -140,13 +140,13 @@ class BiasedCycles(list):
 
 
 class _BiasEquation:
-    """F(B, A) = B + G(0) m(B, A) - r0, or m(B, A) with an integrator; its roots in B, numbered in increasing B."""
+    """F(B, A) = B + G(0) (m(B, A) + d) - r0, or m(B, A) + d with an integrator (d: the load); its roots in B, numbered in increasing B."""
 
-    def __init__(self, dual: DualInputDF, g0: float, r0: float, bias_grid: np.ndarray):
-        self.dual, self.g0, self.r0, self.grid = dual, g0, r0, bias_grid
+    def __init__(self, dual: DualInputDF, g0: float, r0: float, load: float, bias_grid: np.ndarray):
+        self.dual, self.g0, self.r0, self.load, self.grid = dual, g0, r0, load, bias_grid
 
     def __call__(self, B, A):
-        m = self.dual.mean(B, A)
+        m = self.dual.mean(B, A) + self.load
         return m if math.isinf(self.g0) else B + self.g0 * m - self.r0
 
     def brackets(self, A: np.ndarray):
@@ -200,7 +200,7 @@ class _BranchDF(DescribingFunction):
         return np.full(shape, self.lo), np.full(shape, self.hi)
 
 
-def predict_biased_cycles(G, element, *, r0: float = 0.0, amplitude, bias=None, omega=None, dc_gain=None,
+def predict_biased_cycles(G, element, *, r0: float = 0.0, load: float = 0.0, amplitude, bias=None, omega=None, dc_gain=None,
                           n_amplitudes: int = 200, n_bias: int = 400, grid=(64, 256)) -> BiasedCycles:
     """Every biased cycle e ~ B + A sin(w t) of the loop with a constant input r0 (dual-input DF balance).
 
@@ -213,6 +213,9 @@ def predict_biased_cycles(G, element, *, r0: float = 0.0, amplitude, bias=None, 
         or not), or its dual-input DF.
     r0 : float
         Constant input at the summing junction (element input units; e = r0 - y).
+    load : float
+        Constant added to the element's output (element output units: a load torque, gravity): the plant is driven
+        by u = f(e) + load, so the bias equation reads B + G(0) (m + load) = r0 (m + load = 0 with an integrator).
     amplitude : (float, float)
         Amplitude window (0 < lo < hi) of the element's input.
     bias : (float, float), optional
@@ -239,6 +242,7 @@ def predict_biased_cycles(G, element, *, r0: float = 0.0, amplitude, bias=None, 
     """
     dual = element if isinstance(element, DualInputDF) else DualInputDF(element)
     r0 = finite("r0", r0)
+    load = finite("load", load)
     a_lo, a_hi = checked_window("amplitude", amplitude)
     if not a_lo > 0:
         raise DfloopError(f"amplitude window must be positive, got {amplitude!r}")
@@ -250,15 +254,15 @@ def predict_biased_cycles(G, element, *, r0: float = 0.0, amplitude, bias=None, 
     g0 = abs(g0) if math.isinf(g0) else g0
     A = np.geomspace(a_lo, a_hi, n_a)
     if bias is None:
-        half = abs(r0) + 4 * a_hi
+        half = abs(r0) + 4 * a_hi  # with an integrator: a bias beyond the swing plus the element's breakpoints
         if not math.isinf(g0):
             probe = np.linspace(r0 - half, r0 + half, 64)
             Bg, Ag = np.meshgrid(probe, A)
-            half += abs(g0) * float(np.max(np.abs(dual.mean(Bg, Ag))))
+            half += abs(g0) * (float(np.max(np.abs(dual.mean(Bg, Ag)))) + abs(load))
         b_lo, b_hi = (-half, half) if math.isinf(g0) else (r0 - half, r0 + half)
     else:
         b_lo, b_hi = _signed_window(bias)
-    equation = _BiasEquation(dual, g0, r0, np.linspace(b_lo, b_hi, n_b))
+    equation = _BiasEquation(dual, g0, r0, load, np.linspace(b_lo, b_hi, n_b))
     F, change = equation.brackets(A)
     count = change.sum(axis=1)
     dF = np.diff(F, axis=1)
