@@ -158,3 +158,24 @@ def test_bad_input():
     with pytest.raises(DfloopError, match="dc_gain"):
         static_gain(lambda w: 1 / (1j * w + 1))
     assert static_gain(ct.tf([2], [1, 0])) == math.inf and static_gain(G) == pytest.approx(1.0)
+
+
+def test_exact_biased_orbit_from_the_engine():
+    """dfloop's exact engine on the shifted loop gives the orbit derived above (matrix exponential + fsolve)."""
+    from dfloop.biased import exact_biased_cycle
+
+    M1, M2, K, r0 = 1.5, 0.6, 4.0, 0.4
+    G = ct.tf([K], [1, 3, 3, 1])
+    relay = DualInputDF.piecewise_affine([0.0], [-M2, M1], [0.0, 0.0])
+    (c,) = predict_biased_cycles(G, relay, r0=r0, amplitude=(0.01, 50))
+    ex = exact_biased_cycle(G, relay, c, r0=r0)
+    frac = (math.pi + 2 * math.asin(c.bias / c.amplitude)) / (2 * math.pi)
+    t1, t2, _, _ = _exact_relay_orbit(G, M1, M2, r0, [frac * c.period, (1 - frac) * c.period])
+    T = t1 + t2
+    assert ex.success and ex.stable
+    assert 2 * math.pi / ex.frequency == pytest.approx(T, rel=1e-10)
+    # e's mean from the engine's uniform samples of a period against the duty cycle of u (measured 1.2e-13)
+    assert ex.bias == pytest.approx(r0 - K * (M1 * t1 - M2 * t2) / T, abs=1e-10)
+    assert "ExactBiasedCycle" in repr(ex)
+    with pytest.raises(DfloopError, match="memory"):
+        exact_biased_cycle(G, Relay(1.0, hysteresis=0.1), c, r0=r0)

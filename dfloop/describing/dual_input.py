@@ -79,6 +79,9 @@ class DualInputDF:
         ``"quadrature"``.
     memory : bool
         Whether N_A can be complex (the element has memory).
+    function : callable or None
+        The static map y = f(x) (vectorised) when the element is memoryless, None for relays with hysteresis and
+        backlash; with ``breakpoints`` (signed input levels where f or f' jumps) it is what the exact engine needs.
 
     Notes
     -----
@@ -99,6 +102,15 @@ class DualInputDF:
         self._relay = None
         self._f = None
         self._levels = np.empty(0)
+        if isinstance(element, StaticElement):
+            self.function = element.output
+            self.breakpoints = np.unique(np.concatenate([element.breakpoints(None), -element.breakpoints(None)])) \
+                if not callable(breakpoints) and breakpoints is None else np.asarray(breakpoints, float)
+        elif callable(element) and not isinstance(element, DescribingFunction):
+            self.function = element
+            self.breakpoints = np.empty(0) if breakpoints is None else np.asarray(breakpoints, float).ravel()
+        else:
+            self.function, self.breakpoints = None, np.empty(0)
         if isinstance(element, Saturation):
             L, k = element.limit, element.k
             self._affine = (np.array([-L, L]), np.array([-k * L, 0.0, k * L]), np.array([0.0, k, 0.0]))
@@ -174,6 +186,7 @@ class DualInputDF:
 
         new = cls(f, breakpoints=L)
         new._affine = (L, c0, c1)
+        new.breakpoints = L
         new.method = "closed form"
         new.element = f"piecewise affine (levels={L.tolist()}, offsets={c0.tolist()}, slopes={c1.tolist()})"
         return new
