@@ -162,6 +162,24 @@ def test_bad_input():
     assert "closed form" in repr(dual)
 
 
+def test_quantizer_needs_its_breakpoints():
+    from dfloop import Quantizer
+
+    with pytest.raises(DfloopError, match="breakpoints"):
+        DualInputDF(Quantizer(0.5))
+    q = Quantizer(0.5)
+    dual = DualInputDF(q, breakpoints=q.breakpoints(4.0))
+    levels = np.concatenate([-q.breakpoints(4.0), q.breakpoints(4.0)])
+    _close(dual, _static_truth(lambda x: float(q.output(x)), levels), [(0.3, 1.1), (-0.2, 2.7), (0.0, 1.9)])
+
+
+def test_ideal_relay_exposes_its_static_map():
+    dual = DualInputDF(Relay(2.0, dead_zone=0.3))
+    np.testing.assert_array_equal(dual.function(np.array([-1.0, -0.2, 0.2, 1.0])), [-2.0, 0.0, 0.0, 2.0])
+    np.testing.assert_array_equal(dual.breakpoints, [-0.3, 0.3])
+    assert DualInputDF(Relay(1.0, hysteresis=0.1)).function is None
+
+
 def test_bias_gain():
     dual = DualInputDF(Relay(1.0))
     # N_B(0, A) of the ideal relay: 2 M / (pi A); elsewhere m / B

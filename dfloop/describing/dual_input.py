@@ -56,6 +56,17 @@ def _bias_amplitude(B, A) -> tuple[np.ndarray, np.ndarray]:
         raise DfloopError(f"B and A must broadcast together, got shapes {b.shape} and {a.shape}") from None
 
 
+def _affine_map(L: np.ndarray, c0: np.ndarray, c1: np.ndarray):
+    """The vectorised map f(e) = c0[i] + c1[i] e on the i-th piece (value at a level: the piece below it)."""
+
+    def f(x):
+        x = np.asarray(x, float)
+        i = np.searchsorted(L, x, side="left")
+        return c0[i] + c1[i] * x
+
+    return f
+
+
 class DualInputDF:
     """Dual-input describing function of an element: mean output and sinusoid gain for e = B + A sin(theta).
 
@@ -101,16 +112,22 @@ class DualInputDF:
         self._affine = None
         self._relay = None
         self._f = None
-        self._levels = np.empty(0)
+        self.function, levels = None, np.empty(0)
         if isinstance(element, StaticElement):
             self.function = element.output
-            self.breakpoints = np.unique(np.concatenate([element.breakpoints(None), -element.breakpoints(None)])) \
-                if not callable(breakpoints) and breakpoints is None else np.asarray(breakpoints, float)
+            try:
+                bp = np.asarray(element.breakpoints(None) if breakpoints is None else breakpoints, float).ravel()
+            except DfloopError as err:
+                raise DfloopError(f"{err}; pass breakpoints=element.breakpoints(A_max) with A_max the largest |B| + A "
+                                  "of interest") from None
+            levels = np.unique(np.concatenate([bp, -bp]))  # an element's breakpoints are levels >= 0, mirrored
         elif callable(element) and not isinstance(element, DescribingFunction):
             self.function = element
-            self.breakpoints = np.empty(0) if breakpoints is None else np.asarray(breakpoints, float).ravel()
-        else:
-            self.function, self.breakpoints = None, np.empty(0)
+            if breakpoints is not None:  # a callable's breakpoints are signed: used as given
+                levels = np.unique(np.asarray(breakpoints, float).ravel())
+        if not np.all(np.isfinite(levels)):
+            raise DfloopError(f"breakpoints must be finite, got {breakpoints!r}")
+        self.breakpoints = self._levels = levels
         if isinstance(element, Saturation):
             L, k = element.limit, element.k
             self._affine = (np.array([-L, L]), np.array([-k * L, 0.0, k * L]), np.array([0.0, k, 0.0]))
@@ -136,20 +153,15 @@ class DualInputDF:
             self.memory = True
         elif isinstance(element, StaticElement):
             self._f = element.output
-            bp = element.breakpoints(None) if breakpoints is None else breakpoints
-            bp = np.asarray(bp, float).ravel()
-            self._levels = np.unique(np.concatenate([bp, -bp]))
         elif isinstance(element, DescribingFunction):
             raise DfloopError(f"element {element!r} has no dual-input DF in dfloop (static elements, relays and "
                               "backlash have one; pass a static function f(x) with its breakpoints)")
         elif callable(element):
             self._f = element
-            if breakpoints is not None:
-                self._levels = np.unique(np.asarray(breakpoints, float).ravel())
         else:
             raise DfloopError(f"element must be a dfloop element or a callable f(x), got {element!r}")
-        if not np.all(np.isfinite(self._levels)):
-            raise DfloopError(f"breakpoints must be finite, got {breakpoints!r}")
+        if self._affine is not None and self.function is None:  # a relay without hysteresis: static after all
+            self.function, self.breakpoints = _affine_map(*self._affine), self._affine[0]
         self.method = ("closed form" if self._affine is not None else "switching phases" if self._relay is not None
                        else "shift invariance" if isinstance(element, Backlash) else "quadrature")
 
@@ -179,14 +191,8 @@ class DualInputDF:
         if not (np.all(np.isfinite(c0)) and np.all(np.isfinite(c1))):
             raise DfloopError(f"offsets and slopes must be finite, got {offsets!r} and {slopes!r}")
 
-        def f(x):
-            x = np.asarray(x, float)
-            i = np.searchsorted(L, x, side="left")
-            return c0[i] + c1[i] * x
-
-        new = cls(f, breakpoints=L)
+        new = cls(_affine_map(L, c0, c1), breakpoints=L)
         new._affine = (L, c0, c1)
-        new.breakpoints = L
         new.method = "closed form"
         new.element = f"piecewise affine (levels={L.tolist()}, offsets={c0.tolist()}, slopes={c1.tolist()})"
         return new
