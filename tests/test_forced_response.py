@@ -10,13 +10,13 @@ from scipy.optimize import brentq
 
 from dfloop import CubicStiffness, Saturation
 from dfloop.errors import DfloopError
-from dfloop.solve.forced import forced_response
+from dfloop.solve.forced import forced_response, jump_region
 
 Z, K1, K3, R = 0.1, 1.0, 0.5, 0.3
 G = ct.tf([1.0], [1.0, 2 * Z, 1.0])
 
 
-def _cubic(w):
+def _cubic(w, R=R):
     """e = r - G u, u = k1 e + k3 e^3, G = 1/(s^2 + 2 z s + 1), N = k1 + 3 k3 A^2 / 4: with x = A^2,
     A |1 + G N| = R  <=>  x [(1 - w^2 + k1 + 3 k3 x / 4)^2 + 4 z^2 w^2] = R^2 [(1 - w^2)^2 + 4 z^2 w^2],
     a cubic in x: coefficients (highest first)."""
@@ -26,8 +26,8 @@ def _cubic(w):
     return np.array([q * q, 2 * c * q, c * c + d2, -R * R * ((1 - w * w) ** 2 + d2)])
 
 
-def _discriminant(w):
-    a, b, c, d = _cubic(w)
+def _discriminant(w, R=R):
+    a, b, c, d = _cubic(w, R)
     return 18 * a * b * c * d - 4 * b ** 3 * d + b * b * c * c - 4 * a * c ** 3 - 27 * a * a * d * d
 
 
@@ -123,3 +123,22 @@ def test_bad_input_and_saturation():
     # a saturation is softening: below the linear resonance the response is single-valued at small R
     res = forced_response(G, Saturation(1.0), 0.1, np.linspace(0.5, 2.0, 31), amplitude=(1e-3, 10))
     assert all(len(s) == 1 and s[0].stable for s in res.solutions) and not res.jumps
+
+
+def test_jump_region_against_the_discriminant():
+    """Folds at several R are the discriminant's zeros; at small R (below the cusp) there are none, and the
+    discriminant keeps one sign (a single real root) on the whole grid."""
+    w = np.linspace(0.8, 2.6, 61)
+    region = jump_region(G, CubicStiffness(K1, K3), [0.02, 0.27, 0.3], w, amplitude=(1e-3, 20))
+    assert region.band(0) is None
+    assert all(_discriminant(x, 0.02) < 0 for x in w)
+    for i, r in enumerate(region.R[1:], start=1):
+        assert len(region.folds[i]) == 2
+        for jump in region.folds[i]:
+            k = np.searchsorted(w, jump.omega)
+            truth = brentq(lambda x: _discriminant(x, r), w[k - 1], w[k], xtol=1e-15, rtol=1e-15)
+            assert jump.omega == pytest.approx(truth, rel=1e-12)
+    lo1, hi1 = region.band(1)
+    lo2, hi2 = region.band(2)
+    assert hi2 - lo2 > hi1 - lo1  # the band widens with the forcing
+    assert "no jump" in repr(region)

@@ -6,7 +6,9 @@ The DF balance at the element's input amplitude A (docs/bias_forced.md) is
 
 so every solution A at a frequency w is a root of a real function of A. Completeness: at each frequency, h is
 evaluated on a log grid of amplitudes and every sign change is bisected to rounding; two roots closer than one
-grid cell (only next to a fold) would be missed there, but the folds themselves are located directly.
+grid cell (only next to a fold) would be missed there, but the folds themselves are located directly. A
+multi-valued band narrower than one step of the frequency grid (both folds between two grid frequencies, near the
+cusp where the band is born) is not seen: refine ``omega`` there.
 
 Jumps are folds of A(w): where the number of roots changes between two grid frequencies, the two roots that merge
 bracket a local extremum of h in A; the extremum's value phi(w) changes sign across the fold, and the fold
@@ -31,7 +33,7 @@ from ..describing.interop import as_element
 from ..errors import DfloopError
 from .plant import as_plant
 
-__all__ = ["ForcedPoint", "Jump", "ForcedResponse", "forced_response"]
+__all__ = ["ForcedPoint", "Jump", "ForcedResponse", "JumpRegion", "forced_response", "jump_region"]
 
 _BISECTIONS = 200
 
@@ -261,3 +263,42 @@ def _fold(h, w, lnA, solutions, more: int, fewer: int):
         target = min(others, key=lambda x: abs(math.log(x / a_star))) if others else None
         return Jump(float(w_star), a_star, target, "up" if more < fewer else "down")
     return None
+
+
+@dataclass
+class JumpRegion:
+    """Where the forced response jumps, in the (w, R) plane: the fold frequencies at each forcing amplitude.
+
+    Attributes
+    ----------
+    R : ndarray
+        The forcing amplitudes.
+    folds : list of list of Jump
+        ``folds[i]``: the jumps at ``R[i]`` (empty: single-valued response on the frequency grid).
+    """
+
+    R: np.ndarray
+    folds: list
+
+    def band(self, i: int) -> tuple[float, float] | None:
+        """(lowest, highest) fold frequency at ``R[i]`` (rad/s): the multi-valued band; None without jumps."""
+        w = [j.omega for j in self.folds[i]]
+        return (min(w), max(w)) if w else None
+
+    def __repr__(self) -> str:
+        rows = [f"JumpRegion({len(self.R)} forcing amplitudes)"]
+        for i, r in enumerate(self.R):
+            band = self.band(i)
+            rows.append(f"  R={r:.6g}: " + ("no jump" if band is None else
+                                            f"jumps at {band[0]:.8g} .. {band[1]:.8g} rad/s ({len(self.folds[i])})"))
+        return "\n".join(rows)
+
+
+def jump_region(G, N, R, omega, *, amplitude, n_amplitudes: int = 400) -> JumpRegion:
+    """The jump-resonance region: :func:`forced_response` at each forcing amplitude ``R`` (array, each > 0), its
+    folds kept. Parameters as for :func:`forced_response`; a fold outside the frequency grid is not seen."""
+    Rs = np.atleast_1d(np.asarray(R, dtype=float))
+    if Rs.ndim != 1 or Rs.size == 0:
+        raise DfloopError(f"R must be one or more forcing amplitudes, got {R!r}")
+    folds = [forced_response(G, N, float(r), omega, amplitude=amplitude, n_amplitudes=n_amplitudes).jumps for r in Rs]
+    return JumpRegion(Rs, folds)
