@@ -179,3 +179,23 @@ def test_exact_biased_orbit_from_the_engine():
     assert "ExactBiasedCycle" in repr(ex)
     with pytest.raises(DfloopError, match="memory"):
         exact_biased_cycle(G, Relay(1.0, hysteresis=0.1), c, r0=r0)
+
+
+def test_two_biased_cycles_stability_against_the_exact_flow():
+    """A dead-zone relay with a load around 3/(s(s+1)(s+2)): an inner cycle the reduced Loeb test calls unstable
+    and an outer one it calls stable. The exact engine confirms the outer orbit (stable by its multipliers) and,
+    flowing 30 periods from the inner prediction, leaves it for the outer orbit."""
+    from dfloop.biased import exact_biased_cycle
+
+    G, relay = ct.tf([3.0], [1, 3, 2, 0]), Relay(1.0, dead_zone=0.2)
+    cycles = predict_biased_cycles(G, relay, load=0.1, amplitude=(0.201, 20))
+    assert cycles.bias_monotone and [c.stability for c in cycles] == ["unstable", "stable"]
+    inner, outer = sorted(cycles, key=lambda c: c.amplitude)
+    for c in cycles:  # the DF balance with an integrator: mean output cancels the load
+        assert c.mean_output == pytest.approx(-0.1, abs=1e-12)
+    ex = exact_biased_cycle(G, relay, outer, load=0.1)
+    assert ex.success and ex.stable
+    assert abs(ex.amplitude - outer.amplitude) < 0.05 * ex.amplitude  # DF error measured: -2.9 %
+    assert abs(ex.bias - outer.bias) < 0.01  # measured: exact -0.0814, DF -0.0868
+    gone = exact_biased_cycle(G, relay, inner, load=0.1)
+    assert not gone.success and "another orbit" in gone.exact.message
