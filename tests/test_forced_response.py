@@ -142,3 +142,20 @@ def test_jump_region_against_the_discriminant():
     lo2, hi2 = region.band(2)
     assert hi2 - lo2 > hi1 - lo1  # the band widens with the forcing
     assert "no jump" in repr(region)
+
+
+def test_branches_run_through_the_folds(response):
+    """Three curves: the solution from low frequencies up to the upper fold, the lower branch born at the lower
+    fold, and the unstable middle one between the folds; every solution on exactly one curve, the folds on two."""
+    curves = response.branches()
+    assert len(curves) == 3
+    n_points = sum(len(s) for s in response.solutions)
+    assert sum(len(c) for c in curves) == n_points + 4  # each fold point ends or starts two curves
+    down, up = response.jumps
+    for c in curves:
+        w = [p.omega for p in c]
+        assert np.all(np.diff(w) > 0)
+        assert len({p.stable for p in c if p.omega not in (down.omega, up.omega)}) == 1
+    middle = next(c for c in curves if not c[1].stable)
+    assert (middle[0].omega, middle[-1].omega) == (down.omega, up.omega)
+    assert middle[0].output_amplitude == pytest.approx(down.output_amplitude)

@@ -22,6 +22,7 @@ amplitude) nor subharmonic responses: check those by simulation (docs/bias_force
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -78,12 +79,15 @@ class Jump:
         Amplitude of the stable solution the response jumps to (None when none is in the window).
     sweep : str
         ``"up"`` when the fold is reached sweeping w upward (the solutions exist below it), ``"down"`` otherwise.
+    output_amplitude : float
+        |G N| A at the fold (the plant output's amplitude).
     """
 
     omega: float
     amplitude: float
     target: float | None
     sweep: str
+    output_amplitude: float = math.nan
 
     def __repr__(self) -> str:
         to = "out of the window" if self.target is None else f"{self.target:.6g}"
@@ -124,18 +128,45 @@ class ForcedResponse:
         return np.array([w for w, s in zip(self.omega, self.solutions) if len(s) > 1])
 
     def branches(self):
-        """Curves for plotting: lists of ForcedPoint, continuous where the number of solutions is constant."""
-        out, open_ = [], {}
-        prev = -1
-        for sols in self.solutions:
-            if len(sols) != prev:
-                out += [c for c in open_.values() if c]
-                open_ = {j: [] for j in range(len(sols))}
-                prev = len(sols)
-            for j, p in enumerate(sols):
-                open_[j].append(p)
-        out += [c for c in open_.values() if c]
-        return out
+        """Curves for plotting: lists of ForcedPoint along each continuous solution, in increasing frequency.
+
+        Where two solutions are born or die at a jump between grid frequencies, the two curves end (or start) at
+        the fold point; the other solutions continue their curves. Where the number of solutions changes without
+        a located fold (a solution leaving the amplitude window), every curve restarts.
+        """
+        done, live = [], []
+        for k, sols in enumerate(self.solutions):
+            if k == 0 or len(sols) == len(live):
+                if k == 0:
+                    live = [[p] for p in sols]
+                else:
+                    for curve, p in zip(live, sols):
+                        curve.append(p)
+                continue
+            w0, w1 = self.omega[k - 1], self.omega[k]
+            jump = next((j for j in self.jumps if w0 <= j.omega <= w1), None)
+            if jump is None or abs(len(sols) - len(live)) != 2:
+                done += live
+                live = [[p] for p in sols]
+                continue
+            more = sols if len(sols) > len(live) else [c[-1] for c in live]
+            pair = min(range(len(more) - 1), key=lambda i: abs(math.log(math.sqrt(more[i].amplitude
+                                                                               * more[i + 1].amplitude) / jump.amplitude)))
+            fold = [ForcedPoint(jump.omega, jump.amplitude, jump.output_amplitude, p.stable) for p in more[pair:pair + 2]]
+            if len(sols) > len(live):  # born at the fold: two new curves from it, the others continue in order
+                rest = sols[:pair] + sols[pair + 2:]
+                for curve, p in zip(live, rest):
+                    curve.append(p)
+                new = [[fold[0], sols[pair]], [fold[1], sols[pair + 1]]]
+                live = live[:pair] + new + live[pair:]
+            else:  # dying at the fold: two curves end there
+                live[pair].append(fold[0])
+                live[pair + 1].append(fold[1])
+                done += live[pair:pair + 2]
+                live = live[:pair] + live[pair + 2:]
+                for curve, p in zip(live, sols):
+                    curve.append(p)
+        return done + live
 
     def plot(self, ax=None, **kwargs):
         """Magnitude against frequency (:func:`dfloop.plot.forced.plot_forced_response`)."""
@@ -227,6 +258,8 @@ def forced_response(G, N, R: float, omega, *, amplitude, n_amplitudes: int = 400
         jump = _fold(h, w, lnA, solutions, more, fewer)
         if jump is not None:
             jumps.append(jump)
+    jumps = [dataclasses.replace(j, output_amplitude=float(abs(plant(np.array([j.omega]))[0] * complex(
+        N(j.amplitude, j.omega) if N.frequency_dependent else N(j.amplitude))) * j.amplitude)) for j in jumps]
     return ForcedResponse(R, w, solutions, sorted(jumps, key=lambda j: j.omega), (a_lo, a_hi),
                           getattr(N, "input_name", "A"), getattr(N, "input_unit", ""))
 
