@@ -133,6 +133,26 @@ def test_three_level_relay_with_hysteresis_against_simulation():
         assert abs(dual.N_A(B, A) - n) < 1e-4
 
 
+def test_three_level_relay_against_quadrature_of_its_operator():
+    """The output at phase t from the element's own operator (rate independent: the turning points of two warm-up
+    periods, then the input at t), integrated by quad between the crossings of the four switching levels."""
+    relay = Relay(1.0, hysteresis=0.2, dead_zone=0.5)
+    dual = DualInputDF(relay)
+    levels = [0.7, 0.3, -0.7, -0.3]
+
+    def truth(B, A):
+        def y(t):
+            op = relay.operator()
+            turns = [B - A, B + A] * 2 + [B - A] + ([B + A] if t > np.pi / 2 else [])
+            for v in turns:
+                op(v)
+            return op(B + A * np.sin(t))
+        return _moments(y, B, A, _phases(levels, B, A) + [np.pi / 2])
+
+    pairs = [(0.3, 0.8), (-0.2, 1.5), (0.6, 0.3), (0.0, 2.0), (-1.1, 0.9), (0.45, 0.4)]
+    _close(dual, truth, pairs)
+
+
 def test_backlash_shift_invariance_against_branches():
     h, k = 0.6, 2.0
     dual = DualInputDF(Backlash(h, k))

@@ -18,8 +18,8 @@ How each element is evaluated:
   {theta : e > L} = (alpha, pi - alpha), alpha = asin(clip((L - B) / A)):
   I0 = pi - 2 alpha, I1 = int sin = 2 cos alpha, I2 = int sin^2 = (pi - 2 alpha) / 2 + sin alpha cos alpha;
 - relays with hysteresis: exact, from the switching phases (where e crosses the switching levels): in closed form
-  without a dead zone, and with one from the output level held between them (read from the element's operator on
-  a warmed-up period; a Python loop over the points);
+  without a dead zone, and with one from the output level held between them (the relay's switching rule run over
+  three periods of the interval midpoints, vectorised);
 - :class:`~dfloop.Backlash`: exact: the play operator's periodic orbit commutes with a shift of its input, so
   m = k B and N_A(B, A) = N(A);
 - any other static function (a :class:`~dfloop.describing.static.StaticElement` or a callable f(x) with optional
@@ -302,38 +302,52 @@ class DualInputDF:
         return np.where(held, np.where(b >= 0, M, -M), m), np.where(held, 0.0, n)
 
     def _switching(self, b, a):
-        """Relays with hysteresis: the output is constant between the phases where e crosses a switching level;
-        those phases are exact and the level held on each interval is read from the operator after a warm-up."""
+        """Relays with hysteresis and dead zone: the output is constant between the phases where e crosses one of
+        the switching levels +-on, +-off; those phases are exact, and the level held on each interval follows from
+        the relay's switching rule (that of :class:`~dfloop.describing.static.RelayOperator`) run over three
+        periods of the interval midpoints (vectorised over the points; the last two periods must agree)."""
         relay = self._relay
-        levels = np.unique([relay.on_level, relay.off_level, -relay.on_level, -relay.off_level])
-        m_out, n_out = np.empty(b.size), np.empty(b.size, complex)
-        for i, (B, A) in enumerate(zip(b.ravel(), a.ravel())):
-            cuts = []
-            for L in levels:
-                s = (L - B) / A
-                if abs(s) < 1:
-                    t = float(np.arcsin(s))
-                    cuts += [t, np.pi - t]
-            bounds = np.sort(np.array([-0.5 * np.pi, 0.5 * np.pi, 1.5 * np.pi, *cuts]))
-            mids = 0.5 * (bounds[:-1] + bounds[1:])
-            x_mid = B + A * np.sin(mids)
-            op = relay.operator()
-            if B >= 0 and B - A >= relay.off_level:  # +M would never be released: the upper level (see Notes)
-                op(max(B, relay.on_level) + abs(relay.on_level) + 1.0)
-            elif B < 0 and B + A <= -relay.off_level:
-                op(min(B, -relay.on_level) - abs(relay.on_level) - 1.0)
-            ys = []
-            for _ in range(3):
-                ys.append([op(x) for x in x_mid])
-            if ys[1] != ys[2]:
-                raise DfloopError(f"the relay's output is not periodic at B = {B!r}, A = {A!r}")
-            y = np.array(ys[2])
-            lo, hi = bounds[:-1], bounds[1:]
-            m_out[i] = np.sum(y * (hi - lo)) / (2 * np.pi)
-            fs = np.sum(y * (np.cos(lo) - np.cos(hi)))
-            fc = np.sum(y * (np.sin(hi) - np.sin(lo)))
-            n_out[i] = (fs + 1j * fc) / (np.pi * A)
-        return m_out.reshape(b.shape), n_out.reshape(b.shape)
+        M, on, off = relay.M, relay.on_level, relay.off_level
+        bf, af = b.ravel(), a.ravel()
+        n = bf.size
+        lo = -0.5 * np.pi
+        cuts = []
+        for L in (on, off, -on, -off):
+            s = (L - bf) / af
+            inside = np.abs(s) < 1
+            t = np.arcsin(np.clip(s, -1.0, 1.0))
+            cuts += [np.where(inside, t, lo), np.where(inside, np.pi - t, lo)]
+        fixed = [np.full(n, lo), np.full(n, 0.5 * np.pi), np.full(n, 1.5 * np.pi)]
+        bounds = np.sort(np.stack(fixed + cuts, axis=1), axis=1)
+        left, right = bounds[:, :-1], bounds[:, 1:]
+        x_mid = bf[:, None] + af[:, None] * np.sin(0.5 * (left + right))
+        state = np.zeros(n)
+        up = (bf >= 0) & (bf - af >= off)  # +M never released: the upper level (see Notes)
+        down = (bf < 0) & (bf + af <= -off)
+        state[up], state[down] = 1.0, -1.0
+        periods = []
+        for _ in range(3):
+            held = np.empty_like(x_mid)
+            for k in range(x_mid.shape[1]):
+                x = x_mid[:, k]
+                new = state.copy()
+                leave = (state == 1) & (x < off)
+                new[leave] = np.where(x[leave] < -on, -1.0, 0.0)
+                leave = (state == -1) & (x > -off)
+                new[leave] = np.where(x[leave] > on, 1.0, 0.0)
+                rest = state == 0
+                new[rest & (x > on)], new[rest & (x < -on)] = 1.0, -1.0
+                state = new
+                held[:, k] = state
+            periods.append(held)
+        if not np.array_equal(periods[1], periods[2]):
+            row = int(np.argmax(np.any(periods[1] != periods[2], axis=1)))
+            raise DfloopError(f"the relay's output is not periodic at B = {bf[row]!r}, A = {af[row]!r}")
+        y = M * periods[2]
+        m = np.sum(y * (right - left), axis=1) / (2 * np.pi)
+        fs = np.sum(y * (np.cos(left) - np.cos(right)), axis=1)
+        fc = np.sum(y * (np.sin(right) - np.sin(left)), axis=1)
+        return m.reshape(b.shape), ((fs + 1j * fc) / (np.pi * af)).reshape(b.shape)
 
     def __repr__(self) -> str:
         name = self.element if isinstance(self.element, str) else repr(self.element)
