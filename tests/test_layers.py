@@ -21,7 +21,7 @@ LAYERS = (
     ("tables", ("dfloop.tables",)),
     ("impact", ("dfloop.impact",)),
     ("solve", ("dfloop.solve",)),
-    ("exact", ("dfloop.hybrid", "dfloop.exact", "dfloop.verify")),
+    ("exact", ("dfloop.hybrid", "dfloop.exact", "dfloop.verify", "dfloop.biased")),
     ("many", ("dfloop.continuation", "dfloop.batch", "dfloop.chart", "dfloop.autotune")),
     ("plot", ("dfloop.plot",)),
     ("application", ("dfloop.scene", "dfloop.cli", "dfloop.cache_admin")),

@@ -176,6 +176,18 @@ def test_sweep_and_collision_map():
     assert ticks and all(re.fullmatch(r"[0-9.]+", t.replace("\u2212", "-")) for t in ticks), ticks  # plain numbers
 
 
+def test_forced_response():
+    from dfloop.solve.forced import forced_response
+
+    res = forced_response(ct.tf([1.0], [1.0, 0.2, 1.0]), df.CubicStiffness(1.0, 0.5), 0.3, np.linspace(0.5, 3.0, 61),
+                          amplitude=(1e-3, 20.0))
+    cplt = res.plot()
+    check_figure(cplt.figure, "forced response")
+    assert len(cplt.lines[1]) == 2  # one arrow per jump
+    styles = {line.get_linestyle() for line in cplt.lines[0] if line.get_label() in ("stable", "unstable")}
+    assert styles == {"-", "--"}
+
+
 def _chart_loop(K, h):
     return K * ct.tf([1.0], [1.0, 3.0, 2.0, 0.0]), df.Backlash(h)
 
@@ -234,7 +246,8 @@ GALLERY = {"plot_nyquist": test_nyquist_pictures, "plot_residual_map": test_freq
            "plot_loci": test_frequency_dependent_family_and_residual_map, "plot_exact_cycle": test_time_domain_pictures,
            "plot_verification": test_time_domain_pictures, "plot_time_response": test_time_domain_pictures,
            "plot_sweep": test_sweep_and_collision_map, "plot_collision_map": test_sweep_and_collision_map,
-           "plot_element_study": test_scene_figure_study, "plot_chart": test_design_chart}
+           "plot_element_study": test_scene_figure_study, "plot_chart": test_design_chart,
+           "plot_forced_response": test_forced_response}
 
 
 def test_the_gallery_covers_every_plot_function():
