@@ -249,7 +249,7 @@ PROBES: list[Probe] = [
     Probe("predict_limit_cycles(G, N, ...)", "zero G", lambda: df.predict_limit_cycles(ct.tf([0.0], [1.0, 1.0]), SAT), ValueError,
           ("G is zero",)),
     Probe("predict_limit_cycles(G, N, ...)", "grid = (20000, 20000)", lambda: df.predict_limit_cycles(G3, SAT, grid=(20000, 20000)),
-          ValueError, ("20000 x 20000", "35.8 GiB")),
+          ValueError, ("20000 x 20000", "29.8 GiB")),
     Probe("predict_limit_cycles(G, N, ...)", "grid = (6000, 7000), frequency-dependent N",
           lambda: df.predict_limit_cycles(G3, MB, grid=(6000, 7000)), ValueError,
           ("6000 x 7000 points would need 6.3 GiB", "160 bytes per point", "DFLOOP_MEMORY_LIMIT")),

@@ -37,7 +37,7 @@ _MAX_ROUNDS = 64  # halvings of an interval; with the minimum width below, never
 _MIN_WIDTH = 1e-13  # intervals narrower than this (log units, relative to 1 + |x|) are not split (a jump)
 FD_MIN_WIDTH = 1e-6  # the same for a frequency-dependent N, whose jumps move with the amplitude
 _MAX_POINTS = 2_000_000  # nodes per axis
-BYTES_PER_POINT = {False: 96, True: 160}
+BYTES_PER_POINT = {False: 80, True: 160}
 """Upper bounds on the solver's peak memory per grid point (bytes), for an amplitude-only N (False) and a
 frequency-dependent N (True). Measured peaks (tracemalloc, tests/test_memory_bounds.py): ~23 and ~129: the
 amplitude-only solver works on the candidate cells and the products of two vectors, a frequency-dependent one
