@@ -115,10 +115,10 @@ def _motion(G, N, A0: float, w0: float, factor: float) -> dict:
         return {**out, "outcome": "rest", "amplitude": 0.0, "note": run[3]}
     tail = x[t > t[-1] - 0.1 * (t[-1] - t[0])]
     if np.max(np.abs(tail)) < _REST * A:
-        return {**out, "outcome": "rest", "amplitude": float(np.max(np.abs(tail)))}
+        return {**out, "outcome": "rest", "amplitude": float(np.max(np.abs(tail))), "x_end": float(x[-1])}
     st = steady_state(t, x, _MEASURE)
-    if not st.oscillating:
-        return {**out, "outcome": "rest", "amplitude": float(st.amplitude)}
+    if not st.oscillating:   # no zero crossing left: at rest, possibly off zero (in a play or dead band)
+        return {**out, "outcome": "rest", "amplitude": float(st.amplitude), "x_end": float(x[-1])}
     kind = "periodic" if st.periodicity < _PERIODIC else "not periodic"
     return {**out, "outcome": kind, "amplitude": float(st.amplitude), "frequency": float(st.frequency),
             "periodicity": float(st.periodicity)}
@@ -135,7 +135,7 @@ def _words(m: dict) -> str:
     if k == "rest":
         if "note" in m:
             return f"{start}: the element never switches ({m['note']})"
-        return f"{start}: decays to rest (|x| <= {m['amplitude']:.3g})"
+        return f"{start}: comes to rest at x = {m['x_end']:.4g}"
     if k == "divergence":
         return f"{start}: diverges (|x| reached {m['amplitude']:.3g})"
     return f"{start}: the loop cannot be simulated here"

@@ -78,12 +78,10 @@ def ordered_colors(n: int):
 def plain_log_ticks(axis) -> None:
     """Plain numbers on a logarithmic axis (1, 2, 5, 10, 20, ...; no 6x10^0 labels): major ticks at 1, 2 and
     5 per decade, unlabelled minor ticks."""
-    from matplotlib.ticker import LogLocator, NullFormatter, ScalarFormatter
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
     axis.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
-    fmt = ScalarFormatter()
-    fmt.set_scientific(False)
-    axis.set_major_formatter(fmt)
+    axis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))   # 0.5, 1, 2 (no trailing zeros)
     axis.set_minor_formatter(NullFormatter())
 
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..describing.base import negative_inverse
 from ._curves import add_direction_arrow, curve_with_gaps
-from ._labels import FREQUENCY, amplitude_label, legend, place_labels, plane_labels
+from ._labels import FREQUENCY, amplitude_label, legend, place_labels, plain_log_ticks, plane_labels
 from .controlplot import control_plot
 
 __all__ = ["plot_nyquist", "plot_residual_map", "EXACT_LABEL"]
@@ -351,6 +351,9 @@ def plot_residual_map(cycles, ax=None, *, omega=None, amplitude=None, shape=(200
                            **_STYLE[c.stability])
     ax.set_xscale("log")
     ax.set_yscale("log")
+    for axis, (lo, hi) in ((ax.xaxis, ax.get_xlim()), (ax.yaxis, ax.get_ylim())):
+        if hi / lo <= 1e3:   # a short log axis: plain numbers (0.5, 1, 2), not 6x10^-1
+            plain_log_ticks(axis)
     ax.set_xlabel(FREQUENCY)
     ax.set_ylabel(amplitude_label(N))
     ax.set_title("1 + GN = 0 where Re = 0 (white) meets Im = 0 (red dashed)", fontsize=9)

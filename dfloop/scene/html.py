@@ -106,8 +106,10 @@ def cycle_table(cycles, verifications=(), unit: str = "", name: str = "A") -> st
         if ex is None:
             exact = ["-", "-", "not computed", "-"]
         elif not ex.success:
-            footnotes.append(f"<li>cycle {i}: no exact orbit found: {_e(ex.message)}</li>")
-            exact = ["-", "-", f'<td class="text" title="{_e(ex.message)}">no orbit (note {len(footnotes)})</td>', "-"]
+            verdict = c.verdict   # confirmed / artefact / not checked (dfloop.solve.verdict)
+            footnotes.append(f"<li>cycle {i}: {_e(verdict.kind)}: {_e(verdict.detail)}</li>")
+            exact = ["-", "-", f'<td class="text" title="{_e(ex.message)}">{_e(verdict.kind)} (note {len(footnotes)})'
+                               '</td>', "-"]
         else:
             exact = [f"{ex.amplitude:.6g}", f"{ex.frequency:.6g}",
                      f"{_word('stable' if ex.stable else 'unstable')} ({ex.largest_multiplier:.3g})",
