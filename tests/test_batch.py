@@ -8,6 +8,7 @@ import pytest
 
 import dfloop
 from dfloop.batch import predict_many, run_batch
+from dfloop.chart import ChartAxis, design_chart
 from dfloop.continuation import sweep
 
 G0 = ct.tf([1], [1, 3, 2, 0])
@@ -72,6 +73,14 @@ def test_order_kept_and_errors_name_the_item():
         run_batch(abs, [1], timeout=-1)
 
 
+def _servo(K, h):
+    return K * G0, dfloop.Backlash(h)
+
+
+_CHART_AXES = (ChartAxis(2.5, 5.5, "gain K"), ChartAxis(0.1, 0.5, "clearance h", "m"))
+_CHART_OPTIONS = dict(samples=3, resolution=12, omega=(0.01, 100.0), progress=False)
+
+
 def test_dask_local_cluster_gives_the_serial_results():
     distributed = pytest.importorskip("distributed")  # in the test extra; CI installs it
     loops = _monte_carlo_loops(24)
@@ -88,6 +97,13 @@ def test_dask_local_cluster_gives_the_serial_results():
         ex = client.get_executor()
         _same(serial, predict_many(loops, executor=ex, chunksize=4, progress=False, timeout=120))
         sw = sweep(loop_at, values, progress=False, executor=ex)
+        chart = design_chart(_servo, *_CHART_AXES, executor=ex, **_CHART_OPTIONS)
+    chart_serial = design_chart(_servo, *_CHART_AXES, **_CHART_OPTIONS)
+    assert len(chart.boundaries) == len(chart_serial.boundaries) > 0
+    for a, b in zip(chart_serial.boundaries, chart.boundaries):
+        np.testing.assert_array_equal(a.x, b.x)
+        np.testing.assert_array_equal(a.y, b.y)
+    assert chart.region_fractions() == chart_serial.region_fractions()
     _same(sw_serial.cycles, sw.cycles)
     for a, b in zip(sw_serial.branches, sw.branches):
         np.testing.assert_array_equal(a.amplitude, b.amplitude)
