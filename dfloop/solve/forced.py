@@ -61,7 +61,7 @@ class ForcedPoint:
     stable: bool
 
     def __repr__(self) -> str:
-        return (f"ForcedPoint(omega={self.omega:.6g} rad/s, A={self.amplitude:.6g}, output={self.output_amplitude:.6g}"
+        return (f"ForcedPoint(omega={self.omega:.6g} rad/s, amplitude={self.amplitude:.6g}, output_amplitude={self.output_amplitude:.6g}"
                 f", {'stable' if self.stable else 'unstable'})")
 
 
