@@ -201,6 +201,10 @@ class Backlash(DescribingFunction):
             im = -(self.k / np.pi) * rc * s
             return np.where(r >= 2.0, 0.0, re + 1j * im)
 
+    def compiled_form(self):
+        """("backlash", (h, k, h / 2)): the kind and parameters of the compiled pipeline (dfloop.solve.compiled)."""
+        return "backlash", (self.h, self.k, 0.5 * self.h)
+
     def amplitude_domain(self, omega=None):
         """(h/2, inf): N = 0 for X <= h/2 (the input never crosses the play)."""
         return _domain(0.5 * self.h, np.inf, omega)
@@ -251,6 +255,10 @@ class Saturation(StaticElement):
         with np.errstate(invalid="ignore"):
             return _keep_nan(A, np.where(r >= 1.0, self.k, self.k * _f(np.clip(r, 0.0, 1.0))))
 
+    def compiled_form(self):
+        """("saturation", (limit, k)) for the compiled pipeline."""
+        return "saturation", (self.limit, self.k)
+
     def amplitude_domain(self, omega=None):
         """(0, inf): N is non-zero for every amplitude (N(0) = k)."""
         return _domain(0.0, np.inf, omega)
@@ -296,6 +304,10 @@ class DeadZone(StaticElement):
             near_edge = (2.0 / np.pi) * self.k * _asin_minus(np.sqrt(gap * (1.0 + rc)), rc)
             n = np.where(rc < 0.5, self.k * (1.0 - _f(rc)), near_edge)
             return np.where(r >= 1.0, 0.0, n)
+
+    def compiled_form(self):
+        """("dead_zone", (delta, k)) for the compiled pipeline."""
+        return "dead_zone", (self.delta, self.k)
 
     def amplitude_domain(self, omega=None):
         """(delta, inf)."""
@@ -406,6 +418,10 @@ class Relay(DescribingFunction):
                 return np.where(A == 0.0, complex(np.inf, 0.0), n)
             return np.where(A <= on, 0.0, n)
 
+    def compiled_form(self):
+        """("relay", (M, hysteresis, on level, off level)) for the compiled pipeline."""
+        return "relay", (self.M, self.hysteresis, self.on_level, self.off_level)
+
     def amplitude_domain(self, omega=None):
         """(d + a, inf)."""
         return _domain(self.on_level, np.inf, omega)
@@ -462,6 +478,10 @@ class CubicStiffness(StaticElement):
     def _evaluate(self, A, omega):
         with np.errstate(over="ignore"):  # beyond ~1e154 m: +/-inf, the rounded value of the true N
             return self.k1 + 0.75 * self.k3 * A * A
+
+    def compiled_form(self):
+        """("cubic", (k1, 0.75 k3)) for the compiled pipeline."""
+        return "cubic", (self.k1, 0.75 * self.k3)
 
     def amplitude_domain(self, omega=None):
         """(0, inf) when hardening; (0, sqrt(4 k1 / (3 |k3|))) when softening (N = 0 at the upper end)."""
@@ -581,6 +601,10 @@ class PreloadedSpring(StaticElement):
         with np.errstate(divide="ignore", over="ignore"):
             return self.k + (4.0 / np.pi) * (self.preload / A)
 
+    def compiled_form(self):
+        """("preload", (k, preload)) for the compiled pipeline."""
+        return "preload", (self.k, self.preload)
+
     def amplitude_domain(self, omega=None):
         """(0, inf)."""
         return _domain(0.0, np.inf, omega)
@@ -624,6 +648,10 @@ class CoulombViscousFriction(StaticElement):
     def _evaluate(self, A, omega):
         with np.errstate(divide="ignore", over="ignore"):
             return self.c + (4.0 / np.pi) * (self.Fc / A)
+
+    def compiled_form(self):
+        """("friction", (c, Fc)) for the compiled pipeline."""
+        return "friction", (self.c, self.Fc)
 
     def amplitude_domain(self, omega=None):
         """(0, inf)."""

@@ -13,6 +13,7 @@ from ..describing.base import DescribingFunction
 from ..describing.interop import as_element
 from ..describing.static import StaticElement
 from ._kernels import candidate_cells
+from .compiled import residual_for
 from .grid import FD_MIN_WIDTH, STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
 from .plant import as_plant
 from .result import GridReport, JumpCrossing, LimitCycle, LimitCycles
@@ -279,7 +280,7 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     if not (0 <= marginal_tol < 1):
         raise ValueError(f"marginal_tol must lie in [0, 1); got {marginal_tol}")
     na, nw = _grid_size(grid, N.frequency_dependent)
-    res = Residual(plant, N)
+    res = residual_for(plant, N)  # compiled where G and N have compiled forms (solve/compiled)
 
     if omega is None:
         if plant.default_window is None:

@@ -334,8 +334,10 @@ def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.nd
     costs one call. Returns the final (a, v) and a mask of points with |R| <= tol (1 + |G N|) or
     a Newton step at the rounding level of (a, v) (:func:`at_rounding_level`), and within
     :func:`residual_bound` in either case.
-    Bounded by 100 iterations.
+    Bounded by 100 iterations. A residual with its own ``refine`` (the compiled one) runs the same iteration.
     """
+    if hasattr(res, "refine"):
+        return res.refine(a, v, box, tol)
     a, v = np.array(a, float), np.array(v, float)
     P, ra, rv = res.slopes(a, v)
     rel = np.abs(1 + P) / (1 + np.abs(P))
@@ -388,8 +390,9 @@ def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.nd
         ra[acc], rv[acc] = rat[better], rvt[better]
         lam[acc] = np.maximum(lam[acc] / 10, 1e-15)
         lam[rej] *= 100
-        done = (rel <= polish) | at_rounding_level(P, ra, rv, a, v)
-        failed |= (lam > 1e8) & ~done
+        # only the active points moved: the others keep their verdicts (done or failed)
+        done[act] = (rel[act] <= polish) | at_rounding_level(P[act], ra[act], rv[act], a[act], v[act])
+        failed[act] |= (lam[act] > 1e8) & ~done[act]
     return a, v, ((rel <= tol) | at_rounding_level(P, ra, rv, a, v)) & accepted(P, ra, rv, a, v, tol)
 
 

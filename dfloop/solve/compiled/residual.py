@@ -1,0 +1,173 @@
+"""The compiled form of a loop: :class:`CompiledResidual`, a :class:`~dfloop.solve.roots.Residual` whose
+evaluations and refinement run in the numba kernels of :mod:`.kernels`.
+
+Where it applies: a rational G (tf or ss, continuous, optionally with the pure delay of a
+:class:`~dfloop.solve.delay.DelayedSystem`) and an element whose ``compiled_form()`` returns a kind and its
+parameters (the built-in static elements with closed-form DFs). Everything else (callables, frd, sampled
+plants, frequency-dependent, numeric and user-defined elements) keeps the Python residual. The environment
+variable ``DFLOOP_COMPILED=0`` forces the Python path everywhere (the reference the tests compare with).
+
+The algorithm is the Python one: the same driver (:func:`dfloop.predict_limit_cycles`), grid rule, winding
+tests, tangent and continuum searches; only the evaluation of G, N and their slopes and the Levenberg-Marquardt
+refinement (where a call spends most of its time) are compiled.
+"""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from ...progress import announce, compile_pending
+from ..plant import Plant
+from ..roots import Residual
+from . import kernels as K
+
+__all__ = ["CompiledResidual", "compiled_loop", "residual_for", "enabled", "warmup", "COMPILE_SECONDS"]
+
+COMPILE_SECONDS = 12
+"""About how long compiling the kernels takes once per installation (s; benchmarks/bench_startup.py)."""
+_CHECK_W = np.array([0.37, 1.0, 2.9])  # frequencies (rad/s) where the extracted coefficients are checked
+_announced = False
+_MEMO_BATCH, _MEMO_SIZE = 64, 8192  # refined batches remembered (as Residual.slopes does)
+
+
+def enabled() -> bool:
+    """Whether the compiled path may be used (``DFLOOP_COMPILED=0`` in the environment turns it off)."""
+    return os.environ.get("DFLOOP_COMPILED", "1") != "0"
+
+
+def _coefficients(plant: Plant):
+    """(num, den, delay) of a rational continuous plant, read from its response, or None.
+
+    The coefficients are the ones :class:`Plant` evaluates (its closure); they are checked against the plant
+    itself at a few frequencies, so a plant built any other way is never evaluated wrongly, only not compiled.
+    """
+    if plant.roots is None or plant.frequency_map is not None or plant.dt is not None:
+        return None
+    fn, delay = plant.response, float(plant.delay)
+    cells = dict(zip(fn.__code__.co_freevars, (c.cell_contents for c in (fn.__closure__ or ()))))
+    if delay != 0.0:
+        inner = cells.get("inner")
+        if inner is None or cells.get("T") != delay:
+            return None
+        cells = dict(zip(inner.__code__.co_freevars, (c.cell_contents for c in (inner.__closure__ or ()))))
+    num, den = cells.get("num"), cells.get("den")
+    if not (isinstance(num, np.ndarray) and isinstance(den, np.ndarray)):
+        return None
+    num, den = np.ascontiguousarray(num, float), np.ascontiguousarray(den, float)
+    try:
+        ref = plant(_CHECK_W)
+    except ValueError:
+        return None
+    got = K.plant_values(num, den, delay, _CHECK_W)
+    if not np.allclose(got, ref, rtol=1e-13, atol=0.0):
+        return None
+    return num, den, delay
+
+
+def compiled_loop(plant: Plant, N):
+    """The arrays the kernels take for the loop (G, N), or None when either has no compiled form."""
+    if not enabled() or getattr(N, "frequency_dependent", True):
+        return None
+    form = getattr(N, "compiled_form", None)
+    form = form() if callable(form) else None
+    if form is None or form[0] not in K.KINDS:
+        return None
+    coef = _coefficients(plant)
+    if coef is None:
+        return None
+    zeros, poles = (np.ascontiguousarray(r, complex) for r in plant.roots)
+    return (*coef[:2], zeros, poles, coef[2], K.KINDS[form[0]], np.ascontiguousarray(form[1], float))
+
+
+def _announce_compile() -> None:
+    """Say once, before the first compile of this installation, that it is happening and about how long."""
+    global _announced
+    if _announced:
+        return
+    _announced = True
+    if compile_pending(K.refine, K.evaluate_slopes, K.products):
+        announce(f"dfloop: compiling the solver's kernels once for this installation, about {COMPILE_SECONDS} s "
+                 "(or run `dfloop warmup` beforehand)")
+
+
+class CompiledResidual(Residual):
+    """A :class:`~dfloop.solve.roots.Residual` evaluated by the numba kernels (same values, same interface),
+    with a compiled :meth:`refine`."""
+
+    def __init__(self, plant: Plant, N, loop):
+        super().__init__(plant, N)
+        self._loop = loop
+        self._gpart = (loop[0], loop[1], loop[4])
+        self._npart = (loop[5], loop[6])
+        _announce_compile()
+
+    def _n(self, A, w):
+        A = np.asarray(A, float)
+        if A.ndim != 1 or not np.all(np.isfinite(A) & (A > 0)):
+            return super()._n(A, w)
+        return K.element_values(*self._npart, np.ascontiguousarray(A))
+
+    def _g(self, w: np.ndarray) -> np.ndarray:
+        return K.plant_values(*self._gpart, np.ascontiguousarray(w, float))
+
+    def terms(self, a, v) -> np.ndarray:
+        a, v = np.broadcast_arrays(np.asarray(a, float), np.asarray(v, float))
+        if a.ndim != 1:
+            return super().terms(a, v)
+        self.n_points += a.size
+        return K.products(*self._gpart, *self._npart, np.exp(a), np.exp(v))
+
+    def grid(self, a: np.ndarray, v: np.ndarray) -> np.ndarray:
+        self.n_points += a.size * v.size
+        return self._n(np.exp(a), None)[:, None] * self._g(np.exp(v))[None, :]
+
+    def _evaluate_slopes(self, a: np.ndarray, v: np.ndarray):
+        A, w = np.exp(a), np.exp(v)
+        if not np.all(np.isfinite(A) & (A > 0)):
+            return super()._evaluate_slopes(a, v)
+        self.n_points += 3 * a.size
+        out = K.evaluate_slopes(*self._loop, np.ascontiguousarray(A), np.ascontiguousarray(w))
+        return out[0], out[1], out[2], out[3], out[4]
+
+    def refine(self, a, v, box, tol: float):
+        """:func:`dfloop.solve.roots.refine` in the kernels (point by point; the same iteration)."""
+        a, v = np.array(a, float).ravel(), np.array(v, float).ravel()
+        lo_a, hi_a, lo_v, hi_v = (np.ascontiguousarray(np.broadcast_to(x, a.shape), float)
+                                  for x in (box.a_lo, box.a_hi, box.v_lo, box.v_hi))
+        ra, rv, ok, vals = K.refine(*self._loop, a, v, lo_a, hi_a, lo_v, hi_v, float(tol))
+        self.n_points += 3 * a.size
+        if a.size <= _MEMO_BATCH:  # remembered as the Python refinement's last evaluations are
+            if len(self._memo) + a.size > _MEMO_SIZE:
+                self._memo.clear()
+            self._memo.update(zip(zip(ra.tolist(), rv.tolist()), zip(*(x.tolist() for x in vals))))
+        return ra, rv, ok
+
+
+def residual_for(plant: Plant, N) -> Residual:
+    """The residual of the loop: compiled where :func:`compiled_loop` applies, the Python one otherwise."""
+    loop = compiled_loop(plant, N)
+    return Residual(plant, N) if loop is None else CompiledResidual(plant, N, loop)
+
+
+def warmup() -> float:
+    """Compile (or load from numba's cache) every kernel of the compiled path; returns the seconds spent."""
+    import time
+
+    import control as ct
+
+    from ...describing.static import Backlash
+    from ..plant import as_plant
+
+    t0 = time.perf_counter()
+    plant = as_plant(ct.tf([5.0], [1.0, 1.0, 0.0]))
+    res = residual_for(plant, Backlash(1.0))
+    if isinstance(res, CompiledResidual):
+        a, v = np.array([0.0]), np.array([0.5])
+        res.terms(a, v)
+        res.grid(a, v)
+        res._evaluate_slopes(a, v)
+        from ..roots import Box
+
+        res.refine(a, v, Box(-1.0, 1.0, 0.0, 1.0), 1e-10)
+    return time.perf_counter() - t0
