@@ -13,15 +13,18 @@ functions pickle; lambdas need an executor that uses cloudpickle (Dask does).
 """
 from __future__ import annotations
 
+import collections
 import concurrent.futures as cf
 import inspect
+import itertools
 import math
+import time
 from functools import partial
 from typing import Any, Callable, Iterable, Sequence
 
 from . import _checks
 from .progress import progress_bar
-from .solve import LimitCycles, predict_limit_cycles
+from .solve import predict_limit_cycles
 
 __all__ = ["predict_many", "run_batch", "solver_options"]
 
@@ -131,44 +134,117 @@ def solver_options(options: dict, exclude: tuple[str, ...] = ()) -> dict:
     return options
 
 
-def _predict_pair(loop, options: dict) -> LimitCycles:
+def _predict_pair(loop, options: dict, keep: Callable | None = None):
+    if not (isinstance(loop, (tuple, list)) and len(loop) == 2):
+        raise ValueError(f"a loop must be a pair (G, N); got {type(loop).__name__}")
     G, N = loop
-    return predict_limit_cycles(G, N, **options)
+    result = predict_limit_cycles(G, N, **options)
+    return result if keep is None else keep(result)
+
+
+_STREAM_CHUNK = 256  # loops per task when their number is not known in advance
+_IN_FLIGHT = 8  # chunks submitted ahead of the one awaited (bounds the memory of a streamed batch)
+
+
+def _stream(fn: Callable, items: Iterable, executor, chunksize: int, progress, label: str, timeout, total):
+    """``[fn(x) for x in items]`` consuming ``items`` lazily: at most ``_IN_FLIGHT`` chunks are held at once,
+    so a generator of 10^5 loops never exists as a list (only the kept results do)."""
+    it = iter(items)
+    out: list = []
+    deadline = None if timeout is None else time.monotonic() + timeout
+    with progress_bar(label, total, enabled=progress) as bar:
+        if executor is None:
+            for i, item in enumerate(it):
+                out.extend(_run_chunk(fn, i, [item], label))
+                bar.update(1)
+            return out
+        pending: collections.deque = collections.deque()
+        start = 0
+
+        def submit() -> bool:
+            nonlocal start
+            chunk = list(itertools.islice(it, chunksize))
+            if chunk:
+                pending.append(executor.submit(_run_chunk, fn, start, chunk, label))
+                start += len(chunk)
+            return bool(chunk)
+
+        try:
+            while len(pending) < _IN_FLIGHT and submit():
+                pass
+            while pending:
+                left = None if deadline is None else max(deadline - time.monotonic(), 0.0)
+                try:
+                    part = pending[0].result(timeout=left)
+                except cf.TimeoutError:
+                    raise TimeoutError(f"{label}: {start - len(out)} submitted items unfinished after "
+                                       f"timeout={timeout} s; pass a larger timeout (or None to wait)") from None
+                pending.popleft()
+                out.extend(part)
+                bar.update(len(part))
+                submit()
+        except BaseException:
+            for fut in pending:
+                fut.cancel()
+            raise
+        return out
 
 
 def predict_many(loops: Iterable, *, executor: cf.Executor | None = None, chunksize: int | None = None,
-                 progress: bool | None = None, timeout: float | None = None, **options) -> list[LimitCycles]:
+                 progress: bool | None = None, timeout: float | None = None, keep: Callable | None = None,
+                 **options) -> list:
     """:func:`~dfloop.predict_limit_cycles` for many loops (Monte Carlo over plant uncertainty, design grids).
+
+    Loops whose G is rational (tf/ss, optionally delayed) and whose element has a compiled form run on the
+    compiled pipeline (:mod:`dfloop.solve.compiled`), whatever the executor.
 
     Parameters
     ----------
     loops : iterable of (G, N)
-        Plant and element of each loop, as for :func:`~dfloop.predict_limit_cycles`.
+        Plant and element of each loop, as for :func:`~dfloop.predict_limit_cycles`. A sequence is checked
+        whole before any work; any other iterable (a generator of 10^5 sampled loops) is streamed: read in
+        chunks as the executor takes them, never held whole.
     executor : concurrent.futures.Executor, optional
         Where to run: a process or thread pool, or a Dask cluster's ``client.get_executor()``. None runs
         in this process. The results are identical either way (same code, same inputs).
     chunksize : int, optional
-        Loops per task (default: the batch in about 64 tasks).
+        Loops per task (default: a sequence in about 64 tasks, a stream in tasks of 256 loops).
     progress : bool or None
         Progress bar; None shows it only when the batch takes more than a second.
     timeout : float, optional
         Seconds to wait for the whole batch on the executor (None: no limit).
+    keep : callable, optional
+        Applied to each loop's :class:`LimitCycles` where it is computed; the batch returns what it returns
+        (e.g. the amplitude of the stable cycle), so a large batch keeps only that in memory and sends only
+        that back from the workers. Must pickle for a process-based executor (a module-level function).
     **options
         Passed to :func:`~dfloop.predict_limit_cycles` for every loop (``omega``, ``amplitude``, ``grid``,
         ``tol``, ...).
 
     Returns
     -------
-    list of LimitCycles
-        One result per loop, in the order of ``loops``. A loop that fails raises, naming its index.
+    list
+        One result per loop (a LimitCycles, or ``keep`` of it), in the order of ``loops``. A loop that fails
+        raises, naming its index.
     """
-    try:
-        loops = list(loops)
-    except TypeError:
-        raise ValueError(f"loops must be an iterable of (G, N) pairs; got {_checks.show(loops)}") from None
     solver_options(options)
+    if keep is not None and not callable(keep):
+        raise ValueError(f"keep must be a callable applied to each result, or None; got {_checks.show(keep)}")
+    fn = partial(_predict_pair, options=options, keep=keep)
+    if not isinstance(loops, (list, tuple)):
+        try:
+            iter(loops)
+        except TypeError:
+            raise ValueError(f"loops must be an iterable of (G, N) pairs; got {_checks.show(loops)}") from None
+        if executor is not None and not callable(getattr(executor, "submit", None)):
+            raise ValueError(f"executor must be a concurrent.futures.Executor (with submit); got "
+                             f"{type(executor).__name__}")
+        size = _STREAM_CHUNK if chunksize is None else _checks.integer_at_least("chunksize", chunksize, 1)
+        total = len(loops) if hasattr(loops, "__len__") else None
+        return _stream(fn, loops, executor, size, _checks.flag("progress", progress, none=True), "predict_many",
+                       timeout, total)
     for i, loop in enumerate(loops):
         if not (isinstance(loop, (tuple, list)) and len(loop) == 2):
             raise ValueError(f"loops[{i}] must be a pair (G, N); got {type(loop).__name__}")
-    return run_batch(partial(_predict_pair, options=options), loops, executor=executor, chunksize=chunksize,
-                     progress=progress, label="predict_many", timeout=timeout)
+    return run_batch(fn, loops, executor=executor, chunksize=chunksize, progress=progress, label="predict_many",
+                     timeout=timeout)

@@ -108,3 +108,41 @@ def test_dask_local_cluster_gives_the_serial_results():
     for a, b in zip(sw_serial.branches, sw.branches):
         np.testing.assert_array_equal(a.amplitude, b.amplitude)
         np.testing.assert_array_equal(a.parameter, b.parameter)
+
+
+def _stable_amplitudes(result):
+    """What a large batch keeps of each loop: the amplitudes of its stable cycles."""
+    return tuple(c.amplitude for c in result if c.stability == "stable")
+
+
+def test_streamed_batch_keeps_only_what_is_asked_and_reads_ahead_a_bounded_amount():
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+
+    from dfloop import batch
+
+    loops = _monte_carlo_loops(40, seed=3)
+    whole = [_stable_amplitudes(r) for r in predict_many(loops, progress=False)]
+    assert predict_many(iter(loops), keep=_stable_amplitudes, progress=False) == whole
+    produced, finished, worst, lock = [0], [0], [0], threading.Lock()
+
+    def generate():
+        for loop in loops:
+            with lock:
+                produced[0] += 1
+                worst[0] = max(worst[0], produced[0] - finished[0])
+            yield loop
+
+    def keep(result):
+        with lock:
+            finished[0] += 1
+        return _stable_amplitudes(result)
+
+    with ThreadPoolExecutor(2) as ex:
+        got = predict_many(generate(), executor=ex, chunksize=2, keep=keep, progress=False)
+    assert got == whole
+    assert worst[0] <= (batch._IN_FLIGHT + 1) * 2  # never the whole stream: chunks in flight plus one
+    with pytest.raises(ValueError, match="keep must be a callable"):
+        predict_many(loops, keep=3)
+    with pytest.raises(ValueError, match="predict_many, item 1: a loop must be a pair"):
+        predict_many(iter([loops[0], G0]), progress=False)
