@@ -1,0 +1,111 @@
+"""The compiled pipeline against python-control, the Python path and the floor, in one run.
+
+For python-control's own small problems and dense 200 x 500 windows (the problems of
+bench_solver_vs_control.py, same windows and grid sizes): python-control's describing_function_response, dfloop's
+Python path (DFLOOP_COMPILED=0) and the compiled path; and the *floor*: evaluating G and N once on the initial
+grid with numpy (G by python-control's frequency response, N by the element, one outer product), the least any
+grid solver spends. Then a batch of sampled servo loops (examples/monte_carlo_servo.py) through predict_many in
+this process: microseconds per loop per core, its floor (G and N once on each loop's 64 x 256 grid), and the
+peak traced memory of the streamed batch (tracemalloc, results kept as one float per loop).
+
+Run: python benchmarks/bench_compiled.py [--batch N] [--write]   (default N = 2000 loops; --write also writes
+benchmarks/results/bench_compiled.md)
+"""
+from __future__ import annotations
+
+import os
+import pathlib
+import sys
+import time
+import tracemalloc
+import warnings
+
+import control as ct
+import numpy as np
+
+sys.path.insert(0, str(pathlib.Path(__file__).parent))
+sys.path.insert(0, str(pathlib.Path(__file__).parents[1] / "examples"))
+
+import dfloop as df  # noqa: E402
+from bench_solver_vs_control import PROBLEMS  # noqa: E402
+from dfloop.batch import predict_many  # noqa: E402
+from monte_carlo_servo import sample, stable_amplitude  # noqa: E402
+
+BATCH = int(sys.argv[sys.argv.index("--batch") + 1]) if "--batch" in sys.argv[1:] else 2000
+
+
+def best(fn, repeat: int):
+    t_best, out = np.inf, None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn()
+        t_best = min(t_best, time.perf_counter() - t0)
+    return t_best, out
+
+
+def floor(G, N, amps, omega) -> float:
+    """G and N once on the grid with numpy, and their product: the cost below any grid solver."""
+    def once():
+        g = ct.frequency_response(G, omega).complex if hasattr(ct, "frequency_response") else G(1j * omega)
+        return np.asarray(N(amps))[:, None] * np.ravel(g)[None, :]
+    return best(once, 20)[0]
+
+
+def solve(G, N, amps, omega, compiled: bool):
+    os.environ["DFLOOP_COMPILED"] = "1" if compiled else "0"
+    return df.predict_limit_cycles(G, N, amplitude=(amps[0], amps[-1]), omega=(omega[0], omega[-1]),
+                                   grid=(amps.size, omega.size))
+
+
+def main() -> str:
+    warnings.simplefilter("ignore")
+    rows = ["| problem | grid | python-control [ms] | Python path [ms] | compiled [ms] | floor [ms] | "
+            "compiled vs python-control | compiled / floor | same answers |", "|---|---|---|---|---|---|---|---|---|"]
+    for name, G, F, N, amps, omega in PROBLEMS:
+        t_pc, _ = best(lambda: ct.describing_function_response(G, F, amps, omega), 2)
+        t_py, r_py = best(lambda: solve(G, N, amps, omega, False), 3)
+        solve(G, N, amps, omega, True)
+        t_c, r_c = best(lambda: solve(G, N, amps, omega, True), 5)
+        t_f = floor(G, N, amps, omega)
+        same = len(r_py) == len(r_c) and all(abs(a.amplitude / b.amplitude - 1) <= 1e-12 and
+                                             abs(a.frequency / b.frequency - 1) <= 1e-12 and a.stability == b.stability
+                                             for a, b in zip(r_py, r_c))
+        rows.append(f"| {name} | {amps.size} x {omega.size} | {t_pc * 1e3:.2f} | {t_py * 1e3:.2f} | {t_c * 1e3:.2f} | "
+                    f"{t_f * 1e3:.3f} | {t_pc / t_c:.0f}x | {t_c / t_f:.0f}x | {'yes' if same else 'NO'} |")
+    os.environ["DFLOOP_COMPILED"] = "1"
+    list(predict_many(sample(20, 0), keep=stable_amplitude, progress=False))  # compiled and warm
+    t0, c0 = time.perf_counter(), time.process_time()
+    amps = predict_many(sample(BATCH, 1), keep=stable_amplitude, progress=False)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    n_mem = min(BATCH, 500)  # memory of the stream, traced on its first loops (tracemalloc slows Python 2-3x)
+    tracemalloc.start()
+    predict_many(sample(n_mem, 1), keep=stable_amplitude, progress=False)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    # floor of one batch loop: G and N once on its 64 x 256 initial grid
+    G, N = next(sample(1, 1))
+    plant = df.solve.as_plant(G)
+    w, A = np.logspace(-2, 2.3, 256), np.linspace(0.3, 5.0, 64)
+
+    def once():
+        return N(A)[:, None] * plant(w)[None, :]
+    t_floor = best(once, 50)[0]
+    p = float(np.mean(np.isfinite(amps)))
+    rows += ["", f"Batch: {BATCH} sampled servo loops (examples/monte_carlo_servo.py: K e^(-s tau)/(s(0.5s+1)) with "
+             f"backlash) through predict_many(keep=...) in this process: {cpu / BATCH * 1e6:.0f} us "
+             f"CPU per loop per core ({wall / BATCH * 1e6:.0f} us wall); floor (G and N once on a 64 x 256 grid) "
+             f"{t_floor * 1e6:.0f} us, ratio {cpu / BATCH / t_floor:.0f}x; peak traced memory {peak / 2**20:.1f} MiB for "
+             f"{n_mem} loops (streamed: independent of the number of loops but for one float kept per loop); "
+             f"P(stable cycle) = {p:.3f}."]
+    return "\n".join(rows)
+
+
+if __name__ == "__main__":
+    table = main()
+    print(table)
+    if "--write" in sys.argv[1:]:
+        out = pathlib.Path(__file__).parent / "results" / "bench_compiled.md"
+        out.write_text("# Compiled pipeline vs python-control, the Python path and the floor\n\nCommand: "
+                       f"`python benchmarks/bench_compiled.py --batch {BATCH} --write` (best of 2 runs for "
+                       "python-control, 3 for the Python path, 5 compiled, 20 for the floor; one process, "
+                       "on a machine shared with other jobs).\n\n" + table + "\n")
