@@ -10,6 +10,10 @@ directory: a fresh install) and again with that cache filled (every later proces
 are numpy, so the two agree; with ``--compare`` the same cold first call is timed on the other checkout (e.g.
 one whose kernels were numba and compiled on that call).
 
+Then every public entry point's first call (predict_limit_cycles, cycle_confidence, exact_cycle, verify_cycle,
+sweep, the first DynamicBacklash value) in a fresh process with empty numba and table caches, with the line it
+printed on the progress channel: each returns within 3 s or says at once that it compiles, and about how long.
+
 Run: python benchmarks/bench_startup.py [--repeats N] [--compare OTHER_CHECKOUT] [--write]   (--write saves results/bench_startup.md)
 """
 from __future__ import annotations
@@ -40,6 +44,44 @@ predict_limit_cycles(G, N)
 t3 = time.perf_counter()
 print(json.dumps({"imports": t1 - t0, "first": t2 - t1, "second": t3 - t2}))
 """
+
+
+ENTRY = """
+import json, sys, time
+import control as ct
+import dfloop as df
+G, N = ct.tf([5], [1, 1, 0]), df.Backlash(h=1.0)
+what = sys.argv[1]
+t0 = time.perf_counter()
+if what == "predict_limit_cycles":
+    df.predict_limit_cycles(G, N)
+elif what == "confidence":
+    df.cycle_confidence(G, N, 1.0103, 1.5914)
+elif what == "exact_cycle":
+    df.exact_cycle(G, N, (1.0103, 1.5914))
+elif what == "verify_cycle":
+    df.verify_cycle(G, N, (1.0103, 1.5914))
+elif what == "sweep":
+    from dfloop.continuation import sweep
+    sweep(lambda K: (ct.tf([K], [1, 1, 0]), df.Backlash(h=1.0)), [3.0, 4.0, 5.0], progress=False)
+elif what == "DynamicBacklash":
+    from dfloop.impact.dynamic_backlash import DynamicBacklash
+    DynamicBacklash(1.0, 1.0, 0.1, 0.5, periods=20, starts=0)(50.0, 35.0)
+t1 = time.perf_counter()
+print(json.dumps({"first": t1 - t0}))
+"""
+ENTRIES = ["predict_limit_cycles", "confidence", "exact_cycle", "verify_cycle", "sweep", "DynamicBacklash"]
+
+
+def cold_entry(what: str, root: pathlib.Path = ROOT) -> tuple[float, str]:
+    """Seconds of the first call of one public entry point in a fresh process with empty numba and table caches
+    (a fresh install), and the first line it printed on the progress channel (stderr; '' when silent)."""
+    with tempfile.TemporaryDirectory(prefix="dfloop-fresh-") as tmp:
+        env = _env(root, NUMBA_CACHE_DIR=tmp + "/numba", DFLOOP_CACHE_DIR=tmp + "/tables")
+        done = subprocess.run([sys.executable, "-c", ENTRY, what], env=env, cwd=root, check=True,
+                              capture_output=True, text=True)
+    said = next((line for line in done.stderr.splitlines() if "compil" in line), "")
+    return json.loads(done.stdout.strip().splitlines()[-1])["first"], said
 
 
 def _env(root: pathlib.Path = ROOT, **extra) -> dict:
@@ -94,6 +136,14 @@ def main(repeats: int, compare: pathlib.Path | None = None) -> str:
               f"{cold['first'] / cold['second']:.0f} |",
               f"| filled (median of {repeats}) | {warm_first:.3f} | "
               f"{warm_second:.4f} | {warm_first / warm_second:.0f} |"]
+    lines += ["", "First call of each public entry point in a fresh process with empty numba and table caches (a "
+              "fresh install; loop 5/(s(s+1)) with Backlash(1), cycle A = 1.0103, w = 1.5914; the sweep over K = 3, 4, "
+              "5; DynamicBacklash(1, 1, 0.1, 0.5, periods=20, starts=0) at F = 50 N, w = 35 rad/s), and what it said "
+              "on the progress channel (stderr) before paying a compile:", "",
+              "| entry point | first call (s) | announcement |", "|---|---|---|"]
+    for what in ENTRIES:
+        t, said = cold_entry(what)
+        lines.append(f"| {what} | {t:.1f} | {said or ('none needed (< 3 s)' if t < 3 else 'NONE')} |")
     if compare is not None:
         with tempfile.TemporaryDirectory(prefix="dfloop-numba-") as cache:
             other = first_call(cache, compare)

@@ -1,4 +1,4 @@
-"""Command-line entry point: ``dfloop run|list|scene-keys|cache``.
+"""Command-line entry point: ``dfloop run|list|scene-keys|cache|warmup``.
 
 ``dfloop run <scene> [<scene> ...] [--out DIR] [--quiet]`` runs loop studies: each scene is a TOML file or the
 name of a shipped scene (``dfloop list``). Every scene is checked before any runs; a bad one is reported (file,
@@ -11,6 +11,9 @@ for confirmation; ``--yes`` skips the question, and without it a non-interactive
 Errors of usage or of the environment (an ``--out`` that is a file or cannot be written, a cache that cannot be
 listed or cleared, ``DFLOOP_CACHE_DIR`` set but empty, a bad option) print one line ``dfloop: ...`` to stderr and
 exit with status 2, without a traceback. A scene that fails exits with status 1 after the others ran.
+
+``dfloop warmup`` compiles the numba code of the solver, the exact engines and the simulations once for this
+installation (each also compiles on its first use, saying so on the progress channel).
 
 This module imports nothing heavy at import time, so ``dfloop --help`` answers at once.
 """
@@ -48,6 +51,7 @@ def _parser() -> argparse.ArgumentParser:
     cache.add_argument("action", choices=("info", "clear"))
     cache.add_argument("--stale", action="store_true", help="clear only files of other code versions")
     cache.add_argument("--yes", "-y", action="store_true", help="clear without asking for confirmation")
+    sub.add_parser("warmup", help="compile dfloop's numba code now, once for this installation (else on first use)")
     return parser
 
 
@@ -160,6 +164,34 @@ def _cache(args: argparse.Namespace) -> int:
     return 0
 
 
+def _warm_impact() -> None:
+    from .impact.extract import impact_describing_function_batch
+
+    impact_describing_function_batch(1.0, 1.0, 0.1, 0.5, [50.0], [35.0], transient_periods=None, periods=20)
+
+
+def _warmup() -> int:
+    """Run each entry point that compiles numba code once on a small loop (the compiled code is cached on disk,
+    so every later process loads it); prints what was compiled and how long each took."""
+    import time
+
+    import control as ct
+
+    import dfloop as df
+    from .solve.compiled import warmup
+
+    G, N = ct.tf([5], [1, 1, 0]), df.Backlash(h=1.0)
+    steps = [("solver kernels (predict_limit_cycles)", warmup),
+             ("exact engines (exact_cycle)", lambda: df.exact_cycle(G, N, (1.0103, 1.5914))),
+             ("simulation (verify_cycle)", lambda: df.verify_cycle(G, N, (1.0103, 1.5914), periods=10)),
+             ("impact kernels (DynamicBacklash tables)", _warm_impact)]
+    for what, step in steps:
+        t0 = time.perf_counter()
+        step()
+        print(f"{what}: ready in {time.perf_counter() - t0:.1f} s", flush=True)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """The console script: returns the exit status (0 done, 1 a scene failed or a question was declined,
     2 a usage or environment error, printed as one line on stderr)."""
@@ -197,6 +229,8 @@ def _main(argv: list[str] | None) -> int:
         return 0
     if args.command == "cache":
         return _cache(args)
+    if args.command == "warmup":
+        return _warmup()
     parser.print_help()
     return 2
 

@@ -240,7 +240,10 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     from ._checks import flag, in_closed_interval
     from .hybrid import ShootingError, delay_orbit, loop_model, periodic_orbit
     from .hybrid.globalise import shoot_or_globalise
+    from .impact._effects_core import admissible, propagate, rows_on_zero, scan_steps
+    from .progress import announce_compile
 
+    announce_compile("exact_cycle", 30, admissible, propagate, rows_on_zero, scan_steps)  # bench_startup.py
     N = as_element(N)
     A0, w0 = cycle_argument(cycle)
     predicted = (A0, w0)

@@ -23,7 +23,9 @@ import sys
 import time
 from typing import TextIO
 
-__all__ = ["progress_bar", "ProgressSink", "NullProgress", "announce", "compile_pending"]
+__all__ = ["progress_bar", "ProgressSink", "NullProgress", "announce", "announce_compile", "compile_pending"]
+
+_ANNOUNCED: set = set()  # the compile announcements made in this process
 
 
 class NullProgress:
@@ -188,3 +190,20 @@ def compile_pending(*dispatchers) -> bool | None:
         return False
     except Exception:  # noqa: BLE001 - numba internals differ between versions: unknown, not an error
         return None
+
+
+def announce_compile(what: str, seconds: float, *dispatchers, enabled: bool | None = None,
+                     stream: TextIO | None = None) -> bool:
+    """Say once per process, before the call that pays it, that ``what`` compiles numba code once for this
+    installation and about how long it takes (``seconds``, measured by benchmarks/bench_startup.py), when
+    :func:`compile_pending` says one of ``dispatchers`` is neither compiled nor cached. Returns whether it spoke.
+
+    The line reads ``dfloop: <what>: compiling once for this installation, about <seconds> s (later runs load the
+    compiled code; `dfloop warmup` does it ahead)``.
+    """
+    if what in _ANNOUNCED or not compile_pending(*dispatchers):
+        return False
+    _ANNOUNCED.add(what)
+    announce(f"dfloop: {what}: compiling once for this installation, about {seconds:.0f} s (later runs load the "
+             "compiled code; `dfloop warmup` does it ahead)", enabled=enabled, stream=stream)
+    return True

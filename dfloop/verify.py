@@ -203,6 +203,10 @@ def verify_cycle(G, N, cycle, *, perturbation: float = 0.3, periods: float = 80,
     """
     from ._checks import in_closed_interval
     from .exact import cycle_argument
+    from .impact._effects_core import admissible, propagate, rows_on_zero, scan_steps
+    from .progress import announce_compile
+
+    announce_compile("verify_cycle", 25, admissible, propagate, rows_on_zero, scan_steps)  # bench_startup.py
 
     N = as_element(N)
     A0, w = cycle_argument(cycle)

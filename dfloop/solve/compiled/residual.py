@@ -18,17 +18,16 @@ import os
 
 import numpy as np
 
-from ...progress import announce, compile_pending
+from ...progress import announce_compile
 from ..plant import Plant
 from ..roots import Residual
 from . import kernels as K
 
 __all__ = ["CompiledResidual", "compiled_loop", "residual_for", "enabled", "warmup", "COMPILE_SECONDS"]
 
-COMPILE_SECONDS = 12
+COMPILE_SECONDS = 5
 """About how long compiling the kernels takes once per installation (s; benchmarks/bench_startup.py)."""
 _CHECK_W = np.array([0.37, 1.0, 2.9])  # frequencies (rad/s) where the extracted coefficients are checked
-_announced = False
 _MEMO_BATCH, _MEMO_SIZE = 64, 8192  # refined batches remembered (as Residual.slopes does)
 
 
@@ -83,13 +82,8 @@ def compiled_loop(plant: Plant, N):
 
 def _announce_compile() -> None:
     """Say once, before the first compile of this installation, that it is happening and about how long."""
-    global _announced
-    if _announced:
-        return
-    _announced = True
-    if compile_pending(K.refine, K.evaluate_slopes, K.products):
-        announce(f"dfloop: compiling the solver's kernels once for this installation, about {COMPILE_SECONDS} s "
-                 "(or run `dfloop warmup` beforehand)")
+    announce_compile("the solver", COMPILE_SECONDS, K.refine, K.evaluate_slopes, K.products, K.plant_values,
+                     K.element_values)
 
 
 class CompiledResidual(Residual):
