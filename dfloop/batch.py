@@ -25,6 +25,7 @@ from typing import Any, Callable, Iterable, Sequence
 from . import _checks
 from .progress import progress_bar
 from .solve import predict_limit_cycles
+from .solve.compiled import prepare as prepare_compiled
 
 __all__ = ["predict_many", "run_batch", "solver_options"]
 
@@ -138,6 +139,7 @@ def _predict_pair(loop, options: dict, keep: Callable | None = None):
     if not (isinstance(loop, (tuple, list)) and len(loop) == 2):
         raise ValueError(f"a loop must be a pair (G, N); got {type(loop).__name__}")
     G, N = loop
+    prepare_compiled()  # a batch amortises the one-time compile of the solver's kernels (announced)
     result = predict_limit_cycles(G, N, **options)
     return result if keep is None else keep(result)
 

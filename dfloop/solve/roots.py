@@ -53,11 +53,13 @@ _MEMO_SIZE = 8192  # ... up to this many points (then the memo starts again)
 def dominant_steps(P: np.ndarray) -> np.ndarray:
     """Steps of P along axis 0 larger than ``_JUMP_DOMINANCE`` times both neighbouring steps: a
     discontinuity, which refining the grid would not shrink. Shape (n - 1, m)."""
-    d = np.abs(np.diff(P, axis=0))
+    d = np.abs(P[1:] - P[:-1])
     if d.shape[0] < 2:
         return np.zeros(d.shape, bool)
-    before = np.vstack([d[1:2], d[:-1]])  # the first/last step are compared with their one neighbour
-    after = np.vstack([d[1:], d[-2:-1]])
+    # the first/last step are compared with their one neighbour (concatenate: vstack's checks cost more here,
+    # where _near_jump calls this on small patches around each retried tangent seed)
+    before = np.concatenate([d[1:2], d[:-1]])
+    after = np.concatenate([d[1:], d[-2:-1]])
     return d > _JUMP_DOMINANCE * np.maximum(before, after)
 
 

@@ -5,7 +5,9 @@ Where it applies: a rational G (tf or ss, continuous, optionally with the pure d
 :class:`~dfloop.solve.delay.DelayedSystem`) and an element whose ``compiled_form()`` returns a kind and its
 parameters (the built-in static elements with closed-form DFs). Everything else (callables, frd, sampled
 plants, frequency-dependent, numeric and user-defined elements) keeps the Python residual. The environment
-variable ``DFLOOP_COMPILED=0`` forces the Python path everywhere (the reference the tests compare with).
+variable ``DFLOOP_COMPILED=0`` forces the Python path everywhere (the reference the tests compare with),
+``DFLOOP_COMPILED=1`` the compiled one; by default a single call uses the kernels once they are compiled or
+cached, and batches compile them (:func:`enabled`, :func:`prepare`).
 
 The algorithm is the Python one: the same driver (:func:`dfloop.predict_limit_cycles`), grid rule, winding
 tests, tangent and continuum searches; only the evaluation of G, N and their slopes and the Levenberg-Marquardt
@@ -18,12 +20,12 @@ import os
 
 import numpy as np
 
-from ...progress import announce_compile
+from ...progress import announce_compile, compile_pending
 from ..plant import Plant
 from ..roots import Residual
 from . import kernels as K
 
-__all__ = ["CompiledResidual", "compiled_loop", "residual_for", "enabled", "warmup", "COMPILE_SECONDS"]
+__all__ = ["CompiledResidual", "compiled_loop", "residual_for", "enabled", "prepare", "warmup", "COMPILE_SECONDS"]
 
 COMPILE_SECONDS = 5
 """About how long compiling the kernels takes once per installation (s; benchmarks/bench_startup.py)."""
@@ -31,9 +33,38 @@ _CHECK_W = np.array([0.37, 1.0, 2.9])  # frequencies (rad/s) where the extracted
 _MEMO_BATCH, _MEMO_SIZE = 64, 8192  # refined batches remembered (as Residual.slopes does)
 
 
+def _kernels() -> tuple:
+    return K.refine, K.evaluate_slopes, K.products, K.plant_values, K.element_values
+
+
+_cached: bool | None = None  # whether numba's cache held the kernels when this process first asked
+
+
 def enabled() -> bool:
-    """Whether the compiled path may be used (``DFLOOP_COMPILED=0`` in the environment turns it off)."""
-    return os.environ.get("DFLOOP_COMPILED", "1") != "0"
+    """Whether a single call may use the compiled path now.
+
+    ``DFLOOP_COMPILED=0`` in the environment: never (the Python reference path). ``DFLOOP_COMPILED=1``: always
+    (compiling first if needed, announced). Unset (or ``auto``): when the kernels are compiled in this process or
+    cached on disk, so a single call on a fresh install never waits for a compile; batches
+    (:func:`dfloop.batch.predict_many`) and ``dfloop warmup`` compile them (:func:`prepare`), announced, once
+    per installation.
+    """
+    global _cached
+    mode = os.environ.get("DFLOOP_COMPILED", "auto")
+    if mode in ("0", "1"):
+        return mode == "1"
+    if all(d.signatures for d in _kernels()):
+        return True
+    if _cached is None:
+        _cached = compile_pending(*_kernels()) is False
+    return _cached
+
+
+def prepare() -> None:
+    """Make the kernels ready for the calls to come (a batch): compile them, or load them from numba's cache,
+    announcing a compile first (:func:`dfloop.progress.announce_compile`). Nothing when ``DFLOOP_COMPILED=0``."""
+    if os.environ.get("DFLOOP_COMPILED", "auto") != "0" and not all(d.signatures for d in _kernels()):
+        warmup()
 
 
 def _coefficients(plant: Plant):
@@ -59,6 +90,7 @@ def _coefficients(plant: Plant):
         ref = plant(_CHECK_W)
     except ValueError:
         return None
+    _announce_compile()  # the first kernel call below may compile them all
     got = K.plant_values(num, den, delay, _CHECK_W)
     if not np.allclose(got, ref, rtol=1e-13, atol=0.0):
         return None
@@ -66,8 +98,13 @@ def _coefficients(plant: Plant):
 
 
 def compiled_loop(plant: Plant, N):
-    """The arrays the kernels take for the loop (G, N), or None when either has no compiled form."""
-    if not enabled() or getattr(N, "frequency_dependent", True):
+    """The arrays the kernels take for the loop (G, N), or None when either has no compiled form or the
+    compiled path is not to be used now (:func:`enabled`)."""
+    return _loop_arrays(plant, N) if enabled() else None
+
+
+def _loop_arrays(plant: Plant, N):
+    if getattr(N, "frequency_dependent", True):
         return None
     form = getattr(N, "compiled_form", None)
     form = form() if callable(form) else None
@@ -82,8 +119,7 @@ def compiled_loop(plant: Plant, N):
 
 def _announce_compile() -> None:
     """Say once, before the first compile of this installation, that it is happening and about how long."""
-    announce_compile("the solver", COMPILE_SECONDS, K.refine, K.evaluate_slopes, K.products, K.plant_values,
-                     K.element_values)
+    announce_compile("the solver", COMPILE_SECONDS, *_kernels())
 
 
 class CompiledResidual(Residual):
@@ -161,9 +197,10 @@ def warmup() -> float:
     from ..plant import as_plant
 
     t0 = time.perf_counter()
-    plant = as_plant(ct.tf([5.0], [1.0, 1.0, 0.0]))
-    res = residual_for(plant, Backlash(1.0))
-    if isinstance(res, CompiledResidual):
+    plant, N = as_plant(ct.tf([5.0], [1.0, 1.0, 0.0])), Backlash(1.0)
+    loop = _loop_arrays(plant, N)
+    if loop is not None:
+        res = CompiledResidual(plant, N, loop)
         a, v = np.array([0.0]), np.array([0.5])
         res.terms(a, v)
         res.grid(a, v)
