@@ -51,6 +51,33 @@ def floor(G, N, amps, omega) -> float:
     return best(once, 20)[0]
 
 
+PHASES = {"plant (tf to poles, zeros)": "plant.py:as_plant", "G's grid": "grid.py:resolve_plant",
+          "N's grid": "grid.py:resolve_sampled", "candidate cells": "_kernels.py:candidate_cells",
+          "windings": "roots.py:grid_windings", "refinement": "roots.py:refine",
+          "tangent seeds": "_kernels.py:tangent_seeds", "continuum check": "roots.py:check_continuum",
+          "merge": "roots.py:merge", "stability and result": "predict.py:_build"}
+
+
+def phases(call) -> dict:
+    """Cumulative share of each solver phase in ``call`` (by the function that implements it)."""
+    import cProfile
+    import pstats
+
+    prof = cProfile.Profile()
+    prof.enable()
+    for _ in range(30):
+        call()
+    prof.disable()
+    stats = pstats.Stats(prof).stats
+    total = max(ct_ for (_, _, fn), (_, _, _, ct_, _) in stats.items() if fn == "predict_limit_cycles")
+    out = {}
+    for label, where in PHASES.items():
+        file, fn_name = where.split(":")
+        out[label] = sum(ct_ for (path, _, fn), (_, _, _, ct_, _) in stats.items()
+                         if fn == fn_name and path.endswith(file)) / total
+    return out
+
+
 def solve(G, N, amps, omega, compiled: bool):
     os.environ["DFLOOP_COMPILED"] = "1" if compiled else "0"
     return df.predict_limit_cycles(G, N, amplitude=(amps[0], amps[-1]), omega=(omega[0], omega[-1]),
@@ -72,6 +99,11 @@ def main() -> str:
                                              for a, b in zip(r_py, r_c))
         rows.append(f"| {name} | {amps.size} x {omega.size} | {t_pc * 1e3:.2f} | {t_py * 1e3:.2f} | {t_c * 1e3:.2f} | "
                     f"{t_f * 1e3:.3f} | {t_pc / t_c:.0f}x | {t_c / t_f:.0f}x | {'yes' if same else 'NO'} |")
+    rows += ["", "Where a compiled call spends its time (cProfile, 30 calls each, cumulative share of the call):", "",
+             "| problem | " + " | ".join(PHASES) + " |", "|---|" + "---|" * len(PHASES)]
+    for name, G, F, N, amps, omega in (PROBLEMS[1], PROBLEMS[4]):
+        shares = phases(lambda: solve(G, N, amps, omega, True))
+        rows.append(f"| {name} | " + " | ".join(f"{100 * shares[p]:.0f} %" for p in PHASES) + " |")
     os.environ["DFLOOP_COMPILED"] = "1"
     list(predict_many(sample(20, 0), keep=stable_amplitude, progress=False))  # compiled and warm
     t0, c0 = time.perf_counter(), time.process_time()

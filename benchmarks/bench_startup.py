@@ -11,7 +11,8 @@ are numpy, so the two agree; with ``--compare`` the same cold first call is time
 one whose kernels were numba and compiled on that call).
 
 Then every public entry point's first call (predict_limit_cycles, cycle_confidence, exact_cycle, verify_cycle,
-sweep, the first DynamicBacklash value) in a fresh process with empty numba and table caches, with the line it
+sweep, the first DynamicBacklash value; predict_many, which compiles the solver's kernels for the batch) in a fresh
+process with empty numba and table caches, with the line it
 printed on the progress channel: each returns within 3 s or says at once that it compiles, and about how long.
 
 Run: python benchmarks/bench_startup.py [--repeats N] [--compare OTHER_CHECKOUT] [--write]   (--write saves results/bench_startup.md)
@@ -55,6 +56,9 @@ what = sys.argv[1]
 t0 = time.perf_counter()
 if what == "predict_limit_cycles":
     df.predict_limit_cycles(G, N)
+elif what == "predict_many":
+    from dfloop.batch import predict_many
+    predict_many([(G, N)] * 2, progress=False)
 elif what == "confidence":
     df.cycle_confidence(G, N, 1.0103, 1.5914)
 elif what == "exact_cycle":
@@ -70,7 +74,7 @@ elif what == "DynamicBacklash":
 t1 = time.perf_counter()
 print(json.dumps({"first": t1 - t0}))
 """
-ENTRIES = ["predict_limit_cycles", "confidence", "exact_cycle", "verify_cycle", "sweep", "DynamicBacklash"]
+ENTRIES = ["predict_limit_cycles", "predict_many", "confidence", "exact_cycle", "verify_cycle", "sweep", "DynamicBacklash"]
 
 
 def cold_entry(what: str, root: pathlib.Path = ROOT) -> tuple[float, str]:

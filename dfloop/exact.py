@@ -247,7 +247,7 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     from .impact._effects_core import admissible, propagate, rows_on_zero, scan_steps
     from .progress import announce_compile
 
-    announce_compile("exact_cycle", 30, admissible, propagate, rows_on_zero, scan_steps)  # bench_startup.py
+    announce_compile("exact_cycle", 20, admissible, propagate, rows_on_zero, scan_steps)  # bench_startup.py
     N = as_element(N)
     A0, w0 = cycle_argument(cycle)
     predicted = (A0, w0)
