@@ -64,6 +64,8 @@ def _same(G, N, monkeypatch) -> int:
         assert got is ref
         return 0
     assert len(got) == len(ref), (G, N, ref, got)
+    assert got.grid_report.shape == ref.grid_report.shape  # the same grid, chosen from G and N
+    assert got.grid_report.candidate_cells == ref.grid_report.candidate_cells
     for c, r in zip(got, ref):
         assert c.amplitude == pytest.approx(r.amplitude, rel=1e-12, abs=0)
         assert c.frequency == pytest.approx(r.frequency, rel=1e-12, abs=0)
@@ -81,6 +83,12 @@ def test_every_compiled_kind_is_compiled_and_others_are_not():
     assert type(residual_for(plant, numeric)) is Residual
     assert type(residual_for(as_plant(lambda w: 1 / (1j * w + 1)), df.Relay())) is Residual
     assert type(residual_for(plant, df.Quantizer(0.1))) is Residual
+
+    class Softer(df.Saturation):  # a user's variant of a built-in element: its own N, not the compiled one
+        def _evaluate(self, A, omega):
+            return 0.5 * super()._evaluate(A, omega)
+
+    assert type(residual_for(plant, Softer(1.0))) is Residual
 
 
 def test_kernels_evaluate_what_the_python_residual_evaluates():

@@ -253,15 +253,18 @@ def element_values(kind, p, A):
 def refine(num, den, zeros, poles, delay, kind, p, a, v, a_lo, a_hi, v_lo, v_hi, tol):
     """roots.refine, one point at a time (each point's iteration is independent there too).
 
-    Returns (a, v, ok) and the final (P, P_a, P_v, G, N) per point, shape (5, n)."""
+    Returns (a, v, ok), the final (P, P_a, P_v, G, N) per point, shape (5, n), and the number of points at
+    which G and N were evaluated (three per evaluation of the slopes, as Residual counts them)."""
     n_pts = a.size
     a, v = a.copy(), v.copy()
     ok = np.zeros(n_pts, np.bool_)
     vals = np.empty((5, n_pts), np.complex128)
     polish = tol * _POLISH
+    evaluated = 0
     for i in range(n_pts):
         ai, vi = a[i], v[i]
         P, ra, rv, g, n = slopes_at(num, den, zeros, poles, delay, kind, p, ai, vi)
+        evaluated += 3
         rel = cabs(1.0 + P) / (1 + cabs(P))
         lam = 1e-12
         done = (rel <= polish) or at_rounding_level(P, ra, rv, ai, vi)
@@ -292,6 +295,7 @@ def refine(num, den, zeros, poles, delay, kind, p, a, v, a_lo, a_hi, v_lo, v_hi,
             at = _clip(ai + da, a_lo[i], a_hi[i])
             vt = _clip(vi + dv, v_lo[i], v_hi[i])
             Pt, rat, rvt, gt, nt = slopes_at(num, den, zeros, poles, delay, kind, p, at, vt)
+            evaluated += 3
             relt = cabs(1.0 + Pt) / (1 + cabs(Pt))
             better = (relt < rel) and ok_step
             pinned = at == a_lo[i] or at == a_hi[i] or vt == v_lo[i] or vt == v_hi[i]
@@ -309,4 +313,4 @@ def refine(num, den, zeros, poles, delay, kind, p, a, v, a_lo, a_hi, v_lo, v_hi,
         a[i], v[i] = ai, vi
         ok[i] = ((rel <= tol) or at_rounding_level(P, ra, rv, ai, vi)) and accepted(P, ra, rv, ai, vi, tol)
         vals[0, i], vals[1, i], vals[2, i], vals[3, i], vals[4, i] = P, ra, rv, g, n
-    return a, v, ok, vals
+    return a, v, ok, vals, evaluated

@@ -97,6 +97,13 @@ def _coefficients(plant: Plant):
     return num, den, delay
 
 
+def _own_form(cls) -> bool:
+    """Whether ``cls`` evaluates N where its ``compiled_form`` is defined: a subclass of a built-in element that
+    overrides ``_evaluate`` or ``__call__`` (a user's variant) inherits a compiled form that is not its own."""
+    owner = next((c for c in cls.__mro__ if "compiled_form" in c.__dict__), None)
+    return owner is not None and all(getattr(cls, name) is getattr(owner, name) for name in ("_evaluate", "__call__"))
+
+
 def compiled_loop(plant: Plant, N):
     """The arrays the kernels take for the loop (G, N), or None when either has no compiled form or the
     compiled path is not to be used now (:func:`enabled`)."""
@@ -107,7 +114,9 @@ def _loop_arrays(plant: Plant, N):
     if getattr(N, "frequency_dependent", True):
         return None
     form = getattr(N, "compiled_form", None)
-    form = form() if callable(form) else None
+    if form is None or not _own_form(type(N)):
+        return None
+    form = form()
     if form is None or form[0] not in K.KINDS:
         return None
     coef = _coefficients(plant)
@@ -143,7 +152,8 @@ class CompiledResidual(Residual):
         A = np.asarray(A, float)
         if A.ndim != 1 or not np.all(np.isfinite(A) & (A > 0)):
             return super()._n(A, w)
-        return K.element_values(*self._npart, np.ascontiguousarray(A))
+        n = K.element_values(*self._npart, np.ascontiguousarray(A))
+        return super()._n(A, w) if np.isnan(n).any() else n  # the Python residual names the amplitude
 
     def _g(self, w: np.ndarray) -> np.ndarray:
         return K.plant_values(*self._gpart, np.ascontiguousarray(w, float))
@@ -165,6 +175,8 @@ class CompiledResidual(Residual):
             return super()._evaluate_slopes(a, v)
         self.n_points += 3 * a.size
         out = K.evaluate_slopes(*self._loop, np.ascontiguousarray(A), np.ascontiguousarray(w))
+        if np.isnan(out[4]).any():
+            return super()._evaluate_slopes(a, v)
         return out[0], out[1], out[2], out[3], out[4]
 
     def refine(self, a, v, box, tol: float):
@@ -172,8 +184,8 @@ class CompiledResidual(Residual):
         a, v = np.array(a, float).ravel(), np.array(v, float).ravel()
         lo_a, hi_a, lo_v, hi_v = (np.ascontiguousarray(np.broadcast_to(x, a.shape), float)
                                   for x in (box.a_lo, box.a_hi, box.v_lo, box.v_hi))
-        ra, rv, ok, vals = K.refine(*self._loop, a, v, lo_a, hi_a, lo_v, hi_v, float(tol))
-        self.n_points += 3 * a.size
+        ra, rv, ok, vals, evaluated = K.refine(*self._loop, a, v, lo_a, hi_a, lo_v, hi_v, float(tol))
+        self.n_points += int(evaluated)
         if a.size <= _MEMO_BATCH:  # remembered as the Python refinement's last evaluations are
             if len(self._memo) + a.size > _MEMO_SIZE:
                 self._memo.clear()
