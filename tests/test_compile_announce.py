@@ -1,6 +1,5 @@
 """First use on a fresh install: the compiled code says at once, on the progress channel, that it compiles once
-and about how long; a process that finds it cached says nothing (dfloop.progress.announce_compile); a single
-solver call does not compile at all (the Python path until a batch or `dfloop warmup` compiled the kernels)."""
+and about how long; a process that finds it cached says nothing (dfloop.progress.announce_compile)."""
 from __future__ import annotations
 
 import io
@@ -45,13 +44,12 @@ def test_announces_once_and_only_when_something_compiles(monkeypatch):
                               "compiled code; `dfloop warmup` does it ahead)\n")
 
 
-def _first_predict(cache: str, mode: str = "1") -> str:
+def _first_predict(cache: str) -> str:
     code = ("import control as ct, dfloop as df; "
             "r = df.predict_limit_cycles(ct.tf([5], [1, 1, 0]), df.Backlash(h=1.0)); print(len(r))")
-    env = dict(os.environ, PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=cache, DFLOOP_COMPILED=mode)
-    env.pop("DFLOOP_PROGRESS", None)
-    if mode == "auto":
-        env.pop("DFLOOP_COMPILED")
+    env = dict(os.environ, PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=cache)
+    for name in ("DFLOOP_PROGRESS", "DFLOOP_COMPILED"):
+        env.pop(name, None)
     done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300,
                           check=True)
     assert done.stdout.strip() == "2"  # the backlash servo's two cycles, compiled or loaded
@@ -64,8 +62,3 @@ def test_fresh_install_says_it_compiles_and_a_cached_one_is_silent():
         assert "dfloop: the solver: compiling once for this installation, about" in first
         assert "compiling" not in _first_predict(cache)
 
-
-def test_a_single_call_on_a_fresh_install_does_not_wait_for_a_compile():
-    with tempfile.TemporaryDirectory() as cache:
-        assert "compiling" not in _first_predict(cache, mode="auto")  # the Python path: same cycles, no compile
-        assert not list(Path(cache).rglob("*.nbi"))  # nothing was compiled into the cache

@@ -18,10 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-# element kinds (dfloop.describing.static; the names of their ``compiled_form``)
-SATURATION, DEADZONE, RELAY, BACKLASH, CUBIC, PRELOAD, FRICTION = range(7)
-KINDS = {"saturation": SATURATION, "dead_zone": DEADZONE, "relay": RELAY, "backlash": BACKLASH,
-         "cubic": CUBIC, "preload": PRELOAD, "friction": FRICTION}
+from .kinds import BACKLASH, CUBIC, DEADZONE, RELAY, SATURATION
 
 _SERIES = np.array([math.comb(2 * n, n) / 4.0**n * 2.0 / (2 * n + 3) for n in range(16)])
 _TWO_PI_INV = 2.0 / np.pi

@@ -5,9 +5,7 @@ Where it applies: a rational G (tf or ss, continuous, optionally with the pure d
 :class:`~dfloop.solve.delay.DelayedSystem`) and an element whose ``compiled_form()`` returns a kind and its
 parameters (the built-in static elements with closed-form DFs). Everything else (callables, frd, sampled
 plants, frequency-dependent, numeric and user-defined elements) keeps the Python residual. The environment
-variable ``DFLOOP_COMPILED=0`` forces the Python path everywhere (the reference the tests compare with),
-``DFLOOP_COMPILED=1`` the compiled one; by default a single call uses the kernels once they are compiled or
-cached, and batches compile them (:func:`enabled`, :func:`prepare`).
+variable ``DFLOOP_COMPILED=0`` forces the Python path everywhere (the reference the tests compare with).
 
 The algorithm is the Python one: the same driver (:func:`dfloop.predict_limit_cycles`), grid rule, winding
 tests, tangent and continuum searches; only the evaluation of G, N and their slopes and the Levenberg-Marquardt
@@ -23,7 +21,20 @@ import numpy as np
 from ...progress import announce_compile, compile_pending
 from ..plant import Plant
 from ..roots import Residual
-from . import kernels as K
+from .kinds import KINDS
+
+
+class _Kernels:
+    """The numba kernels (:mod:`.kernels`), imported on first use: a loop that cannot be compiled (a callable G,
+    a user's element) loads no numba."""
+
+    def __getattr__(self, name):
+        from . import kernels
+
+        return getattr(kernels, name)
+
+
+K = _Kernels()
 
 __all__ = ["CompiledResidual", "compiled_loop", "residual_for", "enabled", "prepare", "warmup", "COMPILE_SECONDS"]
 
@@ -37,33 +48,20 @@ def _kernels() -> tuple:
     return K.refine, K.evaluate_slopes, K.products, K.plant_values, K.element_values
 
 
-_cached: bool | None = None  # whether numba's cache held the kernels when this process first asked
-
-
 def enabled() -> bool:
-    """Whether a single call may use the compiled path now.
-
-    ``DFLOOP_COMPILED=0`` in the environment: never (the Python reference path). ``DFLOOP_COMPILED=1``: always
-    (compiling first if needed, announced). Unset (or ``auto``): when the kernels are compiled in this process or
-    cached on disk, so a single call on a fresh install never waits for a compile; batches
-    (:func:`dfloop.batch.predict_many`) and ``dfloop warmup`` compile them (:func:`prepare`), announced, once
-    per installation.
+    """Whether the compiled path is used where it applies: always, unless ``DFLOOP_COMPILED=0`` in the
+    environment selects the Python reference path. (Not "only once cached": results must not depend on the state
+    of numba's cache, and on ill-conditioned outputs such as the ends of a continuum the two paths differ beyond
+    1e-12.) The first use on a fresh install compiles the kernels, announced on the progress channel.
     """
-    global _cached
-    mode = os.environ.get("DFLOOP_COMPILED", "auto")
-    if mode in ("0", "1"):
-        return mode == "1"
-    if all(d.signatures for d in _kernels()):
-        return True
-    if _cached is None:
-        _cached = compile_pending(*_kernels()) is False
-    return _cached
+    return os.environ.get("DFLOOP_COMPILED", "1") != "0"
 
 
 def prepare() -> None:
-    """Make the kernels ready for the calls to come (a batch): compile them, or load them from numba's cache,
-    announcing a compile first (:func:`dfloop.progress.announce_compile`). Nothing when ``DFLOOP_COMPILED=0``."""
-    if os.environ.get("DFLOOP_COMPILED", "auto") != "0" and not all(d.signatures for d in _kernels()):
+    """Make the kernels ready for the calls to come (a batch, before its progress starts): compile them, or load
+    them from numba's cache, announcing a compile first (:func:`dfloop.progress.announce_compile`). Nothing when
+    ``DFLOOP_COMPILED=0``."""
+    if enabled() and not all(d.signatures for d in _kernels()):
         warmup()
 
 
@@ -107,23 +105,32 @@ def _own_form(cls) -> bool:
 def compiled_loop(plant: Plant, N):
     """The arrays the kernels take for the loop (G, N), or None when either has no compiled form or the
     compiled path is not to be used now (:func:`enabled`)."""
-    return _loop_arrays(plant, N) if enabled() else None
+    if not enabled() or _form(plant, N) is None:
+        return None
+    return _loop_arrays(plant, N)
 
 
-def _loop_arrays(plant: Plant, N):
-    if getattr(N, "frequency_dependent", True):
+def _form(plant: Plant, N):
+    """The element's compiled form (kind, parameters) when G and N both have one (checked without numba)."""
+    if getattr(N, "frequency_dependent", True) or plant.roots is None or plant.frequency_map is not None \
+            or plant.dt is not None:
         return None
     form = getattr(N, "compiled_form", None)
     if form is None or not _own_form(type(N)):
         return None
     form = form()
-    if form is None or form[0] not in K.KINDS:
+    return form if form is not None and form[0] in KINDS else None
+
+
+def _loop_arrays(plant: Plant, N):
+    form = _form(plant, N)
+    if form is None:
         return None
     coef = _coefficients(plant)
     if coef is None:
         return None
     zeros, poles = (np.ascontiguousarray(r, complex) for r in plant.roots)
-    return (*coef[:2], zeros, poles, coef[2], K.KINDS[form[0]], np.ascontiguousarray(form[1], float))
+    return (*coef[:2], zeros, poles, coef[2], KINDS[form[0]], np.ascontiguousarray(form[1], float))
 
 
 def _announce_compile() -> None:
