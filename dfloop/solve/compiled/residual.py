@@ -38,7 +38,7 @@ K = _Kernels()
 
 __all__ = ["CompiledResidual", "compiled_loop", "residual_for", "enabled", "prepare", "warmup", "COMPILE_SECONDS"]
 
-COMPILE_SECONDS = 5
+COMPILE_SECONDS = 6
 """About how long compiling the kernels takes once per installation (s; benchmarks/bench_startup.py)."""
 _CHECK_W = np.array([0.37, 1.0, 2.9])  # frequencies (rad/s) where the extracted coefficients are checked
 _MEMO_BATCH, _MEMO_SIZE = 64, 8192  # refined batches remembered (as Residual.slopes does)
