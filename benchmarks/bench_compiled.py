@@ -129,7 +129,8 @@ def main() -> str:
     rows += ["", f"Batch: {BATCH} sampled servo loops (examples/monte_carlo_servo.py: K e^(-s tau)/(s(0.5s+1)) with "
              f"backlash) through predict_many(keep=...) in this process: {cpu / BATCH * 1e6:.0f} us "
              f"CPU per loop per core ({wall / BATCH * 1e6:.0f} us wall); floor (G and N once on a 64 x 256 grid) "
-             f"{t_floor * 1e6:.0f} us, ratio {cpu / BATCH / t_floor:.0f}x; peak traced memory {peak / 2**20:.1f} MiB for "
+             f"{t_floor * 1e6:.0f} us, ratio {cpu / BATCH / t_floor:.0f}x; peak traced memory "
+             f"{peak / 2**20:.1f} MiB for "
              f"{n_mem} loops (streamed: independent of the number of loops but for one float kept per loop); "
              f"P(stable cycle) = {p:.3f}."]
     return "\n".join(rows)

@@ -8,8 +8,9 @@ Every kernel evaluates the same floating-point expressions, in the same order, a
 come from the platform's libm here and possibly from numpy's SIMD versions there, so values agree to a few
 units in the last place (tests/test_compiled.py compares both paths on many loops).
 
-One specialisation per kernel (``cache=True``; the argument types never vary): all elements go through one dispatcher on a kind code and a
-parameter array, all plants through one set of coefficient arrays, so nothing is specialised per loop.
+One specialisation per kernel (``cache=True``; the argument types never vary): all elements go through one
+dispatcher on a kind code and a parameter array, all plants through one set of coefficient arrays, so nothing is
+specialised per loop.
 """
 from __future__ import annotations
 
@@ -284,7 +285,9 @@ def refine(num, den, zeros, poles, delay, kind, p, a, v, a_lo, a_hi, v_lo, v_hi,
                 da, dv = 0.0, 0.0
             fine_a = abs(da) <= 2 * rounding(ai)
             fine_v = abs(dv) <= 2 * rounding(vi)
-            da, dv = (0.0 if fine_a else (-ga / jaa if fine_v else da)), (0.0 if fine_v else (-gv / jvv if fine_a else dv))
+            # both from the unmodified steps, as the numpy version's two np.where
+            da, dv = ((0.0 if fine_a else (-ga / jaa if fine_v else da)),
+                      (0.0 if fine_v else (-gv / jvv if fine_a else dv)))
             if not math.isfinite(da):
                 da = 0.0
             if not math.isfinite(dv):

@@ -18,7 +18,7 @@ import os
 
 import numpy as np
 
-from ...progress import announce_compile, compile_pending
+from ...progress import announce_compile
 from ..plant import Plant
 from ..roots import Residual
 from .kinds import KINDS
