@@ -194,7 +194,7 @@ def _stream(fn: Callable, items: Iterable, executor, chunksize: int, progress, l
 
 def predict_many(loops: Iterable, *, executor: cf.Executor | None = None, chunksize: int | None = None,
                  progress: bool | None = None, timeout: float | None = None, keep: Callable | None = None,
-                 **options) -> list:
+                 total: int | None = None, **options) -> list:
     """:func:`~dfloop.predict_limit_cycles` for many loops (Monte Carlo over plant uncertainty, design grids).
 
     Loops whose G is rational (tf/ss, optionally delayed) and whose element has a compiled form run on the
@@ -219,6 +219,8 @@ def predict_many(loops: Iterable, *, executor: cf.Executor | None = None, chunks
         Applied to each loop's :class:`LimitCycles` where it is computed; the batch returns what it returns
         (e.g. the amplitude of the stable cycle), so a large batch keeps only that in memory and sends only
         that back from the workers. Must pickle for a process-based executor (a module-level function).
+    total : int, optional
+        How many loops a generator will yield: only for the progress bar's count and time left.
     **options
         Passed to :func:`~dfloop.predict_limit_cycles` for every loop (``omega``, ``amplitude``, ``grid``,
         ``tol``, ...).
@@ -242,7 +244,10 @@ def predict_many(loops: Iterable, *, executor: cf.Executor | None = None, chunks
             raise ValueError(f"executor must be a concurrent.futures.Executor (with submit); got "
                              f"{type(executor).__name__}")
         size = _STREAM_CHUNK if chunksize is None else _checks.integer_at_least("chunksize", chunksize, 1)
-        total = len(loops) if hasattr(loops, "__len__") else None
+        if total is not None:
+            total = _checks.integer_at_least("total", total, 0)
+        elif hasattr(loops, "__len__"):
+            total = len(loops)
         return _stream(fn, loops, executor, size, _checks.flag("progress", progress, none=True), "predict_many",
                        timeout, total)
     for i, loop in enumerate(loops):

@@ -58,7 +58,7 @@ def stable_amplitude(result) -> float:
 def main(samples: int, workers: int, seed: int, out: pathlib.Path) -> None:
     t0 = time.perf_counter()
     loops = sample(samples, seed)
-    opts = dict(keep=stable_amplitude)
+    opts = dict(keep=stable_amplitude, total=samples)
     if workers > 1:
         with ProcessPoolExecutor(workers) as ex:
             amps = np.array(predict_many(loops, executor=ex, chunksize=256, **opts))

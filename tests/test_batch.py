@@ -123,7 +123,9 @@ def test_streamed_batch_keeps_only_what_is_asked_and_reads_ahead_a_bounded_amoun
 
     loops = _monte_carlo_loops(40, seed=3)
     whole = [_stable_amplitudes(r) for r in predict_many(loops, progress=False)]
-    assert predict_many(iter(loops), keep=_stable_amplitudes, progress=False) == whole
+    assert predict_many(iter(loops), keep=_stable_amplitudes, progress=False, total=len(loops)) == whole
+    with pytest.raises(ValueError, match="total"):
+        predict_many(iter(loops), total=-1)
     produced, finished, worst, lock = [0], [0], [0], threading.Lock()
 
     def generate():
