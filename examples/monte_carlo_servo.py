@@ -9,8 +9,9 @@ Prints the probability of a stable limit cycle (with its 95 % binomial interval)
 the cycle amplitudes at the backlash input (mrad).
 
 Run: python examples/monte_carlo_servo.py [--samples N] [--workers W] [--seed S] [--out FILE]
-(default 2000 samples in this process; ``--samples 100000 --workers 2`` is the full study, about 3 ms per loop
-per core; the figure goes to FILE, default monte_carlo_servo.png in the system's temporary directory)
+(default 2000 samples in this process; ``--samples 100000 --workers 2`` is the full study, about 6 ms of CPU per
+loop (benchmarks/bench_compiled.py); it gave P = 0.632 +- 0.003 in 954 s on a shared 2-core machine; the figure
+goes to FILE, default monte_carlo_servo.png in the system's temporary directory)
 """
 from __future__ import annotations
 
