@@ -23,7 +23,8 @@ from .errors import ContinuumError
 from ._kernels import edge_steps, nonzero_windings, tangent_seeds
 from .plant import Plant
 
-__all__ = ["Residual", "Box", "find_roots", "dominant_steps", "greedy_unique", "accepted", "residual_bound"]
+__all__ = ["Residual", "Box", "find_roots", "dominant_steps", "greedy_unique", "accepted", "residual_bound",
+           "unresolved_boxes"]
 
 _SPLIT_PHASE = np.pi / 2  # an edge step whose phase change exceeds this is bisected
 _MAX_EDGE_DEPTH = 50  # bisection levels along an edge (2**-50 of its length)
@@ -76,7 +77,9 @@ class Residual:
         self.plant = plant
         self.N = N
         self.frequency_dependent = bool(N.frequency_dependent)
+        self.continuous = bool(getattr(N, "continuous", False))  # no jump of N anywhere (the element says so)
         self.n_points = 0
+        self.unresolved: list[tuple[float, float, float, float, int]] = []  # winding boxes left without a root
         self._memo: dict[tuple[float, float], tuple] = {}  # (a, v) -> (P, dP/da, dP/dv, G, N) of small batches
 
     def _n(self, A: np.ndarray, w: np.ndarray | None) -> np.ndarray:
@@ -109,7 +112,8 @@ class Residual:
         """P = G N and its derivatives dP/da, dP/dv at points (a, v) (1-D arrays, log coordinates).
 
         dG/dv is exact for rational G (:meth:`Plant.log_slope`), a central difference otherwise; N is
-        differentiated by central differences of step ``_FD_STEP`` (log units). Small batches (the points
+        differentiated by central differences of step ``_FD_STEP`` (log units), shorter next to the edges of
+        N's amplitude domain (:meth:`_fd_steps`). Small batches (the points
         of a refinement) are remembered, so the merge, the stability test and the result, which read the
         same refined points again, cost no evaluation (:meth:`factors`).
         """
@@ -133,24 +137,57 @@ class Residual:
             self._memo.update(zip(keys, zip(*(x.tolist() for x in out))))
         return out
 
+    def _fd_steps(self, a: np.ndarray, v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Central-difference steps (log units) for N along a and v: ``_FD_STEP``, shrunk to a quarter of the
+        distance to the edges of N's amplitude domain so no difference point leaves it.
+
+        At a domain edge N is continuous but not smooth (a dead band ends: N rises from 0 like a power of
+        the distance to the edge); a root next to the edge (|G| ~ 1e8 at a resonance needs |N| ~ 1e-8, i.e. a
+        relative distance ~ 1e-8) would otherwise get a difference with one point in the dead band, a wrong
+        Jacobian, and a refinement that never converges. Along v the edge moves (its slope is differenced
+        once on the domain function itself): the v-step keeps the moved edge a quarter-distance away too.
+        """
+        h = _FD_STEP
+        if self.frequency_dependent:
+            up, dn = np.exp(h), np.exp(-h)
+            lo3, hi3 = (np.asarray(x, float).reshape(3, -1) for x in
+                        self.N.amplitude_domain(np.concatenate([w, w * up, w * dn])))
+            lo, hi = lo3[0], hi3[0]
+            with np.errstate(divide="ignore", invalid="ignore"):  # an edge at 0 or inf does not move: NaN, 0
+                slope = np.fmax(np.abs(np.log(lo3[1]) - np.log(lo3[2])),
+                                np.abs(np.log(hi3[1]) - np.log(hi3[2]))) / (2 * h)
+            slope = np.where(np.isfinite(slope), slope, 0.0)
+        else:
+            lo, hi = (np.broadcast_to(np.asarray(x, float), a.shape) for x in self.N.amplitude_domain())
+            slope = np.zeros(a.shape)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            gap = np.minimum(a - np.log(lo), np.log(hi) - a)
+        gap = np.where(np.isnan(gap), np.inf, gap)
+        floor = 64 * _rounding(a)  # at the rounding level the edge cannot be kept out; the step stays resolvable
+        h_a = np.clip(0.25 * gap, floor, h)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            h_v = np.where(slope > 0, 0.25 * gap / slope, h)
+        return h_a, np.clip(h_v, 64 * _rounding(v), h)
+
     def _evaluate_slopes(self, a: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, ...]:
         k, h = a.size, _FD_STEP
         A, w = np.exp(a), np.exp(v)
-        up, dn = np.exp(h), np.exp(-h)
         if self.plant.exact:
             g = self.plant(w)
             g_v = g * self.plant.log_slope(w)
         else:
-            gg = self.plant(np.concatenate([w, w * up, w * dn]))
+            gg = self.plant(np.concatenate([w, w * np.exp(h), w * np.exp(-h)]))
             g, g_v = gg[:k], (gg[k:2 * k] - gg[2 * k:]) / (2 * h)
+        h_a, h_v = self._fd_steps(a, v, w)
         if self.frequency_dependent:
-            nn = self._n(np.concatenate([A, A * up, A * dn, A, A]), np.concatenate([w, w, w, w * up, w * dn]))
-            n_v = (nn[3 * k:4 * k] - nn[4 * k:]) / (2 * h)
+            nn = self._n(np.concatenate([A, A * np.exp(h_a), A * np.exp(-h_a), A, A]),
+                         np.concatenate([w, w, w, w * np.exp(h_v), w * np.exp(-h_v)]))
+            n_v = (nn[3 * k:4 * k] - nn[4 * k:]) / (2 * h_v)
         else:
-            nn = self._n(np.concatenate([A, A * up, A * dn]), None)
+            nn = self._n(np.concatenate([A, A * np.exp(h_a), A * np.exp(-h_a)]), None)
             n_v = 0.0
         self.n_points += nn.size
-        n, n_a = nn[:k], (nn[k:2 * k] - nn[2 * k:3 * k]) / (2 * h)
+        n, n_a = nn[:k], (nn[k:2 * k] - nn[2 * k:3 * k]) / (2 * h_a)
         return g * n, g * n_a, g_v * n + g * n_v, g, n
 
     def jacobian(self, a: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -189,7 +226,9 @@ def edge_phases(res: Residual, a0, v0, a1, v1, P0, P1) -> tuple[np.ndarray, list
     """Continuous change of arg R along straight segments (a0, v0) -> (a1, v1).
 
     Segments whose phase step exceeds pi/2 are bisected (vectorised, at most 50 levels), except across
-    a discontinuity of N (a segment shorter than ``_JUMP_LENGTH`` over which R still changes by more than
+    a discontinuity of N (never for an element that states it is continuous, ``N.continuous``: there a steep
+    rise of N from 0 at the edge of a dead band, under a |G| of 1e8 at a resonance, looks like a jump at
+    every length down to rounding, yet holds a root) (a segment shorter than ``_JUMP_LENGTH`` over which R still changes by more than
     ``_JUMP_SIZE`` (1 + |G N|), and one of whose halves still carries ``_JUMP_KEEP`` of that change: a
     continuous R, however steep, shares it between the halves and is bisected on), where the step along the
     chord is taken. Returns the phase changes,
@@ -208,7 +247,7 @@ def edge_phases(res: Residual, a0, v0, a1, v1, P0, P1) -> tuple[np.ndarray, list
             suspects.extend(zip(np.where(R0 == 0, a0, a1)[zero], np.where(R0 == 0, v0, v1)[zero]))
         split = np.abs(d) > _SPLIT_PHASE
         short = np.maximum(np.abs(a1 - a0), np.abs(v1 - v0)) < _JUMP_LENGTH
-        jump = split & short & (np.abs(R1 - R0) > _JUMP_SIZE * (1 + np.maximum(np.abs(R0 - 1), np.abs(R1 - 1))))
+        jump = split & short & (not res.continuous) & (np.abs(R1 - R0) > _JUMP_SIZE * (1 + np.maximum(np.abs(R0 - 1), np.abs(R1 - 1))))
         if jump.any():
             # a discontinuity keeps (nearly) its whole change in one half; a steep but continuous R (a resonance
             # of damping 1e-6, N's dead-band edge) shares it between the halves: that one is bisected further
@@ -327,13 +366,18 @@ def _rounding(x: np.ndarray) -> np.ndarray:
     return np.maximum(np.spacing(np.abs(x)), np.finfo(float).eps)
 
 
-def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def refine(res: Residual, a, v, box: Box, tol: float, certified: bool = False
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Levenberg-Marquardt on (Re R, Im R) from (a, v), each point clipped to its box.
 
     Every trial point is evaluated together with its finite-difference neighbours, so an accepted step
     costs one call. Returns the final (a, v) and a mask of points with |R| <= tol (1 + |G N|) or
     a Newton step at the rounding level of (a, v) (:func:`at_rounding_level`), and within
-    :func:`residual_bound` in either case.
+    :func:`residual_bound` in either case. With ``certified`` (each box is known to hold a root: its winding
+    is +-1), a point where the iteration ends within :func:`residual_bound` also counts: R is then at the
+    floor set by the rounding of (ln A, ln w), though the Newton step is not (a nearly singular Jacobian, e.g.
+    a root 1e-12 from the edge of a dead band under |G| = 3e10, where N itself carries a relative rounding
+    error of 1e-5 and dR/da, dR/dv are nearly parallel).
     Bounded by 100 iterations.
     """
     a, v = np.array(a, float), np.array(v, float)
@@ -390,7 +434,8 @@ def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.nd
         lam[rej] *= 100
         done = (rel <= polish) | at_rounding_level(P, ra, rv, a, v)
         failed |= (lam > 1e8) & ~done
-    return a, v, ((rel <= tol) | at_rounding_level(P, ra, rv, a, v)) & accepted(P, ra, rv, a, v, tol)
+    ok = accepted(P, ra, rv, a, v, tol)
+    return a, v, ok if certified else ok & ((rel <= tol) | at_rounding_level(P, ra, rv, a, v))
 
 
 def _span(box: Box) -> float:
@@ -412,10 +457,12 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
     """Quadrisect one box until its roots sit in boxes of winding +-1, then refine those (bounded).
 
     Returns the refined roots (a, v) and the jump crossings [(a, v, winding), ...]: boxes narrower than
-    ``JUMP_BOX`` that still wind, hold no refinable root and touch a discontinuity of N.
+    ``JUMP_BOX`` that still wind, hold no refinable root and touch a discontinuity of N (never for a
+    continuous N). A box that still winds when the depth bound is reached and whose refinement fails is
+    recorded in ``res.unresolved`` (a_lo, a_hi, v_lo, v_hi, winding): a root may lie there.
     """
     found_a, found_v, crossings = [], [], []
-    queue = box
+    queue, queue_wind = box, np.zeros(len(box), int)
     for _ in range(_MAX_ISOLATE_DEPTH):
         if len(queue) == 0:
             break
@@ -424,7 +471,8 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
         single = np.abs(wind) == 1
         if single.any():
             sb = kids.take(single)
-            a, v, ok = refine(res, (sb.a_lo + sb.a_hi) / 2, (sb.v_lo + sb.v_hi) / 2, sb.grown(0.5, window), tol)
+            a, v, ok = refine(res, (sb.a_lo + sb.a_hi) / 2, (sb.v_lo + sb.v_hi) / 2, sb.grown(0.5, window), tol,
+                              certified=True)
             ok &= sb.grown(1e-9, window).contains(a, v)
             found_a.extend(a[ok])
             found_v.extend(v[ok])
@@ -441,12 +489,13 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
             sa, sv = np.array(suspects).T
             check_continuum(res, sa, sv, window, tol)
         keep |= _touches(kids, suspects[:_MAX_LIVE_BOXES])
-        queue = kids.take(keep)
+        queue, queue_wind = kids.take(keep), wind[keep]
         if len(queue) > _MAX_LIVE_BOXES and _span(queue) < _MULTIPLE_ROOT_SPAN:
             # the live boxes crowd around one point smaller than a resolvable separation: a multiple (tangent)
             # root whose neighbourhood has zeros of Re R or Im R on many edges; refined below as one box
             queue = Box(*(np.array([f(x)]) for f, x in ((np.min, queue.a_lo), (np.max, queue.a_hi),
                                                           (np.min, queue.v_lo), (np.max, queue.v_hi))))
+            queue_wind = np.array([int(queue_wind.sum())])
             break
         if len(queue) > _MAX_LIVE_BOXES:
             check_continuum(res, (queue.a_lo + queue.a_hi) / 2, (queue.v_lo + queue.v_hi) / 2, window, tol)
@@ -458,8 +507,14 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
         # bound reached: what is left is a multiple (e.g. tangent) root smaller than the box size
         a, v, ok = refine(res, (queue.a_lo + queue.a_hi) / 2, (queue.v_lo + queue.v_hi) / 2,
                           queue.grown(1.0, window), tol)
+        single = ~ok & (np.abs(queue_wind) == 1) & queue.grown(1e-9, window).contains(a, v)
+        if single.any():  # a box known to hold one root: the residual bound alone accepts (see refine)
+            ok[single] = accepted(*res.slopes(a[single], v[single]), a[single], v[single], tol)
         found_a.extend(a[ok])
         found_v.extend(v[ok])
+        lost = ~ok & (queue_wind != 0)  # still winding, no root refined: say so (GridReport.uncertified)
+        res.unresolved.extend(zip(queue.a_lo[lost].tolist(), queue.a_hi[lost].tolist(), queue.v_lo[lost].tolist(),
+                                  queue.v_hi[lost].tolist(), queue_wind[lost].tolist()))
     return found_a, found_v, crossings
 
 
@@ -696,3 +751,20 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
         return np.empty(0), np.empty(0), _merge_crossings(crossings)
     check_continuum(res, np.asarray(roots_a), np.asarray(roots_v), window, tol, refined=True)
     return (*merge(res, np.asarray(roots_a), np.asarray(roots_v)), _merge_crossings(crossings))
+
+
+def unresolved_boxes(res: Residual, a: np.ndarray, v: np.ndarray) -> list[tuple[float, float, float, float]]:
+    """The boxes of ``res.unresolved`` (windings of R left without a refined root) that hold none of the
+    returned roots (a, v), as (A_lo, A_hi, w_lo, w_hi) in the element's amplitude unit and rad/s, merged
+    when they overlap."""
+    out: list[list[float]] = []
+    for a_lo, a_hi, v_lo, v_hi, _ in sorted(res.unresolved):
+        if np.any((a_lo <= a) & (a <= a_hi) & (v_lo <= v) & (v <= v_hi)):
+            continue
+        for b in out:
+            if a_lo <= b[1] and b[0] <= a_hi and v_lo <= b[3] and b[2] <= v_hi:
+                b[:] = [min(b[0], a_lo), max(b[1], a_hi), min(b[2], v_lo), max(b[3], v_hi)]
+                break
+        else:
+            out.append([a_lo, a_hi, v_lo, v_hi])
+    return [tuple(float(np.exp(x)) for x in b) for b in out]
