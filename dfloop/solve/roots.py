@@ -453,6 +453,56 @@ def _touches(box: Box, points: list) -> np.ndarray:
     return inside.any(axis=1)
 
 
+_START_LATTICE = 9  # starts per side of a box whose centre did not refine (the best of 9 x 9 is taken)
+
+
+def _best_starts(res: Residual, box: Box) -> tuple[np.ndarray, np.ndarray]:
+    """Per box, the point of a ``_START_LATTICE`` x ``_START_LATTICE`` lattice (ends included) with the smallest
+    |1 + G N| / (1 + |G N|) where G N != 0: a start off a dead band (where R = 1 and its slopes vanish, so a
+    refinement from there cannot move), e.g. when the box centre of a root next to the band's edge lies in it."""
+    t = np.linspace(0.0, 1.0, _START_LATTICE)
+    ta, tv = (x.ravel() for x in np.meshgrid(t, t))
+    pa = box.a_lo[:, None] + ta[None, :] * (box.a_hi - box.a_lo)[:, None]
+    pv = box.v_lo[:, None] + tv[None, :] * (box.v_hi - box.v_lo)[:, None]
+    P = res.terms(pa, pv)
+    with np.errstate(invalid="ignore"):
+        rel = np.where(P != 0, np.abs(1 + P) / (1 + np.abs(P)), np.inf)
+    k = np.argmin(rel, axis=1)
+    rows = np.arange(len(box))
+    return pa[rows, k], pv[rows, k]
+
+
+_CHASE_SPLIT = 4  # a box of winding +-1 is split 4 x 4 per round of _chase ...
+_MAX_CHASE = 30  # ... for at most this many rounds (4^-30 of its sides, below any float spacing)
+
+
+def _chase(res: Residual, box: Box, tol: float) -> tuple[float, float, bool]:
+    """Root of one box known to wind once: refined (certified, inside the box) from the best of a lattice of
+    starts; failing that, the box is split ``_CHASE_SPLIT`` x ``_CHASE_SPLIT`` and the sub-box that winds is
+    followed (bounded by ``_MAX_CHASE`` rounds and by the float spacing of its sides). Next to a dead-band edge
+    under a huge |G|, R jumps from 1 to hundreds within 1e-9 and most starts lie on the flat side.
+    Returns (a, v, found)."""
+    a = v = np.nan
+    for _ in range(_MAX_CHASE):
+        ra, rv, ok = refine(res, *_best_starts(res, box), box, tol, certified=True)
+        a, v = float(ra[0]), float(rv[0])
+        if ok[0]:
+            return a, v, True
+        t = np.linspace(0.0, 1.0, _CHASE_SPLIT + 1)
+        ea = box.a_lo[0] + t * (box.a_hi[0] - box.a_lo[0])
+        ev = box.v_lo[0] + t * (box.v_hi[0] - box.v_lo[0])
+        if np.any(np.diff(ea) <= 2 * _rounding(ea[1:])) or np.any(np.diff(ev) <= 2 * _rounding(ev[1:])):
+            break  # the sides reach the float spacing: nothing left to split
+        ia, iv = (x.ravel() for x in np.meshgrid(np.arange(_CHASE_SPLIT), np.arange(_CHASE_SPLIT)))
+        kids = Box(ea[ia], ea[ia + 1], ev[iv], ev[iv + 1])
+        wind = box_windings(res, kids)[0]
+        hit = np.flatnonzero(np.abs(wind) == 1)
+        if hit.size != 1:
+            break  # the root sits on a sub-box edge, or the winding splits: not a single root to follow
+        box = kids.take(hit)
+    return a, v, False
+
+
 def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float, float] | None = None):
     """Quadrisect one box until its roots sit in boxes of winding +-1, then refine those (bounded).
 
@@ -507,9 +557,13 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
         # bound reached: what is left is a multiple (e.g. tangent) root smaller than the box size
         a, v, ok = refine(res, (queue.a_lo + queue.a_hi) / 2, (queue.v_lo + queue.v_hi) / 2,
                           queue.grown(1.0, window), tol)
-        single = ~ok & (np.abs(queue_wind) == 1) & queue.grown(1e-9, window).contains(a, v)
-        if single.any():  # a box known to hold one root: the residual bound alone accepts (see refine)
-            ok[single] = accepted(*res.slopes(a[single], v[single]), a[single], v[single], tol)
+        single = np.flatnonzero(~ok & (np.abs(queue_wind) == 1))
+        if single.size:
+            # a box known to hold one root: refined inside the box itself, the residual bound alone accepts (see
+            # refine); a nearly singular Jacobian (dR/da, dR/dv parallel to 1e-5 next to a dead-band edge)
+            # otherwise lets the iteration slide along its null direction out of the box
+            for k in single:
+                a[k], v[k], ok[k] = _chase(res, queue.take([k]), tol)
         found_a.extend(a[ok])
         found_v.extend(v[ok])
         lost = ~ok & (queue_wind != 0)  # still winding, no root refined: say so (GridReport.uncertified)
