@@ -23,7 +23,7 @@ from .errors import ContinuumError
 from ._kernels import edge_steps, nonzero_windings, tangent_seeds
 from .plant import Plant
 
-__all__ = ["Residual", "Box", "find_roots", "dominant_steps", "greedy_unique", "accepted", "residual_bound",
+__all__ = ["Residual", "Box", "OuterProduct", "find_roots", "dominant_steps", "greedy_unique", "accepted", "residual_bound",
            "unresolved_boxes"]
 
 _SPLIT_PHASE = np.pi / 2  # an edge step whose phase change exceeds this is bisected
@@ -60,6 +60,28 @@ def dominant_steps(P: np.ndarray) -> np.ndarray:
     before = np.vstack([d[1:2], d[:-1]])  # the first/last step are compared with their one neighbour
     after = np.vstack([d[1:], d[-2:-1]])
     return d > _JUMP_DOMINANCE * np.maximum(before, after)
+
+
+class OuterProduct:
+    """The loop product P[i, j] = N_i G_j of an amplitude-only N on the tensor grid, computed where it is read.
+
+    Indexing as an (na, nv) array: with two index arrays (elementwise pairs) or two slices (a block); the values
+    are bit-identical to ``N[:, None] * G[None, :]``, whose na x nv array (411 MB for the 64 x 402,116 grid of a
+    relay around a delay on [0.1, 1e5] rad/s, ~2 s of page faults) the candidate cells never need.
+    """
+
+    ndim = 2
+
+    def __init__(self, n: np.ndarray, g: np.ndarray):
+        self.n, self.g = np.asarray(n), np.asarray(g)
+        self.shape = (self.n.size, self.g.size)
+        self.size = self.n.size * self.g.size
+
+    def __getitem__(self, key) -> np.ndarray:
+        i, j = key
+        if isinstance(i, slice) and isinstance(j, slice):
+            return np.multiply.outer(self.n[i], self.g[j])
+        return self.n[i] * self.g[j]
 
 
 class Residual:
@@ -724,7 +746,8 @@ def _node_boxes(a: np.ndarray, v: np.ndarray, i: np.ndarray, j: np.ndarray, n: i
 def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: float, cells=None):
     """All roots of R in the window spanned by the grid (a, v) with loop products P = G N on it.
 
-    ``cells`` = (i, j): the only cells that can hold a root (see ``candidate_cells``); None for all.
+    ``cells`` = (i, j): the only cells that can hold a root (see ``candidate_cells``); None for all. P is an
+    array, or with ``cells`` an :class:`OuterProduct` (only read at the candidate cells and their neighbours).
     Returns arrays (a, v) of refined roots (|R| <= tol (1 + |GN|)), merged and sorted by frequency,
     and the jump crossings of N as rows (a, v, winding) sorted by frequency. Raises ValueError when
     the roots form a continuum (:func:`check_continuum`).
