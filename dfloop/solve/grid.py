@@ -39,11 +39,11 @@ FD_MIN_WIDTH = 1e-6  # the same for a frequency-dependent N, whose jumps move wi
 _MAX_POINTS = 2_000_000  # nodes per axis
 BYTES_PER_POINT = {False: 80, True: 160}
 """Upper bounds on the solver's peak memory per grid point (bytes), for an amplitude-only N (False) and a
-frequency-dependent N (True). Measured peaks (tracemalloc, tests/test_memory_bounds.py): 5-7 and ~129: the
-amplitude-only solver reads the loop product at the candidate cells only (``roots.OuterProduct``), so its peak
-scales with them (~1 kB per candidate cell with its roots; 0.3-0.8 % of the cells on delay loops) and the bound
-leaves room for 8 % of the cells; a frequency-dependent one works on the whole tensor grid (G N, 1 + G N,
-phases, refinement masks, windings, tangent seeds)."""
+frequency-dependent N (True). Measured peaks (tracemalloc, tests/test_memory_bounds.py): under 16 and ~129:
+the amplitude-only solver reads the loop product at the candidate cells only (``roots.OuterProduct``), so its
+peak scales with them and with the roots, and the bound leaves room for grids where many more cells are
+candidates; a frequency-dependent one works on the whole tensor grid (G N, 1 + G N, phases, refinement masks,
+windings, tangent seeds)."""
 
 
 def check_memory(na: int, nv: int, frequency_dependent: bool = False) -> None:
