@@ -197,6 +197,18 @@ class DualInputDF:
         new.element = f"piecewise affine (levels={L.tolist()}, offsets={c0.tolist()}, slopes={c1.tolist()})"
         return new
 
+    @property
+    def describing_function(self) -> DescribingFunction:
+        """The element as a :class:`~dfloop.DescribingFunction` with a time model, for :func:`dfloop.exact_cycle`
+        and :func:`dfloop.verify_cycle`: the element itself, or the static map as a
+        :class:`~dfloop.NumericDF` with its breakpoints (each level used as +-level)."""
+        if isinstance(self.element, DescribingFunction):
+            return self.element
+        from .numeric import NumericDF
+
+        levels = np.unique(np.abs(self.breakpoints))
+        return NumericDF(self.function, breakpoints=levels if levels.size else None)
+
     # ------------------------------------------------------------------------------------------------ values
 
     def mean(self, B, A) -> np.ndarray:
@@ -302,51 +314,54 @@ class DualInputDF:
         return np.where(held, np.where(b >= 0, M, -M), m), np.where(held, 0.0, n)
 
     def _switching(self, b, a):
-        """Relays with hysteresis and dead zone: the output is constant between the phases where e crosses one of
-        the switching levels +-on, +-off; those phases are exact, and the level held on each interval follows from
-        the relay's switching rule (that of :class:`~dfloop.describing.static.RelayOperator`) run over three
-        periods of the interval midpoints (vectorised over the points; the last two periods must agree)."""
+        """Relays with hysteresis and dead zone, in closed form: over the rising half of e = B + A sin(theta)
+        (theta from -pi/2 to pi/2) the relay can only release -M at e = -off and switch on at e = +on, over the
+        falling half only release +M at e = +off and switch to -M at e = -on (the switching rule of
+        :class:`~dfloop.describing.static.RelayOperator`); each crossing phase is exact (asin), the state held at
+        the input's minimum is the fixed point of the period's state map (reached from the level on B's side in
+        at most three periods), and the output, constant between the phases, is integrated exactly."""
         relay = self._relay
         M, on, off = relay.M, relay.on_level, relay.off_level
         bf, af = b.ravel(), a.ravel()
-        n = bf.size
-        lo = -0.5 * np.pi
-        cuts = []
-        for L in (on, off, -on, -off):
-            s = (L - bf) / af
-            inside = np.abs(s) < 1
-            t = np.arcsin(np.clip(s, -1.0, 1.0))
-            cuts += [np.where(inside, t, lo), np.where(inside, np.pi - t, lo)]
-        fixed = [np.full(n, lo), np.full(n, 0.5 * np.pi), np.full(n, 1.5 * np.pi)]
-        bounds = np.sort(np.stack(fixed + cuts, axis=1), axis=1)
-        left, right = bounds[:, :-1], bounds[:, 1:]
-        x_mid = bf[:, None] + af[:, None] * np.sin(0.5 * (left + right))
-        state = np.zeros(n)
-        up = (bf >= 0) & (bf - af >= off)  # +M never released: the upper level (see Notes)
-        down = (bf < 0) & (bf + af <= -off)
-        state[up], state[down] = 1.0, -1.0
-        periods = []
-        for _ in range(3):
-            held = np.empty_like(x_mid)
-            for k in range(x_mid.shape[1]):
-                x = x_mid[:, k]
-                new = state.copy()
-                leave = (state == 1) & (x < off)
-                new[leave] = np.where(x[leave] < -on, -1.0, 0.0)
-                leave = (state == -1) & (x > -off)
-                new[leave] = np.where(x[leave] > on, 1.0, 0.0)
-                rest = state == 0
-                new[rest & (x > on)], new[rest & (x < -on)] = 1.0, -1.0
-                state = new
-                held[:, k] = state
-            periods.append(held)
-        if not np.array_equal(periods[1], periods[2]):
-            row = int(np.argmax(np.any(periods[1] != periods[2], axis=1)))
+        x_min, x_max = bf - af, bf + af
+
+        def phase(level, falling):
+            t = np.arcsin(np.clip((level - bf) / af, -1.0, 1.0))
+            return np.pi - t if falling else t
+
+        # rising: release of -M (at -off) then switch-on (at +on); falling: release of +M (at off), switch to -M
+        rel_up, on_up = (x_min < -off) & (x_max > -off), x_max > on
+        rel_dn, on_dn = (x_max > off) & (x_min < off), x_min < -on
+        t_rel_up, t_on_up, t_rel_dn, t_on_dn = phase(-off, False), phase(on, False), phase(off, True), phase(-on, True)
+
+        def half(s, release, switch):
+            """State after a half period from state s: (state after the release, state at the end)."""
+            mid = np.where((s == release[0]) & release[1], 0.0, s)
+            return mid, np.where((mid == 0) & switch[1], switch[0], mid)
+
+        s = np.where(bf >= 0, np.where(x_max > on, 1.0, np.where(x_min < -on, -1.0, 0.0)),
+                     np.where(x_min < -on, -1.0, np.where(x_max > on, 1.0, 0.0)))
+        s = np.where((bf >= 0) & (x_min >= off), 1.0, np.where((bf < 0) & (x_max <= -off), -1.0, s))
+        for _ in range(4):
+            previous = s
+            _, s1 = half(s, (-1.0, rel_up), (1.0, on_up))
+            _, s = half(s1, (1.0, rel_dn), (-1.0, on_dn))
+        if not np.array_equal(s, previous):
+            row = int(np.argmax(s != previous))
             raise DfloopError(f"the relay's output is not periodic at B = {bf[row]!r}, A = {af[row]!r}")
-        y = M * periods[2]
-        m = np.sum(y * (right - left), axis=1) / (2 * np.pi)
-        fs = np.sum(y * (np.cos(left) - np.cos(right)), axis=1)
-        fc = np.sum(y * (np.sin(right) - np.sin(left)), axis=1)
+        s0 = s
+        u1, s1 = half(s0, (-1.0, rel_up), (1.0, on_up))
+        u2, s2 = half(s1, (1.0, rel_dn), (-1.0, on_dn))
+        lo, hi = -0.5 * np.pi, 0.5 * np.pi
+        # pieces (start, end, level): the release and switch phases only where they happen
+        ta = np.where((s0 == -1) & rel_up, t_rel_up, lo)
+        tb = np.where((u1 == 0) & on_up, t_on_up, hi)
+        tc = np.where((s1 == 1) & rel_dn, t_rel_dn, hi)
+        td = np.where((u2 == 0) & on_dn, t_on_dn, 1.5 * np.pi)
+        pieces = ((lo, ta, s0), (ta, tb, u1), (tb, hi, s1), (hi, tc, s1), (tc, td, u2), (td, 1.5 * np.pi, s2))
+        m = sum(level * (t1 - t0) for t0, t1, level in pieces) * (M / (2 * np.pi))
+        fs = M * sum(level * (np.cos(t0) - np.cos(t1)) for t0, t1, level in pieces)
+        fc = M * sum(level * (np.sin(t1) - np.sin(t0)) for t0, t1, level in pieces)
         return m.reshape(b.shape), ((fs + 1j * fc) / (np.pi * af)).reshape(b.shape)
 
     def __repr__(self) -> str:

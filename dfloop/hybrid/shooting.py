@@ -57,7 +57,7 @@ def detect_period(t: np.ndarray, x: np.ndarray) -> float | None:
 
 
 def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, max_iterations: int,
-                   settle_periods: float, nodes: int, max_events: int) -> Orbit:
+                   settle_periods: float, nodes: int, max_events: int, bias: float = 0.0) -> Orbit:
     """Periodic orbit of ``loop`` near the predicted cycle (amplitude, frequency) by multiple shooting.
 
     Parameters
@@ -78,6 +78,8 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
         Shooting nodes per period.
     max_events : int
         Bound on the events of one flow.
+    bias : float
+        Mean of the predicted input, x ~ bias + amplitude sin(frequency t) (a loop with a constant input).
 
     Raises
     ------
@@ -89,16 +91,16 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
     c = np.full(m, 1.0 / m)            # node intervals as fractions of the period
     try:
         if settle_periods > 0:
-            zs, modes, T, c = _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events)
+            zs, modes, T, c = _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events, bias)
             m = len(zs)
         else:   # nodes on the predicted sinusoidal orbit itself (right for unstable cycles, which a flow leaves)
             t_first = 0.0
             if loop.switching:
-                z, mode = start_on_prediction(loop, N, amplitude, frequency)
+                z, mode = start_on_prediction(loop, N, amplitude, frequency, bias=bias)
                 _, _, t_first = _section_point(loop.flow(z, mode, T, max_events=max_events), T, T)
             zs, modes = [], []
             for i in range(m):
-                zi, mi = start_on_prediction(loop, N, amplitude, frequency, t_first + i * T / m)
+                zi, mi = start_on_prediction(loop, N, amplitude, frequency, t_first + i * T / m, bias)
                 zi, mi = loop.admissible_mode(zi, mi)
                 zs.append(zi)
                 modes.append(mi)
@@ -142,11 +144,11 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
     return Orbit(zs[0], modes[0], T, fl, residual, it)
 
 
-def _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events):
+def _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events, bias=0.0):
     """Flow ``settle_periods`` predicted periods (one flow per period), detect the period on the last ones, and
     put the nodes on one period of the settled motion from the middle of its longest segment."""
     T = 2.0 * math.pi / frequency
-    z, mode = start_on_prediction(loop, N, amplitude, frequency)
+    z, mode = start_on_prediction(loop, N, amplitude, frequency, bias=bias)
     whole = int(math.floor(settle_periods))
     spans = [T] * whole + ([(settle_periods - whole) * T] if settle_periods > whole else [])
     tail_t, tail_x = [], []
@@ -158,7 +160,7 @@ def _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events)
             tail_t.append(p * T + tk)
             tail_x.append(x)
         z, mode = fl.z, fl.mode
-        if not np.all(np.isfinite(z)) or np.max(np.abs(x)) > DIVERGED * amplitude:
+        if not np.all(np.isfinite(z)) or np.max(np.abs(x - bias)) > DIVERGED * amplitude:
             raise HybridError(f"the motion diverged while settling: |x| passed {DIVERGED:g} times the predicted "
                               f"amplitude in period {p + 1} of {settle_periods:g}")
     detected = detect_period(np.concatenate(tail_t), np.concatenate(tail_x))

@@ -23,6 +23,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize.elementwise import find_root
 
 from .._checks import finite, integer_at_least, window as checked_window
 from ..describing.base import DescribingFunction
@@ -164,17 +165,16 @@ class _BiasEquation:
         if np.any(count <= j):
             raise DfloopError(f"bias branch {j} does not exist at A = {float(A[count <= j][0])!r}")
         cell = np.argmax(np.cumsum(change, axis=1) > j, axis=1)
-        lo, hi = self.grid[cell].copy(), self.grid[cell + 1].copy()
-        f_lo = self(lo, A)
-        for _ in range(_BISECTIONS):
-            mid = 0.5 * (lo + hi)
-            if np.all((mid == lo) | (mid == hi)):
-                break
-            f_mid = self(mid, A)
-            left = np.sign(f_mid) * np.sign(f_lo) <= 0
-            hi, lo = np.where(left, mid, hi), np.where(left, lo, mid)
-            f_lo = np.where(left, f_lo, f_mid)
-        return 0.5 * (lo + hi)
+        lo, hi = self.grid[cell], self.grid[cell + 1]
+        # Chandrupatla's bracketing method (interpolation where F is smooth, bisection where it is not: the mean
+        # output of a relay with hysteresis jumps), to a bracket of a few ulps, vectorised over the amplitudes
+        res = find_root(lambda B, a: self(B, a), (lo, hi), args=(A,),
+                        tolerances=dict(xatol=np.finfo(float).tiny, xrtol=4 * np.finfo(float).eps, fatol=0.0,
+                                        frtol=0.0), maxiter=_BISECTIONS)
+        if not np.all(res.success):
+            bad = int(np.argmin(res.success))
+            raise DfloopError(f"the bias root at A = {float(A[bad])!r} did not converge in {_BISECTIONS} steps")
+        return np.asarray(res.x, float)
 
 
 class _BranchDF(DescribingFunction):
