@@ -121,7 +121,7 @@ class Verification:
         Amplitude of the exact orbit the verified cycle carried (``predict_limit_cycles(..., exact=True)``),
         None without one.
     means : (float or None, float or None)
-        Mean of x over the last tenth of each run (its bias; None for a diverged run).
+        Mean of x over the whole periods in the last tenth of each run (its bias; None for a diverged run).
     """
 
     amplitude: float
@@ -193,6 +193,22 @@ def _describe(run: SteadyState, sim: LoopSimulation, A0: float, d: float) -> str
             f"({'periodic' if run.periodicity < 1e-3 else f'periodicity {run.periodicity:.2g}'})")
 
 
+def _final_mean(sim: LoopSimulation) -> float:
+    """Mean of x over the whole periods in the last tenth of a run (between its first and last upward crossings of
+    the tail's mean level; the tail's plain mean when it does not oscillate)."""
+    from .harmonics import upward_crossings
+
+    k = max(sim.x.size // 10, 2)
+    t, x = sim.t[-k:], sim.x[-k:]
+    c = upward_crossings(t, x, float(np.mean(x)))
+    if c.size < 2:
+        return float(np.mean(x))
+    inner = (t > c[0]) & (t < c[-1])
+    ts = np.concatenate([[c[0]], t[inner], [c[-1]]])
+    xs = np.interp(ts, t, x)
+    return float(np.sum(0.5 * (xs[1:] + xs[:-1]) * np.diff(ts)) / (c[-1] - c[0]))
+
+
 @single_threaded_blas
 def verify_cycle(G, N, cycle, *, perturbation: float = 0.3, periods: float = 80, steps_per_period: int = 400,
                  measure_periods: int = 10, r0: float = 0.0, load: float = 0.0,
@@ -233,7 +249,7 @@ def verify_cycle(G, N, cycle, *, perturbation: float = 0.3, periods: float = 80,
                             load=load, bias=bias)
         sims.append(sim)
         method = sim.method
-        means.append(float(np.mean(sim.x[-max(sim.x.size // 10, 1):])) if not sim.diverged else None)
+        means.append(None if sim.diverged else _final_mean(sim))
         if sim.diverged:
             runs.append(SteadyState(float(np.max(np.abs(sim.x))), 0.0, 0.0, 0, False))
         else:   # measured about the run's final mean (0 for a symmetric loop without constant input)
