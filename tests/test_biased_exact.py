@@ -161,7 +161,7 @@ def test_hysteresis_relay_orbit_against_tsypkin_and_an_event_located_simulation(
     sys = ct.ss(G)
     A, B, C = np.asarray(sys.A), np.asarray(sys.B)[:, 0], np.asarray(sys.C)[0]
     x, u, durations = np.zeros(A.shape[0]), M, []
-    for _ in range(80):
+    for _ in range(40):
         level = r0 - (-a if u == M else a)   # switch down when e falls to -a: y rises to r0 + a
 
         def ev(t, z, level=level):

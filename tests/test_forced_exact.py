@@ -31,8 +31,8 @@ def _duffing_run(w, x0, v0, periods):
 
 def test_duffing_orbits_match_the_df_branches_and_liouville():
     G, N = ct.tf([1.0], [1.0, 2 * Z, 1.0]), CubicStiffness(K1, K3)
-    res = forced_response(G, N, R, np.linspace(1.6, 2.0, 5), amplitude=(1e-3, 20))
-    ex = exact_forced_response(G, N, res)
+    res = forced_response(G, N, R, [1.7, 1.8, 2.0], amplitude=(1e-3, 20))
+    ex = exact_forced_response(G, N, res, observe=False)
     triple = 0
     for w, sols, row in zip(res.omega, res.solutions, ex.points):
         triple += len(sols) == 3
@@ -40,7 +40,7 @@ def test_duffing_orbits_match_the_df_branches_and_liouville():
             assert p.periodic and p.stable == df.stable      # the incremental criterion agrees with the multipliers
             # Liouville: the loop's divergence is -2 Z everywhere (the spring adds no damping): det = exp(-2 Z T)
             assert abs(np.prod(p.multipliers)) == pytest.approx(math.exp(-2 * Z * 2 * math.pi / w), rel=1e-8)
-            assert abs(p.amplitude_error) < 0.02             # measured: at most 1.5 % (middle branch, w = 1.9)
+            assert abs(p.amplitude_error) < 0.02             # measured: at most 1.1 % (middle branch, w = 1.8)
     assert triple >= 2 and ex.disagreements() == [] and ex.largest_difference < 0.02
     # an independent simulation from rest at w = 2 settles on the exact (lower) stable orbit's amplitude
     p = ex.points[-1][0]

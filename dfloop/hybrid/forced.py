@@ -154,7 +154,7 @@ def _point(loop, orbit, free, R, w, A_pred, how) -> ExactForcedPoint:
 
 
 def exact_forced_point(G, N, R: float, omega: float, amplitude: float, *, nodes: int = 8, tol: float = 1e-10,
-                       max_iterations: int = 40, max_events: int = 10_000) -> ExactForcedPoint:
+                       max_iterations: int = 40, max_events: int = 10_000, observe: bool = True) -> ExactForcedPoint:
     """The exact orbit of the loop driven by R sin(w t) at the forcing period, near the DF solution ``amplitude``.
 
     Parameters
@@ -171,6 +171,10 @@ def exact_forced_point(G, N, R: float, omega: float, amplitude: float, *, nodes:
         Shooting nodes per forcing period.
     tol, max_iterations, max_events
         As for :func:`dfloop.exact_cycle`.
+    observe : bool
+        When the orbit found at the forcing period is unstable, also run the loop from the DF solution to say
+        what the motion does instead (``observed``; default). False skips that run for unstable orbits (it
+        always runs when no orbit is found).
 
     Returns
     -------
@@ -183,7 +187,7 @@ def exact_forced_point(G, N, R: float, omega: float, amplitude: float, *, nodes:
     ValueError
         Bad R, omega, amplitude or nodes (naming it), or a plant/element the driven loop cannot run.
     """
-    from .._checks import in_closed_interval, scale
+    from .._checks import flag, in_closed_interval, scale
 
     R, w, A0 = scale("R", R), scale("omega", omega), scale("amplitude", amplitude)
     m = int(in_closed_interval("nodes", nodes, 1, 1000))
@@ -197,7 +201,7 @@ def exact_forced_point(G, N, R: float, omega: float, amplitude: float, *, nodes:
         starts = [_start(loop, G, N, R, w, A0, n, i * T / m) for i in range(m)]
         orbit = forced_orbit(loop, [z for z, _ in starts], [mo for _, mo in starts], T, free, **options)
         point = _point(loop, orbit, free, R, w, A0, "shot from the DF solution")
-        if point.stable:
+        if point.stable or not flag("observe", observe):
             return point
     except (ShootingError, HybridError) as exc:
         first = f"; shooting from the DF solution: {exc}"
