@@ -143,14 +143,15 @@ class Verification:
     def to_dict(self) -> dict:
         """One flat row: ``amplitude``, ``frequency``, ``verdict``, ``perturbation``, ``message``, ``method`` and
         each run's steady state as ``inside_amplitude``, ``inside_frequency``, ``inside_periodicity``,
-        ``inside_n_periods``, ``inside_oscillating`` (``outside_...`` likewise)."""
+        ``inside_n_periods``, ``inside_oscillating``, ``inside_mean`` (``outside_...`` likewise)."""
         from dataclasses import asdict
 
         from .export import flat
 
         return flat({"amplitude": self.amplitude, "frequency": self.frequency, "verdict": self.verdict,
                      "perturbation": self.perturbation, "message": self.message, "method": self.method,
-                     "inside": asdict(self.inside), "outside": asdict(self.outside)})
+                     "inside": {**asdict(self.inside), "mean": self.means[0]},
+                     "outside": {**asdict(self.outside), "mean": self.means[1]}})
 
     def to_csv(self, path) -> None:
         """Write :meth:`to_dict` as a one-row CSV file."""
