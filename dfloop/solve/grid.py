@@ -90,7 +90,8 @@ def _non_monotone(ls: list) -> np.ndarray:
     below 1e-10 are rounding, not a turn)."""
     out = np.zeros(ls[0].shape, bool)
     for k, part in enumerate((np.real, np.imag)):
-        steps = [part(b) - part(a) for a, b in zip(ls[:-1], ls[1:])]
+        with np.errstate(invalid="ignore"):  # ln 0 - ln 0 (a dead band) is NaN: neither up nor down
+            steps = [part(b) - part(a) for a, b in zip(ls[:-1], ls[1:])]
         if k == 1:
             steps = [np.angle(np.exp(1j * d)) for d in steps]
         with np.errstate(invalid="ignore"):
