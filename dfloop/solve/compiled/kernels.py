@@ -27,8 +27,6 @@ _FOUR_PI_INV = 4.0 / np.pi
 _PI = np.pi
 _EPS = float(np.finfo(float).eps)
 _FD_STEP = 1e-6
-_UP, _DN = float(np.exp(_FD_STEP)), float(np.exp(-_FD_STEP))
-_SCL = 1.0 / (2 * _FD_STEP)  # numpy divides a complex array by 2h as a complex: times 1 / (2h)
 _POLISH = 1e-4
 _MAX_LM_ITER = 100
 
@@ -169,13 +167,29 @@ def _sum_ratios(s, roots):
 
 
 @njit(**_OPTS)
-def slopes_at(num, den, zeros, poles, delay, kind, p, a, v):
+def fd_step(a, ln_lo, ln_hi):
+    """The central-difference step of N along a (Residual._fd_steps): _FD_STEP, shrunk to a quarter of the
+    distance to the edges (ln_lo, ln_hi) of N's amplitude domain, at least 64 rounding units of a."""
+    gap = min(a - ln_lo, ln_hi - a)
+    if math.isnan(gap):
+        gap = math.inf
+    return _clip(0.25 * gap, 64 * rounding(a), _FD_STEP)
+
+
+@njit(**_OPTS)
+def _n_slope(kind, p, A, h):
+    """dN/da by the central difference of step h (log units), as numpy divides by 2h: times 1 / (2h)."""
+    return (element(kind, p, A * math.exp(h)) - element(kind, p, A * math.exp(-h))) * (1.0 / (2 * h))
+
+
+@njit(**_OPTS)
+def slopes_at(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v):
     """(P, dP/da, dP/dv, G, N) at one point (a, v) in log coordinates (Residual._evaluate_slopes)."""
     A, w = math.exp(a), math.exp(v)
     g = plant(num, den, delay, w)
     g_v = g * log_slope(zeros, poles, delay, w)
     n = element(kind, p, A)
-    n_a = (element(kind, p, A * _UP) - element(kind, p, A * _DN)) * _SCL
+    n_a = _n_slope(kind, p, A, fd_step(a, ln_lo, ln_hi))
     return g * n, g * n_a, g_v * n, g, n
 
 
@@ -209,15 +223,15 @@ def accepted(P, P_a, P_v, a, v, tol):
 
 
 @njit(**_OPTS)
-def evaluate_slopes(num, den, zeros, poles, delay, kind, p, A, w):
-    """Residual._evaluate_slopes at amplitudes A and frequencies w (arrays): P, P_a, P_v, G, N."""
+def evaluate_slopes(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, A, w):
+    """Residual._evaluate_slopes at log amplitudes a (A = e^a) and frequencies w (arrays): P, P_a, P_v, G, N."""
     k = A.size
     out = np.empty((5, k), np.complex128)
     for i in range(k):
         g = plant(num, den, delay, w[i])
         g_v = g * log_slope(zeros, poles, delay, w[i])
         n = element(kind, p, A[i])
-        n_a = (element(kind, p, A[i] * _UP) - element(kind, p, A[i] * _DN)) * _SCL
+        n_a = _n_slope(kind, p, A[i], fd_step(a[i], ln_lo, ln_hi))
         out[0, i], out[1, i], out[2, i], out[3, i], out[4, i] = g * n, g * n_a, g_v * n, g, n
     return out
 
@@ -248,8 +262,9 @@ def element_values(kind, p, A):
 
 
 @njit(**_OPTS)
-def refine(num, den, zeros, poles, delay, kind, p, a, v, a_lo, a_hi, v_lo, v_hi, tol):
-    """roots.refine, one point at a time (each point's iteration is independent there too).
+def refine(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, a_lo, a_hi, v_lo, v_hi, tol, certified):
+    """roots.refine, one point at a time (each point's iteration is independent there too); ``certified`` as
+    there (a box known to hold a root accepts a point within the residual bound).
 
     Returns (a, v, ok), the final (P, P_a, P_v, G, N) per point, shape (5, n), and the number of points at
     which G and N were evaluated (three per evaluation of the slopes, as Residual counts them)."""
@@ -261,7 +276,7 @@ def refine(num, den, zeros, poles, delay, kind, p, a, v, a_lo, a_hi, v_lo, v_hi,
     evaluated = 0
     for i in range(n_pts):
         ai, vi = a[i], v[i]
-        P, ra, rv, g, n = slopes_at(num, den, zeros, poles, delay, kind, p, ai, vi)
+        P, ra, rv, g, n = slopes_at(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, ai, vi)
         evaluated += 3
         rel = cabs(1.0 + P) / (1 + cabs(P))
         lam = 1e-12
@@ -294,7 +309,7 @@ def refine(num, den, zeros, poles, delay, kind, p, a, v, a_lo, a_hi, v_lo, v_hi,
                 dv = 0.0
             at = _clip(ai + da, a_lo[i], a_hi[i])
             vt = _clip(vi + dv, v_lo[i], v_hi[i])
-            Pt, rat, rvt, gt, nt = slopes_at(num, den, zeros, poles, delay, kind, p, at, vt)
+            Pt, rat, rvt, gt, nt = slopes_at(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, at, vt)
             evaluated += 3
             relt = cabs(1.0 + Pt) / (1 + cabs(Pt))
             better = (relt < rel) and ok_step
@@ -311,6 +326,7 @@ def refine(num, den, zeros, poles, delay, kind, p, a, v, a_lo, a_hi, v_lo, v_hi,
             if lam > 1e8 and not done:
                 failed = True
         a[i], v[i] = ai, vi
-        ok[i] = ((rel <= tol) or at_rounding_level(P, ra, rv, ai, vi)) and accepted(P, ra, rv, ai, vi, tol)
+        ok[i] = accepted(P, ra, rv, ai, vi, tol) and (certified or rel <= tol
+                                                      or at_rounding_level(P, ra, rv, ai, vi))
         vals[0, i], vals[1, i], vals[2, i], vals[3, i], vals[4, i] = P, ra, rv, g, n
     return a, v, ok, vals, evaluated

@@ -130,7 +130,10 @@ def _loop_arrays(plant: Plant, N):
     if coef is None:
         return None
     zeros, poles = (np.ascontiguousarray(r, complex) for r in plant.roots)
-    return (*coef[:2], zeros, poles, coef[2], KINDS[form[0]], np.ascontiguousarray(form[1], float))
+    lo, hi = (float(np.asarray(x, float)) for x in N.amplitude_domain())  # static N: fixed edges
+    with np.errstate(divide="ignore"):
+        ln_lo, ln_hi = float(np.log(lo)), float(np.log(hi))
+    return (*coef[:2], zeros, poles, coef[2], KINDS[form[0]], np.ascontiguousarray(form[1], float), ln_lo, ln_hi)
 
 
 def _announce_compile() -> None:
@@ -181,17 +184,19 @@ class CompiledResidual(Residual):
         if not np.all(np.isfinite(A) & (A > 0)):
             return super()._evaluate_slopes(a, v)
         self.n_points += 3 * a.size
-        out = K.evaluate_slopes(*self._loop, np.ascontiguousarray(A), np.ascontiguousarray(w))
+        out = K.evaluate_slopes(*self._loop, np.ascontiguousarray(a, float), np.ascontiguousarray(A),
+                                np.ascontiguousarray(w))
         if np.isnan(out[4]).any():
             return super()._evaluate_slopes(a, v)
         return out[0], out[1], out[2], out[3], out[4]
 
-    def refine(self, a, v, box, tol: float):
+    def refine(self, a, v, box, tol: float, certified: bool = False):
         """:func:`dfloop.solve.roots.refine` in the kernels (point by point; the same iteration)."""
         a, v = np.array(a, float).ravel(), np.array(v, float).ravel()
         lo_a, hi_a, lo_v, hi_v = (np.ascontiguousarray(np.broadcast_to(x, a.shape), float)
                                   for x in (box.a_lo, box.a_hi, box.v_lo, box.v_hi))
-        ra, rv, ok, vals, evaluated = K.refine(*self._loop, a, v, lo_a, hi_a, lo_v, hi_v, float(tol))
+        ra, rv, ok, vals, evaluated = K.refine(*self._loop, a, v, lo_a, hi_a, lo_v, hi_v, float(tol),
+                                                   bool(certified))
         self.n_points += int(evaluated)
         if a.size <= _MEMO_BATCH:  # remembered as the Python refinement's last evaluations are
             if len(self._memo) + a.size > _MEMO_SIZE:
@@ -226,5 +231,5 @@ def warmup() -> float:
         res._evaluate_slopes(a, v)
         from ..roots import Box
 
-        res.refine(a, v, Box(-1.0, 1.0, 0.0, 1.0), 1e-10)
+        res.refine(a, v, Box(-1.0, 1.0, 0.0, 1.0), 1e-10, True)
     return time.perf_counter() - t0
