@@ -54,13 +54,11 @@ _MEMO_SIZE = 8192  # ... up to this many points (then the memo starts again)
 def dominant_steps(P: np.ndarray) -> np.ndarray:
     """Steps of P along axis 0 larger than ``_JUMP_DOMINANCE`` times both neighbouring steps: a
     discontinuity, which refining the grid would not shrink. Shape (n - 1, m)."""
-    d = np.abs(P[1:] - P[:-1])
+    d = np.abs(np.diff(P, axis=0))
     if d.shape[0] < 2:
         return np.zeros(d.shape, bool)
-    # the first/last step are compared with their one neighbour (concatenate: vstack's checks cost more here,
-    # where _near_jump calls this on small patches around each retried tangent seed)
-    before = np.concatenate([d[1:2], d[:-1]])
-    after = np.concatenate([d[1:], d[-2:-1]])
+    before = np.vstack([d[1:2], d[:-1]])  # the first/last step are compared with their one neighbour
+    after = np.vstack([d[1:], d[-2:-1]])
     return d > _JUMP_DOMINANCE * np.maximum(before, after)
 
 
@@ -458,9 +456,8 @@ def refine(res: Residual, a, v, box: Box, tol: float, certified: bool = False
         ra[acc], rv[acc] = rat[better], rvt[better]
         lam[acc] = np.maximum(lam[acc] / 10, 1e-15)
         lam[rej] *= 100
-        # only the active points moved: the others keep their verdicts (done or failed)
-        done[act] = (rel[act] <= polish) | at_rounding_level(P[act], ra[act], rv[act], a[act], v[act])
-        failed[act] |= (lam[act] > 1e8) & ~done[act]
+        done = (rel <= polish) | at_rounding_level(P, ra, rv, a, v)
+        failed |= (lam > 1e8) & ~done
     ok = accepted(P, ra, rv, a, v, tol)
     return a, v, ok if certified else ok & ((rel <= tol) | at_rounding_level(P, ra, rv, a, v))
 
