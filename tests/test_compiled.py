@@ -1,10 +1,11 @@
 """The compiled pipeline (dfloop.solve.compiled) against the Python reference path (DFLOOP_COMPILED=0).
 
 Both paths run the same driver; the compiled one evaluates G, N and their slopes and refines the roots in numba
-kernels. The truth here is the Python path itself: on the textbook loops and on random loops (plants of order
+kernels. The truth here is the Python path itself: on the textbook loops and on 160 random loops (plants of order
 1-7 with dampings down to 1e-6, unstable poles, integrators, pure delays; every element kind with a compiled
-form) both must find the same number of cycles, at the same amplitudes and frequencies to 1e-12 (relative), with
-the same labels, or fail with the same error.
+form) both must find the same number of cycles, at the same amplitudes and frequencies to 1e-12 (relative; or
+within the roots' own position uncertainty where rounding leaves more), with the same labels, on the same grid,
+or fail with the same error.
 """
 from __future__ import annotations
 
@@ -67,10 +68,19 @@ def _same(G, N, monkeypatch) -> int:
     assert got.grid_report.shape == ref.grid_report.shape  # the same grid, chosen from G and N
     assert got.grid_report.candidate_cells == ref.grid_report.candidate_cells
     for c, r in zip(got, ref):
-        assert c.amplitude == pytest.approx(r.amplitude, rel=1e-12, abs=0)
-        assert c.frequency == pytest.approx(r.frequency, rel=1e-12, abs=0)
+        # 1e-12, or the roots' own position uncertainty where rounding leaves more (roots.merge's rule for "the
+        # same root": a root at the rounding floor of its residual, A ~ 1e7 on a saturation, moves by 3e-11)
+        near = 1e-12 + _radius(G, N, r) + _radius(G, N, c)
+        assert abs(np.log(c.amplitude / r.amplitude)) <= near and abs(np.log(c.frequency / r.frequency)) <= near
         assert c.stability == r.stability
     return len(ref)
+
+
+def _radius(G, N, cycle) -> float:
+    """4 |R| / s_min(J) at a cycle (log units): how far the true root may lie (as roots.merge bounds it)."""
+    P, ra, rv = Residual(as_plant(G), N).slopes(np.log([cycle.amplitude]), np.log([cycle.frequency]))
+    J = np.array([[ra[0].real, rv[0].real], [ra[0].imag, rv[0].imag]])
+    return 4 * abs(1 + P[0]) / np.linalg.svd(J, compute_uv=False)[-1]
 
 
 def test_every_compiled_kind_is_compiled_and_others_are_not():
@@ -126,11 +136,11 @@ def test_textbook_loops_agree(monkeypatch):
 def test_random_loops_agree(monkeypatch):
     rng = np.random.default_rng(19)
     found = 0
-    for k in range(48):
-        G, _, _, T = random_plant(rng, order_max=5)
+    for k in range(160):
+        G, _, _, T = random_plant(rng)
         N = random_element(rng, KINDS[k % len(KINDS)])
         found += _same(delayed(G, T) if T else G, N, monkeypatch)
-    assert found >= 20  # the comparison covers cycles, not only empty results
+    assert found >= 60  # the comparison covers cycles, not only empty results
 
 
 
