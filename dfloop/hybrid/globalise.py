@@ -8,7 +8,8 @@ Before answering "no orbit", :func:`shoot_or_globalise`:
    set that straddles a fast switch can stall where single shooting converges);
 2. simulates the loop on the exact flow from the prediction and from starts 0.7 and 1.4 times its amplitude
    (``RUN_PERIODS`` predicted periods each) and measures where each motion went: a periodic motion (amplitude,
-   frequency, periodicity), rest, divergence, or a motion not periodic within the run;
+   frequency, periodicity), rest (anywhere: at x = 0 or off it inside the element's dead band or play, with
+   ``x_end`` and the element's output ``y_end`` there), divergence, or a motion not periodic within the run;
 3. shoots from every oscillating motion found (after settling on it for 20 more periods).
 
 An orbit found within ``max_deviation`` of the prediction is returned (its message says how it was found). A
@@ -62,7 +63,7 @@ def shoot_or_globalise(G, N, predicted: tuple, shoot, max_deviation: float):
 
 
 def _simulate(G, N, A: float, w: float, periods: float):
-    """(t, x, diverged, method) of the loop run on its exact flow from the predicted orbit of (A, w), or None
+    """(t, x, diverged, method, y_end) of the loop run on its exact flow from the predicted orbit of (A, w), or None
     when the loop has no exact flow (a run that fails part-way returns the part before the failure)."""
     try:
         loop = loop_model(G, N, A, w)
@@ -75,20 +76,21 @@ def _simulate(G, N, A: float, w: float, periods: float):
             sim = delay_simulation(loop, A, w, periods, 64, diverge=_DIVERGED)
         except DelayError as exc:
             if "left the range" in str(exc):          # the quantizer's modelled range (64 A): a divergence
-                return np.array([0.0]), np.array([_DIVERGED * A]), True, str(exc)
+                return np.array([0.0]), np.array([_DIVERGED * A]), True, str(exc), math.nan
             if "never switches" in str(exc):          # the element stays at rest: so does its output
-                return np.array([0.0]), np.array([0.0]), False, str(exc)
+                return np.array([0.0]), np.array([0.0]), False, str(exc), 0.0
             return None
-        return sim.t, sim.x, sim.diverged, sim.method
+        return sim.t, sim.x, sim.diverged, sim.method, float(sim.y[-1])
     P = 2.0 * math.pi / w
     ts, xs = [], []
-    diverged = False
+    diverged, y_end = False, math.nan
     try:
         z, mode = start_on_prediction(loop, N, A, w)
         for p in range(int(periods)):
             fl = loop.flow(z, mode, P, max_events=100_000)
             tk = np.arange(64) * (P / 64)
-            xk = loop.signals(fl, tk)[0]
+            xk, yk = loop.signals(fl, tk)
+            y_end = float(yk[-1])
             ts.append(p * P + tk)
             xs.append(xk)
             z, mode = fl.z, fl.mode
@@ -98,7 +100,7 @@ def _simulate(G, N, A: float, w: float, periods: float):
     except HybridError:
         if not ts:
             return None
-    return np.concatenate(ts), np.concatenate(xs), diverged, loop.method
+    return np.concatenate(ts), np.concatenate(xs), diverged, loop.method, y_end
 
 
 def _motion(G, N, A0: float, w0: float, factor: float) -> dict:
@@ -108,20 +110,36 @@ def _motion(G, N, A0: float, w0: float, factor: float) -> dict:
     out = {"start_amplitude": A, "start_frequency": w0, "periods": RUN_PERIODS}
     if run is None:
         return {**out, "outcome": "no simulation"}
-    t, x, diverged, _ = run
+    t, x, diverged, _, y_end = run
     if diverged:
         return {**out, "outcome": "divergence", "amplitude": float(np.max(np.abs(x)))}
     if t.size < 3:          # the element never switches from this start: its output stays at rest
         return {**out, "outcome": "rest", "amplitude": 0.0, "note": run[3]}
     tail = x[t > t[-1] - 0.1 * (t[-1] - t[0])]
     if np.max(np.abs(tail)) < _REST * A:
-        return {**out, "outcome": "rest", "amplitude": float(np.max(np.abs(tail))), "x_end": float(x[-1])}
+        return {**out, "outcome": "rest", "amplitude": float(np.max(np.abs(tail))), "x_end": float(x[-1]),
+                "y_end": y_end}
+    if _at_rest(tail, A):   # rest off zero (inside a dead band or play, or an equilibrium of a biased loop)
+        return {**out, "outcome": "rest", "amplitude": float(np.ptp(tail) / 2), "x_end": float(x[-1]),
+                "y_end": y_end}
     st = steady_state(t, x, _MEASURE)
     if not st.oscillating:   # no zero crossing left: at rest, possibly off zero (in a play or dead band)
-        return {**out, "outcome": "rest", "amplitude": float(st.amplitude), "x_end": float(x[-1])}
+        return {**out, "outcome": "rest", "amplitude": float(st.amplitude), "x_end": float(x[-1]), "y_end": y_end}
     kind = "periodic" if st.periodicity < _PERIODIC else "not periodic"
     return {**out, "outcome": kind, "amplitude": float(st.amplitude), "frequency": float(st.frequency),
             "periodicity": float(st.periodicity)}
+
+
+def _at_rest(tail: np.ndarray, A: float) -> bool:
+    """True when x comes to rest anywhere, not only at 0 (an equilibrium in the element's zero set, e.g. inside a
+    dead zone around a plant with an integrator): over the last tenth of the run x either no longer moves (its
+    spread below ``_REST`` times the start amplitude) or stays on one side of its end value's sign while its
+    spread shrinks (the last quarter of the tail moves less than half as much as the first quarter)."""
+    if np.ptp(tail) <= _REST * A:
+        return True
+    q = max(tail.size // 4, 2)
+    one_side = bool(np.all(tail > 0) or np.all(tail < 0))
+    return one_side and np.ptp(tail[-q:]) < 0.5 * np.ptp(tail[:q])
 
 
 def _words(m: dict) -> str:
@@ -135,7 +153,10 @@ def _words(m: dict) -> str:
     if k == "rest":
         if "note" in m:
             return f"{start}: the element never switches ({m['note']})"
-        return f"{start}: comes to rest at x = {m['x_end']:.4g}"
+        where = f"{start}: comes to rest at x = {m['x_end']:.4g}"
+        if m.get("y_end") == 0.0 and m["x_end"] != 0.0:
+            where += " (element output 0 there: inside its dead band or play)"
+        return where
     if k == "divergence":
         return f"{start}: diverges (|x| reached {m['amplitude']:.3g})"
     return f"{start}: the loop cannot be simulated here"
@@ -204,6 +225,10 @@ def _globalise(G, N, predicted, first, shoot, max_deviation):
                                "it are not periodic within the runs (chaotic, quasi-periodic or slowly settling)",
                "rest": "no periodic orbit near the prediction: motions started on and around it decay to rest",
                }[outcome]
+        if outcome == "divergence" and "rest" in kinds:   # a boundary between rest and divergence: say both
+            msg = (f"no periodic orbit near the prediction: of the motions started on and around it "
+                   f"{kinds.count('rest')} decay to rest and {kinds.count('divergence')} diverge (the prediction "
+                   "lies near the boundary between the two)")
     extra = {**first.extra, "outcome": outcome, "motions": motions, "attempts": tried}
     return dataclasses.replace(first, message=f"{msg}. Evidence: {evidence}. First attempt: {first.message}",
                                extra=extra)
