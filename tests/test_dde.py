@@ -84,7 +84,8 @@ def test_time_simulation_of_the_delay_equation_settles_on_the_orbit(orbits):
 
 def test_the_dispatcher_picks_the_delay_engine_from_the_time_model():
     # loop_model reads the element's time model only: a static map (checked against the element's own output and
-    # breakpoints) -> the delay equation; piecewise constant -> the exact delay flow; memory -> ValueError naming N
+    # breakpoints) -> the delay equation; piecewise constant -> the exact delay flow; memory -> the delay equation with
+    # the element's state in the history; impacts -> ValueError naming N
     from dfloop.hybrid import DDELoop, DelayLoop
     from dfloop.hybrid.dde import static_map
 
@@ -101,5 +102,8 @@ def test_the_dispatcher_picks_the_delay_engine_from_the_time_model():
     for el in (df.Relay(1.0), df.Relay(1.0, hysteresis=0.1, dead_zone=0.2), df.Quantizer(0.5)):
         assert isinstance(loop_model(G, el, 2.0, 2.0), DelayLoop)
     assert static_map(df.Relay(1.0, hysteresis=0.1).time_model(2.0)) == (None, None)   # hysteretic: not a map
-    with pytest.raises(ValueError, match="N: Backlash"):
-        loop_model(G, df.Backlash(h=0.5), 2.0, 2.0)
+    from dfloop.hybrid.dde_memory import MemoryDDELoop
+
+    assert isinstance(loop_model(G, df.Backlash(h=0.5), 2.0, 2.0), MemoryDDELoop)   # memory: its state in history
+    with pytest.raises(ValueError, match="N: DynamicBacklash"):                     # impacts with a delay: not here
+        loop_model(G, df.DynamicBacklash(1.0, 1.0, 0.1, 0.5), 2.0, 2.0)
