@@ -88,7 +88,7 @@ def unstable():
     G = delayed(G1, T1)
     c = df.predict_limit_cycles(G, N)[0]
     loop = loop_model(G, N, c.amplitude, c.frequency)
-    return c, {n: memory_orbit(loop, c.amplitude, c.frequency, nodes=n) for n in (32, 64, 128, 512)}
+    return c, {n: memory_orbit(loop, c.amplitude, c.frequency, nodes=n) for n in (32, 64, 128, 256, 512)}
 
 
 def test_backlash_delay_orbit_equals_an_independent_run_and_the_df_is_close(orbits):
@@ -114,10 +114,13 @@ def test_backlash_delay_scheme_converges_at_fourth_order(unstable):
     c, orb = unstable
     ref = orb[512]                                   # 1024 steps per period
     assert ref["success"] and not ref["stable"]
+    steps = np.array([64, 128, 256, 512])
     for key in ("amplitude", "frequency"):
-        err = [abs(orb[n][key] / ref[key] - 1) for n in (32, 64, 128)]        # 64, 128, 256 steps per period
-        orders = [math.log2(err[0] / err[1]), math.log2(err[1] / err[2])]
-        assert min(orders) > 3.0, (key, err, orders)
+        err = np.array([abs(orb[n // 2][key] / ref[key] - 1) for n in steps])
+        # the error constant depends on where the element's switches fall between the nodes, so single ratios
+        # scatter (a lucky 128); the least-squares slope over an 8-fold range is the order
+        order = -np.polyfit(np.log2(steps), np.log2(err), 1)[0]
+        assert order > 3.3, (key, err, order)
     # the reported error estimate (the change between the two resolutions) bounds the finer one's error
     for n in (32, 64, 128):
         est = orb[n]["extra"]["error_estimate"]

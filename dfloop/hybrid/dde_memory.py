@@ -23,8 +23,9 @@ behind the plant, on the known history of x.
 the element's state e at t_k - T (and its mode, discrete). One period of N steps (h = P / N) maps this state to
 itself on a periodic orbit.
 
-**Periodic orbit and multipliers.** Newton's method on (state, P) with the phase condition x(0) = x at the
-start, with the exact tangent of the discretised map (the element's switch instants move with the state: the
+**Periodic orbit and multipliers.** Newton's method on (state, P) with the phase condition that the plant state
+moves only across the flow at the start ((s - s_start) . s' = 0; the start's phase puts the element's window in
+the middle of its longest mode on the DF's sinusoid, far from its switches), with the exact tangent of the discretised map (the element's switch instants move with the state: the
 saltation of the element's switches is carried, dt* = -dg / g'). The eigenvalues of the converged tangent are
 the multipliers of the discretised history: a trivial one near 1 (the autonomous orbit), the ones that decide
 stability, and the rest clustered near 0. :func:`memory_orbit` solves at N and 2N nodes per period and reports
@@ -369,25 +370,45 @@ def _run(loop: MemoryDDELoop, sc: _Scheme, st: _State, steps: int, *, tangent: b
     return out, M, (np.array(xs), np.array(ys), evs, diverged)
 
 
-def _start(loop: MemoryDDELoop, A0: float, w0: float, h: float, L: int) -> _State:
-    """The DF's sinusoidal orbit x = A0 sin(w0 t) as a discretised state at t = 0: x's history on the nodes, the
-    plant in the periodic state the delayed fundamental of the element's response drives it to, the element in
-    the state the sinusoid leaves at -T."""
+def _start(loop: MemoryDDELoop, A0: float, w0: float, h: float, L: int, section: bool = True) -> _State:
+    """The DF's sinusoidal orbit x = A0 sin(w0 (t + t0)) as a discretised state at t = 0: x's history on the nodes,
+    the plant in the periodic state the delayed fundamental of the element's response drives it to, the element in
+    the state the sinusoid leaves at -T. With ``section`` the phase t0 puts the element's window (-T) in the middle
+    of its longest mode on the sinusoid, so the section is far from the element's switches (a switch near it would
+    change the mode found after one period as Newton moves the period); else t0 = 0."""
     tm, T = loop.element, loop.delay
+    P = 2 * np.pi / w0
     theta = 2 * np.pi * np.arange(512) / 512
     y = np.asarray(tm.response(A0 * np.sin(theta)), float)
     Y1 = complex(2 * np.mean(y * np.sin(theta)) + 2j * np.mean(y * np.cos(theta)))
     Y0 = float(np.mean(y))
-    A, B, C = loop.A, loop.B, loop.C
+
+    def element_at(t):        # (mode, e) after the sinusoid up to time t
+        th = t - 4 * P + P * np.arange(4 * 256 + 1) / 256
+        return tm.initial(A0 * np.sin(w0 * th), A0 * w0 * math.cos(w0 * t))
+
+    t0 = 0.0
+    if section:
+        modes = np.array([element_at(P * k / 64 - T)[0] for k in range(64)])
+        if np.ptp(modes):
+            first = int(np.flatnonzero(modes != np.roll(modes, 1))[0])
+            runs, k, best = [], 0, (0, 0)
+            order = np.roll(np.arange(64), -first)          # start at a mode change: runs do not wrap
+            while k < 64:
+                j = k
+                while j + 1 < 64 and modes[order[j + 1]] == modes[order[k]]:
+                    j += 1
+                if j - k + 1 > best[1]:
+                    best = (k, j - k + 1)
+                k = j + 1
+            t0 = P * ((first + best[0] + 0.5 * (best[1] - 1)) % 64) / 64
+    A, B = loop.A, loop.B
     X = np.linalg.solve(1j * w0 * np.eye(loop.n) - A, B) * Y1
-    s = (X * np.exp(-1j * w0 * T)).imag
+    s = (X * np.exp(1j * w0 * (t0 - T))).imag
     if abs(Y0) > 0 and abs(np.linalg.det(A)) > 0:
         s = s - np.linalg.solve(A, B) * Y0
-    hist = A0 * np.sin(w0 * h * np.arange(-L, 0))
-    P = 2 * np.pi / w0
-    th = -T - P + P * np.arange(4 * 256 + 1) / 256 - 3 * P       # four periods of the sinusoid up to -T
-    xh = A0 * np.sin(w0 * th)
-    mode, e = tm.initial(xh, A0 * w0 * math.cos(-w0 * T))
+    hist = A0 * np.sin(w0 * (t0 + h * np.arange(-L, 0)))
+    mode, e = element_at(t0 - T)
     return _State(s, hist, mode, e)
 
 
@@ -396,16 +417,20 @@ def _periodic(loop, st: _State, P: float, N: int, L: int, tol: float, max_iterat
     DelayMemoryError."""
     n = loop.n
     D = n + L + 1
-    x_sec = float(-loop.C @ st.s)
+    s_sec = st.s.copy()
+    rate = None
     mode0 = st.mode
     res_prev = math.inf
-    phase = np.zeros(D + 1)
-    phase[:n] = -loop.C
     for it in range(1, max_iterations + 1):
         sc = _Scheme(loop, P / N, L)
         end, M, rec = _run(loop, sc, st, N, tangent=True, record=True)
+        if rate is None:      # phase condition: no correction along the flow, (s - s_sec) . s' = 0 at the start
+            one = _run(loop, sc, st, 1, tangent=False)[0]
+            rate = (one.s - st.s) / np.linalg.norm(one.s - st.s)
+            phase = np.zeros(D + 1)
+            phase[:n] = rate
         v0, v1 = st.vector(), end.vector()
-        F = np.append(v1 - v0, float(-loop.C @ st.s) - x_sec)
+        F = np.append(v1 - v0, float(rate @ (st.s - s_sec)))
         scale = max(float(np.max(np.abs(v0))), 1e-300)
         res = float(np.max(np.abs(F))) / scale
         if end.mode != mode0:
@@ -431,7 +456,7 @@ def _periodic(loop, st: _State, P: float, N: int, L: int, tol: float, max_iterat
             try:
                 e_try = _run(loop, _Scheme(loop, P_try / N, L), trial, N, tangent=False)[0]
                 r_try = max(float(np.max(np.abs(e_try.vector() - v_try))),
-                            abs(float(-loop.C @ trial.s) - x_sec)) / scale
+                            abs(float(rate @ (trial.s - s_sec)))) / scale
                 ok = e_try.mode == mode0 and r_try < res * (1 - 1e-4 * step)
             except DelayMemoryError:
                 ok = False
@@ -535,7 +560,7 @@ def memory_simulation(loop: MemoryDDELoop, amplitude: float, frequency: float, p
     h = P / steps
     L = int(math.ceil(loop.delay / h)) + 3
     sc = _Scheme(loop, h, L)
-    st = _start(loop, amplitude, frequency, h, L)
+    st = _start(loop, amplitude, frequency, h, L, section=False)
     n_steps = int(math.ceil(periods * steps))
     try:
         _, _, (xs, ys, _, diverged) = _run(loop, sc, st, n_steps, tangent=False, record=True,

@@ -15,7 +15,8 @@ Before answering "no orbit", :func:`shoot_or_globalise`:
 An orbit found within ``max_deviation`` of the prediction is returned (its message says how it was found). A
 "no periodic orbit" answer carries the evidence: ``extra["motions"]`` (one dict per start) and
 ``extra["outcome"]``, one of ``"another cycle"`` (the motions settle on an exact orbit far from the
-prediction; its numbers are in the message), ``"rest"``, ``"divergence"``, ``"not periodic"``, or
+prediction; its numbers are in the message), ``"rest"``, ``"divergence"``, ``"not periodic"``, ``"boundary"``
+(some motions decay to rest, others diverge: an unstable orbit may lie between them, so no orbit is ruled out), or
 ``"shooting failed"`` (a periodic motion was seen but no shooting from it converged).
 """
 from __future__ import annotations
@@ -225,10 +226,13 @@ def _globalise(G, N, predicted, first, shoot, max_deviation):
                                "it are not periodic within the runs (chaotic, quasi-periodic or slowly settling)",
                "rest": "no periodic orbit near the prediction: motions started on and around it decay to rest",
                }[outcome]
-        if outcome == "divergence" and "rest" in kinds:   # a boundary between rest and divergence: say both
-            msg = (f"no periodic orbit near the prediction: of the motions started on and around it "
-                   f"{kinds.count('rest')} decay to rest and {kinds.count('divergence')} diverge (the prediction "
-                   "lies near the boundary between the two)")
+        if outcome == "divergence" and "rest" in kinds:
+            # a boundary between rest and divergence: an unstable orbit may separate them, so nothing is ruled out
+            outcome = "boundary"
+            msg = (f"no periodic orbit found near the prediction, but none ruled out: of the motions started on and "
+                   f"around it {kinds.count('rest')} decay to rest and {kinds.count('divergence')} diverge, so the "
+                   "prediction lies near the boundary between the two, where an unstable orbit may lie (shooting "
+                   "did not converge to one)")
     extra = {**first.extra, "outcome": outcome, "motions": motions, "attempts": tried}
     return dataclasses.replace(first, message=f"{msg}. Evidence: {evidence}. First attempt: {first.message}",
                                extra=extra)

@@ -8,7 +8,8 @@ A :class:`~dfloop.solve.result.LimitCycle` from ``predict_limit_cycles(..., exac
 - **artefact**: no periodic orbit near the prediction, with the evidence exact_cycle gathered (where the motions
   started on and around it went: another cycle, rest, divergence, or a motion not periodic within the runs);
 - **not checked**: no exact orbit was asked for (``exact=False``), the loop has no exact engine here (the
-  reason), or the check was inconclusive (shooting failed from a motion that looked periodic).
+  reason), or the check was inconclusive (shooting failed from a motion that looked periodic, or the motions
+  around the prediction split between rest and divergence, where an unstable orbit may lie).
 """
 from __future__ import annotations
 
