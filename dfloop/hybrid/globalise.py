@@ -32,7 +32,7 @@ from .delay import DelayError, delay_simulation, split_delay
 from .loop import HybridError
 from .model import loop_model, start_on_prediction
 
-__all__ = ["shoot_or_globalise", "RUN_PERIODS", "STARTS"]
+__all__ = ["shoot_or_globalise", "inside_search", "RUN_PERIODS", "STARTS"]
 
 RUN_PERIODS = 200          # predicted periods per run
 STARTS = (1.0, 0.7, 1.4)   # start amplitudes, relative to the prediction
@@ -43,6 +43,11 @@ _REST = 1e-6               # |x| below this fraction of the start amplitude: res
 _DIVERGED = 1e6
 
 _INSIDE = contextvars.ContextVar("dfloop_exact_cycle_inside", default=False)
+
+
+def inside_search() -> bool:
+    """True inside a shooting that :func:`shoot_or_globalise` started (its ``exact_cycle`` calls)."""
+    return _INSIDE.get()
 
 
 def shoot_or_globalise(G, N, predicted: tuple, shoot, max_deviation: float):
