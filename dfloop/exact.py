@@ -60,7 +60,10 @@ class ExactCycle:
     stable : bool or None
         All multipliers but the trivial one (closest to 1) strictly inside the unit circle.
     amplitude_error, frequency_error : float or None
-        Relative errors of the prediction, (predicted - exact) / exact.
+        Relative errors of the prediction, (predicted - exact) / exact. For a period-k orbit (``extra["returns"]``
+        = k > 1: it repeats only after k oscillations, as after a period doubling) the exact values are those of
+        the orbit's k-th harmonic, the oscillation the DF describes; ``frequency`` and ``amplitude`` stay those
+        of the orbit's own fundamental (period ``period``).
     predicted : (float, float)
         The predicted (amplitude, frequency) the search started from.
     method : str
@@ -71,7 +74,8 @@ class ExactCycle:
         Newton iterations used.
     extra : dict
         Engine details: ``z0`` (augmented state [plant state, element state, 1] at the shooting start, which is
-        not the waveform's t = 0) and ``mode0`` (the element's mode there), for re-running the flow. On the
+        not the waveform's t = 0), ``mode0`` (the element's mode there), for re-running the flow, and ``returns``
+        (oscillations per period: 1, or k for a period-k orbit found on the settled motion). On the
         exact delay flow: ``s0`` (plant state), ``mode0``, ``u0`` (plant input), ``queue0`` (pending switches
         [instant (s), level] of the delay line), ``section`` (the switch the return map starts on) and ``delay``;
         after a failed search that was globalised, ``outcome`` and ``motions`` (:mod:`dfloop.hybrid.globalise`).
@@ -304,7 +308,8 @@ def _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations
     if not out.amplitude > 1e-12 * A0:
         return _failure(f"the motion settles to rest (fundamental amplitude {out.amplitude:.3g} of x): no "
                         "periodic orbit near the prediction", predicted, loop.method, orbit.residual, orbit.iterations)
-    deviation = max(abs(math.log(out.amplitude / A0)), abs(math.log(out.frequency / w0)))
+    k = out.extra["returns"]        # a period-k orbit is compared with the prediction through its k-th harmonic
+    deviation = max(abs(math.log(abs(out.harmonics[k - 1]) / A0)), abs(math.log(k * out.frequency / w0)))
     if deviation > max_deviation:
         return _failure(f"Newton converged to another orbit (A={out.amplitude:.6g}, w={out.frequency:.6g} rad/s, "
                         f"{'stable' if out.stable else 'unstable'}), farther from the prediction than max_deviation "
@@ -448,16 +453,23 @@ def _result(loop, orbit, predicted, harmonics: int, samples: int) -> ExactCycle:
     stable = bool(np.all(np.abs(_nontrivial(mu)) < 1.0))
     A_exact = float(X[0].real)
     A0, w0 = predicted
-    if not A_exact > 0:   # a loop at rest: no oscillation (exact_cycle reports it)
+    if not A_exact > 0 and orbit.returns == 1:   # a loop at rest: no oscillation (exact_cycle reports it)
         return ExactCycle(False, "rest", predicted, loop.method, amplitude=A_exact)
     trivial = float(np.min(np.abs(mu - 1.0)))
     msg = f"converged in {orbit.iterations} Newton iteration(s), residual {orbit.residual:.1e}"
+    k = orbit.returns
+    if k > 1:   # the DF's oscillation is the k-th harmonic of the orbit: its errors are measured there
+        A_dom = float(abs(X[k - 1]))
+        msg = (f"period-{k} orbit: it repeats after {k} oscillations of {k * w:.6g} rad/s (the predicted "
+               f"oscillation; period {T:.6g} s, dominant amplitude {A_dom:.6g}); " + msg)
+    else:
+        A_dom = A_exact
     if orbit.residual > 1e-11:
         msg += " (the rounding floor of the switch times)"
     if trivial > 1e-6:
         msg += f"; the trivial multiplier is off 1 by {trivial:.1e} (multipliers less accurate)"
     return ExactCycle(True, msg, predicted, loop.method, amplitude=A_exact, frequency=w, period=T, t=t_new, x=x,
                       y=y, switching_times=switches, harmonics=X, multipliers=mu, stable=stable,
-                      amplitude_error=(A0 - A_exact) / A_exact, frequency_error=(w0 - w) / w,
+                      amplitude_error=(A0 - A_dom) / A_dom, frequency_error=(w0 - k * w) / (k * w),
                       residual=orbit.residual, iterations=orbit.iterations,
-                      extra={"z0": orbit.z, "mode0": orbit.mode})
+                      extra={"z0": orbit.z, "mode0": orbit.mode, "returns": k})

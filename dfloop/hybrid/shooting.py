@@ -6,7 +6,9 @@ For any exact loop model of :mod:`dfloop.hybrid` (piecewise affine, smooth, impa
 
 in the nodes z_i and the period T (the last row keeps the correction orthogonal to the flow). Nodes start on
 the predicted sinusoidal orbit (``settle_periods`` = 0: right for unstable cycles, which a flow leaves) or on a
-flow settled for some periods from it (then the period is detected on the settled motion). The first node lies
+flow settled for some periods from it (then the period is detected on the settled motion: the spacing of the
+upward crossings of x through its mean, times the number k <= MAX_RETURNS of crossings after which the state
+recurs, so period-k orbits such as those after a period doubling are shot whole). The first node lies
 in the middle of the longest segment between switches, so small corrections never move a switch across a node.
 """
 from __future__ import annotations
@@ -27,6 +29,9 @@ FLOOR = 1e-9       # a residual below this that stops decreasing is the rounding
 _DETECT_PERIODS = 8   # settled periods over which the period is detected
 DIVERGED = 1e6        # |x| beyond this many predicted amplitudes while settling: the motion diverges
 _PLAUSIBLE = math.log(8.0)   # a detected period within a factor 8 of the predicted one is used
+MAX_RETURNS = 4       # crossings per period looked for on the settled motion (period-k orbits, k <= 4)
+_RECUR = 1e-2         # relative state distance below which the settled motion has recurred (crossing times are
+                      # interpolated between 64 samples per period: their states agree to ~1e-3, not to rounding)
 
 
 class ShootingError(RuntimeError):
@@ -40,7 +45,8 @@ class ShootingError(RuntimeError):
 @dataclass
 class Orbit:
     """A converged periodic orbit: start state ``z`` and ``mode``, ``period`` (s), the ``flow`` over one period
-    from there (with its monodromy), the final relative ``residual`` and the Newton ``iterations``."""
+    from there (with its monodromy), the final relative ``residual``, the Newton ``iterations``, and ``returns``:
+    the oscillations (upward crossings of x through its mean) per period, k > 1 for a period-k orbit."""
 
     z: np.ndarray
     mode: object
@@ -48,6 +54,7 @@ class Orbit:
     flow: Flow
     residual: float
     iterations: int
+    returns: int = 1
 
 
 def detect_period(t: np.ndarray, x: np.ndarray) -> float | None:
@@ -87,9 +94,10 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
     T = 2.0 * math.pi / frequency
     m = nodes
     c = np.full(m, 1.0 / m)            # node intervals as fractions of the period
+    returns = 1
     try:
         if settle_periods > 0:
-            zs, modes, T, c = _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events)
+            zs, modes, T, c, returns = _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events)
             m = len(zs)
         else:   # nodes on the predicted sinusoidal orbit itself (right for unstable cycles, which a flow leaves)
             t_first = 0.0
@@ -139,7 +147,7 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
         fl = loop.join(flows, T, max_events=max_events)
     except HybridError as exc:
         raise ShootingError(f"the converged orbit cannot be followed over one period: {exc}", residual, it) from None
-    return Orbit(zs[0], modes[0], T, fl, residual, it)
+    return Orbit(zs[0], modes[0], T, fl, residual, it, returns)
 
 
 def _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events):
@@ -149,7 +157,7 @@ def _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events)
     z, mode = start_on_prediction(loop, N, amplitude, frequency)
     whole = int(math.floor(settle_periods))
     spans = [T] * whole + ([(settle_periods - whole) * T] if settle_periods > whole else [])
-    tail_t, tail_x = [], []
+    tail_t, tail_x, tail_flows = [], [], []
     for p, span in enumerate(spans):
         fl = loop.flow(z, mode, span, max_events=max_events)
         tk = np.arange(64) * (span / 64)
@@ -157,13 +165,20 @@ def _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events)
         if p >= len(spans) - _DETECT_PERIODS:
             tail_t.append(p * T + tk)
             tail_x.append(x)
+            tail_flows.append((p * T, span, fl))
         z, mode = fl.z, fl.mode
         if not np.all(np.isfinite(z)) or np.max(np.abs(x)) > DIVERGED * amplitude:
             raise HybridError(f"the motion diverged while settling: |x| passed {DIVERGED:g} times the predicted "
                               f"amplitude in period {p + 1} of {settle_periods:g}")
-    detected = detect_period(np.concatenate(tail_t), np.concatenate(tail_x))
+    t_tail, x_tail = np.concatenate(tail_t), np.concatenate(tail_x)
+    detected, returns = detect_period(t_tail, x_tail), 1
+    if detected is not None:
+        returns = _returns_per_period(loop, tail_flows, upward_crossings(t_tail, x_tail, float(np.mean(x_tail))))
     if detected is not None and abs(math.log(detected / T)) < _PLAUSIBLE:
-        T = detected
+        T = detected * returns        # one oscillation times the oscillations per period
+        m *= returns                  # as many nodes per oscillation as a period-1 orbit gets
+    else:
+        returns = 1
     fl = loop.flow(z, mode, T, max_events=max_events)
     _, mode, t_mid = _section_point(fl, T, T)
     fl = loop.flow(loop.states(fl, t_mid)[0], mode, T, max_events=max_events)
@@ -175,7 +190,36 @@ def _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events)
         t[1:] = np.clip(t, bounds[k] + margin, bounds[k + 1] - margin)[1:]
         t = np.unique(t)
     seg = np.clip(np.searchsorted(fl.t0, t, side="right") - 1, 0, fl.t0.size - 1)
-    return list(loop.states(fl, t)), [int(fl.modes[k]) for k in seg], T, np.diff(np.append(t, T)) / T
+    return list(loop.states(fl, t)), [int(fl.modes[k]) for k in seg], T, np.diff(np.append(t, T)) / T, returns
+
+
+def _returns_per_period(loop, tail_flows, crossings: np.ndarray) -> int:
+    """Smallest k <= MAX_RETURNS after which the state at the upward crossings recurs (1 if none does, or when
+    too few crossings were seen to tell).
+
+    The state at each crossing time comes from the settled flows; k is accepted when every pair of crossings k
+    apart is within ``_RECUR`` (relative to the largest state) while some pair one apart is not.
+    """
+    if crossings.size < 3:
+        return 1
+    states = []
+    for tc in crossings:
+        for start, span, fl in tail_flows:
+            if start <= tc <= start + span:
+                states.append(loop.states(fl, np.array([tc - start]))[0][:loop.size - 1])
+                break
+    z = np.array(states)
+    scale = max(float(np.max(np.abs(z))), 1e-300)
+
+    def spread(k):
+        return float(np.max(np.abs(z[k:] - z[:-k]))) / scale
+
+    if spread(1) <= _RECUR:
+        return 1
+    for k in range(2, min(MAX_RETURNS, z.shape[0] - 2) + 1):
+        if spread(k) <= _RECUR:
+            return k
+    return 1
 
 
 def _section_point(fl, t_end: float, T: float):
