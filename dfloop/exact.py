@@ -377,13 +377,14 @@ def _impact_direct(tm):
 def _refine_root(G, direct, A: float, w: float):
     """Newton on 1 + G(jw) N(A, w) = 0 in (ln A, ln w) with N re-simulated (forward differences, relative step
     1e-5): ((A, w), message), or (None, why)."""
-    from .solve.plant import as_plant
+    from .hybrid.delay import split_delay
 
-    plant = as_plant(G)
+    free, delay = split_delay(G)
+    free = getattr(free, "lti", None) or free          # a dfloop Plant carries its python-control system
 
     def R(u, v):
         F, om = math.exp(u), math.exp(v)
-        g = complex(np.asarray(plant(np.array([om])))[0])
+        g = complex(free(1j * om)) * complex(np.exp(-1j * om * delay))
         return 1.0 + g * direct(F, om)[0]
 
     u, v = math.log(A), math.log(w)
