@@ -107,3 +107,15 @@ def test_the_dispatcher_picks_the_delay_engine_from_the_time_model():
     assert isinstance(loop_model(G, df.Backlash(h=0.5), 2.0, 2.0), MemoryDDELoop)   # memory: its state in history
     with pytest.raises(ValueError, match="N: DynamicBacklash"):                     # impacts with a delay: not here
         loop_model(G, df.DynamicBacklash(1.0, 1.0, 0.1, 0.5), 2.0, 2.0)
+
+
+def test_multipliers_with_a_delay_longer_than_the_period():
+    # the history window then wraps the periodic node indices more than once (an IndexError before); the
+    # multipliers still converge with the resolution, and the 2.74 rad/s cycle (period 2.29 s < T = 3 s) is
+    # unstable through a complex pair
+    G, N = delayed(ct.tf([4.0], [1.0, 1.0]), 3.0), df.Saturation(1.0)
+    c = sorted(df.predict_limit_cycles(G, N), key=lambda c: c.frequency)[1]
+    loop = loop_model(G, N, c.amplitude, c.frequency)
+    mu = [dde_orbit(loop, c.amplitude, c.frequency, nodes=n)["multipliers"] for n in (64, 128)]
+    assert abs(mu[1][0] - mu[0][0]) < 1e-4 * abs(mu[1][0]) and abs(mu[1][0]) > 1.2
+    assert abs(mu[1][0].imag) > 1.0 and np.min(np.abs(mu[1] - 1)) < 1e-4     # the pair, and the trivial one
