@@ -72,6 +72,8 @@ class ExactCycle:
         Final |phi_T(z0) - z0| relative to |z0| (inf when no Newton step was taken).
     iterations : int
         Newton iterations used.
+    mean : float or None
+        Mean of x over the orbit (its bias; 0 up to rounding for a symmetric loop without constant input).
     extra : dict
         Engine details: ``z0`` (augmented state [plant state, element state, 1] at the shooting start, which is
         not the waveform's t = 0), ``mode0`` (the element's mode there), for re-running the flow, and ``returns``
@@ -100,6 +102,7 @@ class ExactCycle:
     residual: float = math.inf
     iterations: int = 0
     extra: dict = field(default_factory=dict)
+    mean: float | None = None
 
     @property
     def distortion(self) -> float | None:
@@ -123,7 +126,7 @@ class ExactCycle:
 
         names = ("success", "message", "predicted", "method", "amplitude", "frequency", "period", "t", "x", "y",
                  "switching_times", "harmonics", "multipliers", "stable", "amplitude_error", "frequency_error",
-                 "residual", "iterations", "distortion", "largest_multiplier")
+                 "residual", "iterations", "distortion", "largest_multiplier", "mean")
         return {name: plain(getattr(self, name)) for name in names}
 
     def to_csv(self, path) -> None:
@@ -148,7 +151,9 @@ class ExactCycle:
         if not self.success:
             return (f"ExactCycle(not found: {self.message}; predicted amplitude={A0:.6g}, frequency={w0:.6g} rad/s; "
                     f"{self.method})")
-        return (f"ExactCycle(amplitude={self.amplitude:.8g}, frequency={self.frequency:.8g} rad/s, "
+        shifted = self.mean is not None and abs(self.mean) > 1e-9 * self.amplitude
+        return (f"ExactCycle({f'mean={self.mean:.8g}, ' if shifted else ''}amplitude={self.amplitude:.8g}, "
+                f"frequency={self.frequency:.8g} rad/s, "
                 f"{'stable' if self.stable else 'unstable'} (largest non-trivial |multiplier| "
                 f"{self.largest_multiplier:.4g}); DF error: amplitude {100 * self.amplitude_error:+.3g} %, "
                 f"frequency {100 * self.frequency_error:+.3g} %; {self.switching_times.size} switches/period, "
@@ -188,7 +193,8 @@ def _failure(message, predicted, method, residual=math.inf, iterations=0) -> Exa
 @single_threaded_blas
 def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, tol: float = 1e-11,
                 max_iterations: int = 40, settle_periods: float | None = None, max_events: int = 10_000,
-                max_deviation: float = 0.5, nodes: int = 8, globalise: bool = True) -> ExactCycle:
+                max_deviation: float = 0.5, nodes: int = 8, globalise: bool = True, r0: float = 0.0,
+                load: float = 0.0, bias: float | None = None) -> ExactCycle:
     """Find the true periodic orbit near a predicted limit cycle, its Floquet multipliers and the DF's errors.
 
     Parameters
@@ -197,7 +203,9 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
         SISO plant (from the element's output y to c; x = -c), strictly proper (except around a dynamic
         backlash, whose output x1 is a state); with a pure delay (:func:`dfloop.solve.delay.delayed`) a
         piecewise-constant element (relays, quantizer) runs on the exact delay flow
-        (:mod:`dfloop.hybrid.delay`: Newton on the return map to a switch), other elements raise ``ValueError``.
+        (:mod:`dfloop.hybrid.delay`: Newton on the return map to a switch), other static elements and elements with
+        memory (backlash) on the discretised delay equation (:mod:`dfloop.hybrid.dde`,
+        :mod:`dfloop.hybrid.dde_memory`, error estimate in ``extra``), impact elements raise ``ValueError``.
     N : DescribingFunction
         The element; its ``time_model`` decides the engine (:func:`dfloop.hybrid.loop_model`): piecewise-affine
         elements (relays, saturation, dead zone, backlash, quantizer, ...) run on the exact hybrid engine, a
@@ -233,6 +241,13 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
         When shooting from the prediction fails, look further before answering (default; see Returns). False
         answers from the shooting alone (its failure is then "not checked", never "no orbit"): for callers that
         try many seeds themselves, such as a design chart's exact samples.
+    r0, load : float
+        A constant input (:mod:`dfloop.solve.bias`): reference r0 at the summing junction (x = r0 - c) and a load
+        added to the element's output before the plant (piecewise-affine and smooth elements, no delay).
+    bias : float or None
+        The predicted mean of x (the orbit sought is x ~ bias + A sin(w t)); None takes ``cycle.bias`` (a
+        :class:`~dfloop.solve.bias.BiasedCycle`), else 0. The shooting starts on that biased orbit, so unstable
+        biased cycles are found as stable ones (``settle_periods`` 0).
 
     Returns
     -------
@@ -247,6 +262,11 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     N = as_element(N)
     A0, w0 = cycle_argument(cycle)
     predicted = (A0, w0)
+    from ._checks import finite
+
+    r0, load = finite("r0", r0), finite("load", load)
+    bias = finite("bias", getattr(cycle, "bias", 0.0) if bias is None else bias)
+    constant = dict(r0=r0, load=load, bias=bias)
     harmonics = int(in_closed_interval("harmonics", harmonics, 1, 1000))
     samples = int(in_closed_interval("samples", samples, 16, 10**7))
     tol = in_closed_interval("tol", tol, 1e-14, 1e-4)
@@ -268,29 +288,31 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
 
     if globalise and not inside_search():   # the caller's own call, not a shooting the globalisation started
         out = _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations, settle_periods,
-                           max_events, max_deviation, nodes, m, globalise)
+                           max_events, max_deviation, nodes, m, globalise, constant)
         cert = table_certificate(G, N, A0, w0)
         if cert is not None:     # a tabulated N: certified at the point of use (the verdict reads it)
             out = dataclasses.replace(out, extra={**out.extra, "table": cert})
         return out
     return _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations, settle_periods, max_events,
-                        max_deviation, nodes, m, globalise)
+                        max_deviation, nodes, m, globalise, constant)
 
 
 def _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations, settle_periods, max_events,
-                 max_deviation, nodes, m, globalise) -> ExactCycle:
+                 max_deviation, nodes, m, globalise, constant) -> ExactCycle:
     from .hybrid import ShootingError, delay_orbit, loop_model, periodic_orbit
     from .hybrid.globalise import shoot_or_globalise
 
     A0, w0 = predicted
+    r0, load, bias = constant["r0"], constant["load"], constant["bias"]
     # no false "no orbit": the whole search below runs inside the globalisation wrapper, which globalises a failure
     options = dict(harmonics=harmonics, samples=samples, tol=tol, max_iterations=max_iterations,
-                   settle_periods=settle_periods, max_events=max_events, max_deviation=max_deviation, nodes=nodes)
+                   settle_periods=settle_periods, max_events=max_events, max_deviation=max_deviation, nodes=nodes,
+                   **constant)
     outer = None if not globalise else shoot_or_globalise(
-        G, N, predicted, lambda c, **kw: exact_cycle(G, N, c, **{**options, **kw}), max_deviation)
+        G, N, predicted, lambda c, **kw: exact_cycle(G, N, c, **{**options, **kw}), max_deviation, constant)
     if outer is not None:
         return outer
-    loop = loop_model(G, N, A0, w0, what="exact_cycle")
+    loop = loop_model(G, N, A0 + abs(bias), w0, what="exact_cycle", r0=r0, load=load)
     if loop.delay > 0:   # a pure delay: Newton on the return map of the exact delay flow (dfloop.hybrid.delay)
         return ExactCycle(**delay_orbit(loop, A0, w0, tol=tol, max_iterations=max_iterations, harmonics=harmonics,
                                         samples=samples, max_events=max_events, max_deviation=max_deviation))
@@ -301,7 +323,7 @@ def _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations
     try:
         orbit = periodic_orbit(loop, N, A0, w0, tol=tol, max_iterations=max_iterations,
                                settle_periods=loop.settle_periods if settle_periods is None else settle_periods,
-                               nodes=m, max_events=max_events)
+                               nodes=m, max_events=max_events, bias=bias)
     except ShootingError as exc:
         return _failure(str(exc), predicted, loop.method, exc.residual, exc.iterations)
     out = _result(loop, orbit, predicted, harmonics, samples)
@@ -441,6 +463,7 @@ def _result(loop, orbit, predicted, harmonics: int, samples: int) -> ExactCycle:
     w = 2.0 * math.pi / T
     nx = loop.size - 1
     X = 2j * loop.fourier(fl, T, w, harmonics)                     # x ~ Im(X_k e^{jkwt})
+    mean = float(loop.fourier(fl, T, 0.0, 1)[0].real) if hasattr(loop, "r0") else None   # k = 0: the mean
     phase = float(np.angle(X[0]))
     shift = phase / w                                              # new time t' = t + shift
     k = np.arange(1, harmonics + 1)
@@ -473,4 +496,5 @@ def _result(loop, orbit, predicted, harmonics: int, samples: int) -> ExactCycle:
                       y=y, switching_times=switches, harmonics=X, multipliers=mu, stable=stable,
                       amplitude_error=(A0 - A_dom) / A_dom, frequency_error=(w0 - k * w) / (k * w),
                       residual=orbit.residual, iterations=orbit.iterations,
-                      extra={"z0": orbit.z, "mode0": orbit.mode, "returns": k})
+                      extra={"z0": orbit.z, "mode0": orbit.mode, "returns": k},
+                      mean=float(np.mean(x)) if mean is None else mean)

@@ -392,7 +392,7 @@ def _start(loop: MemoryDDELoop, A0: float, w0: float, h: float, L: int, section:
         modes = np.array([element_at(P * k / 64 - T)[0] for k in range(64)])
         if np.ptp(modes):
             first = int(np.flatnonzero(modes != np.roll(modes, 1))[0])
-            runs, k, best = [], 0, (0, 0)
+            k, best = 0, (0, 0)
             order = np.roll(np.arange(64), -first)          # start at a mode change: runs do not wrap
             while k < 64:
                 j = k

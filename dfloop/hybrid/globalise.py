@@ -50,8 +50,10 @@ def inside_search() -> bool:
     return _INSIDE.get()
 
 
-def shoot_or_globalise(G, N, predicted: tuple, shoot, max_deviation: float):
+def shoot_or_globalise(G, N, predicted: tuple, shoot, max_deviation: float, constant: dict | None = None):
     """Run ``shoot(cycle, **options)`` (one :func:`dfloop.exact_cycle` call) and globalise when it fails.
+
+    ``constant``: the loop's constant input and the predicted bias (``r0``, ``load``, ``bias``), for the runs.
 
     Returns None when called from inside a shooting started here (the caller then shoots itself), otherwise
     an :class:`~dfloop.exact.ExactCycle`.
@@ -63,16 +65,18 @@ def shoot_or_globalise(G, N, predicted: tuple, shoot, max_deviation: float):
         first = shoot(predicted)
         if first.success:
             return first
-        return _globalise(G, N, predicted, first, shoot, max_deviation)
+        return _globalise(G, N, predicted, first, shoot, max_deviation, constant or {})
     finally:
         _INSIDE.reset(token)
 
 
-def _simulate(G, N, A: float, w: float, periods: float):
+def _simulate(G, N, A: float, w: float, periods: float, r0: float = 0.0, load: float = 0.0, bias: float = 0.0):
     """(t, x, diverged, method, y_end) of the loop run on its exact flow from the predicted orbit of (A, w), or None
-    when the loop has no exact flow (a run that fails part-way returns the part before the failure)."""
+    when the loop has no exact flow (a run that fails part-way returns the part before the failure). With a
+    constant input (r0, load) the run starts on x = bias + A sin(w t) and x is returned less its final mean;
+    y_end is the element's output at the end of the run."""
     try:
-        loop = loop_model(G, N, A, w)
+        loop = loop_model(G, N, A + abs(bias), w, r0=r0, load=load)
     except ValueError:
         return None
     if not loop.exact:
@@ -91,7 +95,7 @@ def _simulate(G, N, A: float, w: float, periods: float):
     ts, xs = [], []
     diverged, y_end = False, math.nan
     try:
-        z, mode = start_on_prediction(loop, N, A, w)
+        z, mode = start_on_prediction(loop, N, A, w, bias=bias)
         for p in range(int(periods)):
             fl = loop.flow(z, mode, P, max_events=100_000)
             tk = np.arange(64) * (P / 64)
@@ -100,19 +104,22 @@ def _simulate(G, N, A: float, w: float, periods: float):
             ts.append(p * P + tk)
             xs.append(xk)
             z, mode = fl.z, fl.mode
-            if not np.all(np.isfinite(xk)) or np.max(np.abs(xk)) > _DIVERGED * A:
+            if not np.all(np.isfinite(xk)) or np.max(np.abs(xk - bias)) > _DIVERGED * A:
                 diverged = True
                 break
     except HybridError:
         if not ts:
             return None
-    return np.concatenate(ts), np.concatenate(xs), diverged, loop.method, y_end
+    x = np.concatenate(xs)
+    if (r0 != 0.0 or load != 0.0 or bias != 0.0) and not diverged:
+        x = x - np.mean(x[-max(x.size // 10, 1):])
+    return np.concatenate(ts), x, diverged, loop.method, y_end
 
 
-def _motion(G, N, A0: float, w0: float, factor: float) -> dict:
+def _motion(G, N, A0: float, w0: float, factor: float, constant: dict | None = None) -> dict:
     """Where the motion started on the predicted orbit scaled by ``factor`` went."""
     A = factor * A0
-    run = _simulate(G, N, A, w0, RUN_PERIODS)
+    run = _simulate(G, N, A, w0, RUN_PERIODS, **(constant or {}))
     out = {"start_amplitude": A, "start_frequency": w0, "periods": RUN_PERIODS}
     if run is None:
         return {**out, "outcome": "no simulation"}
@@ -177,7 +184,7 @@ def _rebase(found, predicted, how: str):
                                extra={**found.extra, "outcome": "orbit", "globalised": how})
 
 
-def _globalise(G, N, predicted, first, shoot, max_deviation):
+def _globalise(G, N, predicted, first, shoot, max_deviation, constant):
     A0, w0 = predicted
     tried = [f"shooting from the prediction: {first.message}"]
     delayed = split_delay(G)[1] > 0
@@ -190,7 +197,7 @@ def _globalise(G, N, predicted, first, shoot, max_deviation):
             if r.success:
                 return _rebase(r, predicted, f"single/multiple shooting with {nodes} node(s) from the prediction")
             tried.append(f"{nodes} node(s): {r.message}")
-    motions = [_motion(G, N, A0, w0, f) for f in STARTS]
+    motions = [_motion(G, N, A0, w0, f, constant) for f in STARTS]
     others = []
     for m in motions:
         if m["outcome"] not in ("periodic", "not periodic"):

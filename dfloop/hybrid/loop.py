@@ -196,20 +196,27 @@ class HybridLoop(LoopModel):
     time_scale : float
         Longest step allowed (s) times 32, e.g. the expected period; steps are also bounded by the fastest
         time constant of every mode.
+    r0, load : float
+        Constant input: the element's input is x = r0 - C s (a reference at the summing junction) and the plant
+        is driven by y + load (a load at the element's output). Both ride on the constant last component of z,
+        so every mode stays linear and the flow exact.
     """
 
     method = "exact (matrix exponential between switches, switches located to rounding level)"
     exact = True           # flows carry a monodromy: periodic orbits can be shot
     settle_periods = 0.0   # the predicted sinusoid sets the element's state: no transient needed before shooting
 
-    def __init__(self, A, B, C, element: PiecewiseAffine, time_scale: float):
+    def __init__(self, A, B, C, element: PiecewiseAffine, time_scale: float, *, r0: float = 0.0,
+                 load: float = 0.0):
         self.plant = (A, B)
+        self.r0, self.load = float(r0), float(load)
         n = A.shape[0]
         self.n, self.element = n, element
         self.size = n + element.n_states + 1
         N = self.size
         self.x_row = np.zeros(N)
         self.x_row[:n] = -C
+        self.x_row[-1] = self.r0
         one = np.zeros(N)
         one[-1] = 1.0
         e_unit = np.zeros(N)
@@ -221,7 +228,7 @@ class HybridLoop(LoopModel):
             y_row = mode.gx * self.x_row + mode.ge * e_unit + mode.g1 * one
             Am = np.zeros((N, N))
             Am[:n, :n] = A
-            Am[:n] += np.outer(B, y_row)
+            Am[:n] += np.outer(B, y_row + self.load * one)
             xd_row = self.x_row @ Am
             if element.n_states:
                 Am[n] = mode.de * xd_row

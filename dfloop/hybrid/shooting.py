@@ -22,7 +22,7 @@ from ..harmonics import upward_crossings
 from .loop import Flow, HybridError
 from .model import start_on_prediction
 
-__all__ = ["Orbit", "ShootingError", "periodic_orbit", "detect_period"]
+__all__ = ["Orbit", "ShootingError", "periodic_orbit", "detect_period", "forced_orbit"]
 
 LINE_SEARCH = 8    # step halvings per Newton iteration
 FLOOR = 1e-9       # a residual below this that stops decreasing is the rounding floor: accepted
@@ -64,7 +64,7 @@ def detect_period(t: np.ndarray, x: np.ndarray) -> float | None:
 
 
 def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, max_iterations: int,
-                   settle_periods: float, nodes: int, max_events: int) -> Orbit:
+                   settle_periods: float, nodes: int, max_events: int, bias: float = 0.0) -> Orbit:
     """Periodic orbit of ``loop`` near the predicted cycle (amplitude, frequency) by multiple shooting.
 
     Parameters
@@ -85,6 +85,8 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
         Shooting nodes per period.
     max_events : int
         Bound on the events of one flow.
+    bias : float
+        Mean of the predicted input, x ~ bias + amplitude sin(frequency t) (a loop with a constant input).
 
     Raises
     ------
@@ -97,16 +99,17 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
     returns = 1
     try:
         if settle_periods > 0:
-            zs, modes, T, c, returns = _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events)
+            zs, modes, T, c, returns = _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events,
+                                                      bias)
             m = len(zs)
         else:   # nodes on the predicted sinusoidal orbit itself (right for unstable cycles, which a flow leaves)
             t_first = 0.0
             if loop.switching:
-                z, mode = start_on_prediction(loop, N, amplitude, frequency)
+                z, mode = start_on_prediction(loop, N, amplitude, frequency, bias=bias)
                 _, _, t_first = _section_point(loop.flow(z, mode, T, max_events=max_events), T, T)
             zs, modes = [], []
             for i in range(m):
-                zi, mi = start_on_prediction(loop, N, amplitude, frequency, t_first + i * T / m)
+                zi, mi = start_on_prediction(loop, N, amplitude, frequency, t_first + i * T / m, bias)
                 zi, mi = loop.admissible_mode(zi, mi)
                 zs.append(zi)
                 modes.append(mi)
@@ -150,11 +153,11 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
     return Orbit(zs[0], modes[0], T, fl, residual, it, returns)
 
 
-def _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events):
+def _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events, bias=0.0):
     """Flow ``settle_periods`` predicted periods (one flow per period), detect the period on the last ones, and
     put the nodes on one period of the settled motion from the middle of its longest segment."""
     T = 2.0 * math.pi / frequency
-    z, mode = start_on_prediction(loop, N, amplitude, frequency)
+    z, mode = start_on_prediction(loop, N, amplitude, frequency, bias=bias)
     whole = int(math.floor(settle_periods))
     spans = [T] * whole + ([(settle_periods - whole) * T] if settle_periods > whole else [])
     tail_t, tail_x, tail_flows = [], [], []
@@ -167,7 +170,7 @@ def _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events)
             tail_x.append(x)
             tail_flows.append((p * T, span, fl))
         z, mode = fl.z, fl.mode
-        if not np.all(np.isfinite(z)) or np.max(np.abs(x)) > DIVERGED * amplitude:
+        if not np.all(np.isfinite(z)) or np.max(np.abs(x - bias)) > DIVERGED * amplitude:
             raise HybridError(f"the motion diverged while settling: |x| passed {DIVERGED:g} times the predicted "
                               f"amplitude in period {p + 1} of {settle_periods:g}")
     t_tail, x_tail = np.concatenate(tail_t), np.concatenate(tail_x)
@@ -298,3 +301,108 @@ def _line_search(loop, zs, flows, T, c, delta, residual, nx, max_events):
 def _mode_reaching(flows, i: int):
     """The mode the flow reaching node i ends in."""
     return flows[i - 1].mode
+
+
+def forced_orbit(loop, zs: list, modes: list, period: float, free: np.ndarray, *, tol: float, max_iterations: int,
+                 max_events: int) -> Orbit:
+    """Periodic orbit of a driven (non-autonomous) loop at the fixed forcing ``period``, by multiple shooting.
+
+    The forcing is part of the loop's state (an exosystem, e.g. sin and cos of the forcing phase), so the loop
+    model stays autonomous; only the components ``free`` (plant and element states) are unknowns, the others
+    (the forcing's phase, the constant 1) are fixed by time. Newton solves phi_{T/m}(z_i)[free] = z_{i+1}[free]
+    (i = 0..m-1, z_m = z_0) with the node flows' monodromies as Jacobian blocks; there is no phase condition and
+    the period is not an unknown.
+
+    Parameters
+    ----------
+    loop : exact loop model
+        With the forcing in its state.
+    zs, modes : list
+        The m nodes' start states (at times i T / m) and modes.
+    period : float
+        The forcing period T (s).
+    free : ndarray of int
+        Indices of the unknown components of the state.
+    tol, max_iterations, max_events
+        As for :func:`periodic_orbit`.
+
+    Returns
+    -------
+    Orbit
+        Its ``flow`` over one period from the first node, with the monodromy (the multipliers are the
+        eigenvalues of ``flow.monodromy[free][:, free]``).
+
+    Raises
+    ------
+    ShootingError
+        With the reason (flow failure, no convergence within ``max_iterations``, singular Jacobian, no decreasing
+        step): then no orbit at the forcing period was found near the start.
+    """
+    m = len(zs)
+    k = free.size
+    tau = period / m
+    zs = [np.array(z, float) for z in zs]
+    modes = list(modes)
+
+    def flows_of(nodes, node_modes):
+        return loop.flow_many(nodes, node_modes, tau, monodromy=True, max_events=max_events)
+
+    def defect(flows, nodes):
+        d = np.concatenate([flows[i].z[free] - nodes[(i + 1) % m][free] for i in range(m)])
+        scale = max(float(np.linalg.norm(np.concatenate([z[free] for z in nodes]))), 1e-300)
+        return float(np.linalg.norm(d)) / scale, d
+
+    residual, it = math.inf, 0
+    try:
+        flows = flows_of(zs, modes)
+    except HybridError as exc:
+        raise ShootingError(f"the flow from the start failed: {exc}") from None
+    for it in range(1, max_iterations + 1):
+        previous = residual
+        residual, d = defect(flows, zs)
+        consistent = all(flows[i].mode == modes[(i + 1) % m] for i in range(m))
+        if consistent and (residual <= tol or (residual <= FLOOR and residual > 0.5 * previous)):
+            break
+        if it == max_iterations:
+            raise ShootingError(f"Newton did not converge in max_iterations = {max_iterations} (residual "
+                                f"{residual:.2e} > tol = {tol:g}): no orbit at the forcing period near the start "
+                                "(a subharmonic or quasi-periodic response?); raise max_iterations or start elsewhere",
+                                residual, it)
+        J = np.zeros((m * k, m * k))
+        for i in range(m):
+            r = slice(i * k, (i + 1) * k)
+            J[r, r] = flows[i].monodromy[np.ix_(free, free)]
+            j = (i + 1) % m
+            J[r, j * k:(j + 1) * k] -= np.eye(k)
+        try:
+            delta = np.linalg.solve(J, -d)
+        except np.linalg.LinAlgError:
+            raise ShootingError(f"singular shooting Jacobian at iteration {it} (a multiplier equal to 1: a fold of "
+                                "the forced response)", residual, it) from None
+        step, found = 1.0, None
+        for _ in range(LINE_SEARCH + 1):
+            try:
+                new_z, new_modes = [], []
+                for i in range(m):
+                    zi = zs[i].copy()
+                    zi[free] += step * delta[i * k:(i + 1) * k]
+                    zi, mi = loop.admissible_mode(zi, flows[i - 1].mode)
+                    new_z.append(zi)
+                    new_modes.append(mi)
+                trial = flows_of(new_z, new_modes)
+                if defect(trial, new_z)[0] < residual or residual < FLOOR:
+                    found = new_z, new_modes, trial
+                    break
+            except HybridError:
+                pass
+            step *= 0.5
+        if found is None:
+            raise ShootingError(f"Newton iteration {it}: no step reduces the residual {residual:.2e} (no orbit at "
+                                "the forcing period near the start, or a subharmonic / quasi-periodic response)",
+                                residual, it)
+        zs, modes, flows = found
+    try:
+        fl = loop.join(flows, period, max_events=max_events)
+    except HybridError as exc:
+        raise ShootingError(f"the converged orbit cannot be followed over one period: {exc}", residual, it) from None
+    return Orbit(zs[0], modes[0], period, fl, residual, it)
