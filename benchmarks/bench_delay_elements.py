@@ -9,7 +9,8 @@ that the DF predicts a cycle.
 For each loop: ``predict_limit_cycles`` (timed), then for each prediction (at most ``PER_LOOP``, slowest first)
 ``exact_cycle`` (timed, the public call) and a long run from the prediction (``simulate_loop``: the exact delay
 flow for the relay, the method of steps of the delay equation for the others, ``RUN_PERIODS`` periods at
-``STEPS`` steps per period), measured over its last 10 periods. A settled run (periodicity < 1e-6) is *found*
+``STEPS`` steps per period), measured over its last 10 periods. A settled run (periodicity < 1e-6, amplitude above
+1e-6 of the start: not at rest) is *found*
 when an exact_cycle result of the loop equals it to ``MATCH`` in A and w (the run's own measure - linear
 interpolation of crossings at ``STEPS`` samples per period - and the delay equation's discretisation limit the
 agreement to about 1e-6; the relay's exact flow would give 1e-8, see bench_delay_exact.py); a *miss* is a settled
@@ -33,7 +34,7 @@ from dfloop.harmonics import steady_state
 from dfloop.solve.delay import delayed
 from dfloop.verify import simulate_loop
 
-LOOPS = int(__import__("os").environ.get("BENCH_LOOPS", 16))
+LOOPS = int(__import__("os").environ.get("BENCH_LOOPS", 32))
 PER_LOOP = 2
 RUN_PERIODS = 150
 STEPS = 512
@@ -93,7 +94,7 @@ def run_loop(G, N):
         if sim.diverged:
             continue
         st = steady_state(sim.t, sim.x, 10)
-        if st.oscillating and st.periodicity < 1e-6:
+        if st.oscillating and st.periodicity < 1e-6 and st.amplitude > 1e-6 * c.amplitude:   # not rest
             settled.append((st.amplitude, st.frequency))
     found = [e for e in exacts if e.success]
     misses = [s for s in settled if not any(abs(e.amplitude / s[0] - 1) < MATCH and abs(e.frequency / s[1] - 1) < MATCH
