@@ -7,6 +7,7 @@ import numpy as np
 
 from ..describing.time_model import Impact, PiecewiseAffine, Sampled, Smooth
 from .dde import DDELoop, static_map
+from .dde_memory import MemoryDDELoop
 from .delay import DelayLoop, piecewise_constant, split_delay
 from .impact import ImpactLoop
 from .loop import HybridLoop, plant_matrices, plant_system
@@ -29,8 +30,9 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
         delay T > 0 (``delayed(G, T)``) the loop is a :class:`DelayLoop` (exact delay flow) for elements whose
         output is piecewise constant (relays with hysteresis and dead zone, quantizer), a
         :class:`~dfloop.hybrid.dde.DDELoop` (the delay differential equation, discretised) for other static
-        elements (saturation, dead zone, cubic stiffness, ...); elements with memory (backlash) or impacts
-        with a delay raise ``ValueError`` naming N.
+        elements (saturation, dead zone, cubic stiffness, ...), a :class:`~dfloop.hybrid.dde_memory.MemoryDDELoop`
+        (the same with the element's state in the history) for piecewise-affine elements with memory (backlash);
+        impact and sampled elements with a delay raise ``ValueError`` naming N.
     N : DescribingFunction
         The element; its ``time_model(amplitude)`` says how it behaves in time.
     amplitude, frequency : float
@@ -70,10 +72,13 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
         f, kinks = static_map(tm)
         if f is not None:              # sloped or smooth static elements: the delay differential equation
             return DDELoop(A, B, C, f, kinks, delay, tm.name)
+        if isinstance(tm, PiecewiseAffine) and tm.n_states == 1:   # memory (backlash): its state in the history
+            return MemoryDDELoop(A, B, C, tm, delay)
         raise ValueError(f"N: {type(N).__name__} with a pure delay in G is not supported here: the exact delay flow "
                          "needs an element whose output is constant between switches (Relay with hysteresis and "
-                         "dead zone, Quantizer), static elements with sloped pieces run as a delay differential "
-                         "equation, but elements with memory (backlash) with a delay are not available (use "
+                         "dead zone, Quantizer), static elements with sloped pieces and piecewise-affine elements "
+                         "with a state (backlash) run as a delay differential equation, but impact and sampled "
+                         f"elements ({type(tm).__name__} time model) with a delay are not available (use "
                          "delayed(G, T).pade(n) for an approximation)")
     if isinstance(tm, Impact):
         A, B, C, D = plant_system(G, what=what)
