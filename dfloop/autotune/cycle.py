@@ -159,14 +159,30 @@ def _symmetric_half_period(model, M, a):
 
     scale = L + sum(model.T)
     grid = np.geomspace(1e-4 * scale, 50.0 * scale, _SCAN)
-    vals = np.array([f(h) for h in grid])
+    vals = _symmetric_scan(model, M, a, grid)
     roots = []
-    for i in range(_SCAN - 1):
-        if np.sign(vals[i]) != np.sign(vals[i + 1]):
-            h = brentq(f, grid[i], grid[i + 1], xtol=1e-15, rtol=1e-15, maxiter=200)
-            if abs(f(h)) <= 1e-9 * (abs(model.K * M) + a):   # not a jump of the wrap (h - L) mod 2h
-                roots.append(h)
+    for i in np.flatnonzero(np.sign(vals[:-1]) != np.sign(vals[1:])):
+        h = brentq(f, grid[i], grid[i + 1], xtol=1e-15, rtol=1e-15, maxiter=200)
+        if abs(f(h)) <= 1e-9 * (abs(model.K * M) + a):   # not a jump of the wrap (h - L) mod 2h
+            roots.append(h)
     return roots
+
+
+def _symmetric_scan(model, M, a, h):
+    """c((h - L) mod 2h) - a of the odd-symmetric orbit for an array of half periods h (vectorised)."""
+    n = model.order
+    zero = [np.zeros_like(h)] * n
+    gamma = model.propagate(zero, M, h)                                   # (nh, n)
+    Phi = np.stack([model.propagate([np.full_like(h, float(i == j)) for i in range(n)], 0.0, h)
+                    for j in range(n)], axis=-1)                          # (nh, n, n)
+    s0 = np.linalg.solve(np.eye(n) + Phi, -gamma[..., None])[..., 0]      # s(h) = -s(0)
+    tau = np.mod(h - model.L, 2.0 * h)
+    first = tau < h
+    z0 = [s0[:, i] for i in range(n)]
+    c1 = model.propagate(z0, M, np.where(first, tau, 0.0))[:, -1]
+    z1 = model.propagate(z0, M, h)
+    c2 = model.propagate([z1[:, i] for i in range(n)], -M, np.where(first, 0.0, tau - h))[:, -1]
+    return np.where(first, c1, c2) - a
 
 
 def _valid(model, high, low, a, h1, h2, s0) -> bool:

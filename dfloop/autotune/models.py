@@ -131,7 +131,10 @@ class ProcessModel:
 
     # --- exact segments -------------------------------------------------------------------------------------
     def propagate(self, z0, u: float, t) -> np.ndarray:
-        """State at times t >= 0 after z0 under the constant input u: shape t.shape + (order,)."""
+        """State at times t >= 0 after z0 under the constant input u: shape t.shape + (order,) (z0 may hold
+        arrays broadcasting with t)."""
+        if isinstance(t, (float, int)) and not isinstance(z0[0], np.ndarray):
+            return np.array(self._step(float(z0[0]), float(z0[-1]), float(u), float(t)))
         t = np.asarray(t, float)
         Ku = self.K * u
         T1 = self.T[0]
@@ -143,6 +146,19 @@ class ProcessModel:
         d = 1.0 / T2 - 1.0 / T1
         z2 = Ku + (z0[1] - Ku) * np.exp(-t / T2) + (z0[0] - Ku) * e1 * _lag_gap(t, d) / T2
         return np.stack([z1, z2], axis=-1)
+
+    def _step(self, z1: float, z2: float, u: float, t: float) -> tuple:
+        """Scalar :meth:`propagate` (the orbit solver's inner loop)."""
+        Ku = self.K * u
+        T1 = self.T[0]
+        e1 = math.exp(-t / T1)
+        w = (z1 - Ku) * e1
+        if self.order == 1:
+            return (Ku + w,)
+        T2 = self.T[1]
+        d = 1.0 / T2 - 1.0 / T1
+        gap = t if d == 0.0 else -math.expm1(-t * d) / d
+        return (Ku + w, Ku + (z2 - Ku) * math.exp(-t / T2) + w * gap / T2)
 
     def transition(self, u: float, t: float) -> tuple[np.ndarray, np.ndarray]:
         """(Phi, gamma) with z(t) = Phi z0 + gamma for the constant input u over time t."""
