@@ -101,10 +101,13 @@ class RelayCycle:
 
     @property
     def mean_output(self) -> float:
-        """Mean of c over the period (equals K times the mean relay output, the static gain's identity)."""
-        n = 8192
-        t = (np.arange(n) + 0.5) / n * self.period
-        return float(np.mean(self.output(t)))
+        """Mean of c over the period (equals K times the mean relay output, the static gain's identity): 64-point
+        Gauss-Legendre on each segment of constant process input, where c is smooth (exact to rounding)."""
+        x, w = np.polynomial.legendre.leggauss(64)
+        L, total = self.model.L, 0.0
+        for a, b in ((L, L + self.h1), (L + self.h1, L + self.period)):
+            total += 0.5 * (b - a) * float(w @ self.output(0.5 * (b - a) * x + 0.5 * (a + b)))
+        return total / self.period
 
     @property
     def mean_input(self) -> float:
@@ -148,8 +151,9 @@ def _residuals(model, high, low, a, h1, h2):
                      _c_at(model, high, low, s0, h1, (P - L) % P) + a]), s0
 
 
-def _symmetric_half_period(model, M, a):
-    """Half periods h where the odd-symmetric orbit meets its switching condition c((h - L) mod 2h) = a."""
+def _symmetric_half_periods(model, M, a):
+    """Half periods h where the odd-symmetric orbit meets its switching condition c((h - L) mod 2h) = a, slowest
+    first (a generator: the caller stops at the first valid orbit)."""
     from scipy.optimize import brentq
 
     L = model.L
@@ -160,12 +164,10 @@ def _symmetric_half_period(model, M, a):
     scale = L + sum(model.T)
     grid = np.geomspace(1e-4 * scale, 50.0 * scale, _SCAN)
     vals = _symmetric_scan(model, M, a, grid)
-    roots = []
-    for i in np.flatnonzero(np.sign(vals[:-1]) != np.sign(vals[1:])):
+    for i in np.flatnonzero(np.sign(vals[:-1]) != np.sign(vals[1:]))[::-1]:
         h = brentq(f, grid[i], grid[i + 1], xtol=1e-15, rtol=1e-15, maxiter=200)
-        if abs(f(h)) <= 1e-9 * (abs(model.K * M) + a):   # not a jump of the wrap (h - L) mod 2h
-            roots.append(h)
-    return roots
+        if abs(f(h)) <= 1e-9 * (abs(model.K * M) + a):
+            yield h
 
 
 def _symmetric_scan(model, M, a, h):
@@ -255,12 +257,13 @@ def relay_cycle(model: ProcessModel, high: float = 1.0, low: float | None = None
         got = solve(high, low, np.asarray(guess, float))
         if got is not None:
             return RelayCycle(model, high, low, a, float(got[0][0]), float(got[0][1]), got[1])
-    candidates = [h for h in _symmetric_half_period(model, M, a)
-                  if _valid(model, M, -M, a, h, h, _residuals(model, M, -M, a, h, h)[1])]
-    if not candidates:
+    # the slowest orbit: faster ones (h < L) exist with a delay, and the relay does not settle on them
+    slowest = next((h for h in _symmetric_half_periods(model, M, a)
+                    if _valid(model, M, -M, a, h, h, _residuals(model, M, -M, a, h, h)[1])), None)
+    if slowest is None:
         raise ValueError(f"no symmetric relay orbit of {model!r} with level {M:g} and hysteresis {a:g} (half periods "
                          f"scanned {1e-4:g}..50 times L + sum T)")
-    h = np.array([max(candidates)] * 2)     # the slowest orbit: faster ones (h < L) exist with a delay, unstable
+    h = np.array([slowest, slowest])
     if b == 0:
         _, s0 = _residuals(model, high, low, a, h[0], h[1])
         return RelayCycle(model, high, low, a, float(h[0]), float(h[1]), s0)

@@ -10,8 +10,9 @@ the process output y (deviation from the setpoint, so the relay's input is x = -
 which u changes level; the midpoint, uncertain by +-dt/2), the period and the time at the high level by a
 straight-line fit of the switching instants against the cycle index (standard errors from the fit's residuals,
 which hold the +-dt/2 quantisation), and from y folded on that period and averaged per phase bin: the amplitude
-(half peak-to-peak of the average) with a bootstrap standard error over whole cycles, the mean (and with a biased
-relay the static gain mean y / mean u), the noise level, and the DF's ultimate-point estimate Ku = 4 d / (pi a),
+(half peak-to-peak of the average) with a bootstrap standard error over whole cycles, the mean of y over whole
+fitted periods (trapezoid) and, with a biased relay, the static gain mean y / mean u (mean u from the switching
+fits: the sampled u would quantise it), the noise level, and the DF's ultimate-point estimate Ku = 4 d / (pi a),
 Tu = period (d = (high - low) / 2).
 """
 from __future__ import annotations
@@ -208,19 +209,29 @@ class RelayRecord:
         a_se = float(np.std(boots, ddof=1))
         d2 = y[2:] - 2.0 * y[1:-1] + y[:-2]          # white noise of sd s has second differences of sd s sqrt(6)
         noise = float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
-        means = np.array([np.mean(y[cyc == j]) for j in range(n)])
-        mean_y = float(np.mean(y))
+        a0, a1 = t0 + P * round((rises[0] - t0) / P), t0 + P * round((rises[-1] - t0) / P)
+        means = np.array([_mean(self.t, self.y, a0 + j * P, a0 + (j + 1) * P) for j in range(n)])
+        mean_y = _mean(self.t, self.y, a0, a1)
         mean_y_se = float(np.std(means, ddof=1) / math.sqrt(n)) if n > 1 else noise / math.sqrt(y.size)
-        mean_u = float(np.mean(u))
+        # mean u from the switching line fits (the sampled u would quantise it by dt / period)
+        mean_u = (self.high * h1 + self.low * (P - h1)) / P
         d = 0.5 * (self.high - self.low)
         gain, gain_se = None, None
         if abs(mean_u) > 0.01 * d:
             gain = mean_y / mean_u
-            # mean u is exact up to the switching quantisation: the error of mean y dominates
-            gain_se = mean_y_se / abs(mean_u)
+            mean_u_se = (self.high - self.low) * h1_se / P
+            gain_se = abs(gain) * math.hypot(mean_y_se / mean_y if mean_y else 0.0, mean_u_se / mean_u)
         Ku = 4.0 * d / (math.pi * a)
         return RecordFeatures(P, P_se, h1, h1_se, t0, rises, falls, n, a, a_se, mean_y, mean_y_se, mean_u, gain, gain_se,
                               noise, Ku, Ku * a_se / a, P, P_se, float(rises[0]), float(rises[-1]))
+
+
+def _mean(t, y, a, b):
+    """Mean of the piecewise-linear interpolant of (t, y) over [a, b] (trapezoid with interpolated ends)."""
+    inside = (t > a) & (t < b)
+    tt = np.concatenate([[a], t[inside], [b]])
+    yy = np.concatenate([[np.interp(a, t, y)], y[inside], [np.interp(b, t, y)]])
+    return float(np.sum(0.5 * (yy[1:] + yy[:-1]) * np.diff(tt)) / (b - a))
 
 
 def _line(k, t):
