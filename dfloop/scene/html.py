@@ -156,7 +156,8 @@ _CAPTIONS = {"nyquist": "Nyquist plane: G(jω), the -1/N locus and the predicted
                         "unstable; star: the exact orbit at its frequency; red +: -1).",
              "residual": "Residual map: each cycle sits where Re(1 + GN) = 0 meets Im(1 + GN) = 0.",
              "sweep": "The cycles followed over the swept parameter.",
-             "figure": "The scene's figure."}
+             "figure": "The scene's figure.",
+             "fit": "The recorded relay experiment against the fitted model's exact relay orbit."}
 
 
 def report_html(report) -> str:
@@ -196,6 +197,8 @@ def report_html(report) -> str:
         parts += ["<h2>Sweep</h2>", f"<pre>{_e(repr(report.sweep))}</pre>"]
     if report.figure is not None:
         parts += ["<h2>Figure data</h2>", f"<pre>{_e(repr(report.figure))}</pre>"]
+    if getattr(report, "autotune", None) is not None:
+        parts += ["<h2>Relay experiment and tuning</h2>", f"<pre>{_e(repr(report.autotune))}</pre>"]
     parts += ["<h2>Settings</h2>", _settings(report), "<h2>Timings</h2>", _timings(report)]
     if report.notes:
         parts += ["<h2>Notes</h2>", "<ul>" + "".join(f"<li>{_e(n)}</li>" for n in report.notes) + "</ul>"]

@@ -181,6 +181,7 @@ class Scene:
     loop_at: SceneLoop | None = None
     chart: Any = None
     chart_loop: ChartLoop | None = None
+    autotune: Any = None
     source: Path | None = None
     data: dict = field(default_factory=dict, repr=False)
 
@@ -239,6 +240,9 @@ def load_scene(path: str | Path, *, progress: bool = False) -> Scene:
                     chart_loop(x, y)
     except SceneError as err:
         raise err.in_file(path) from None
+    if model.autotune is not None and type(element).__name__ != "Relay":
+        raise SceneError(path, Problem("autotune", f"the relay experiment needs the element to be a Relay; got "
+                                       f"{type(element).__name__}"))
     analysis = model.analysis
     if analysis.verify:
         try:
@@ -261,6 +265,7 @@ def load_scene(path: str | Path, *, progress: bool = False) -> Scene:
         loop_at=loop_at,
         chart=model.chart,
         chart_loop=chart_loop,
+        autotune=model.autotune,
         source=path,
         data=data,
     )

@@ -120,6 +120,7 @@ class SceneReport:
     figure: Any = None
     margins: list[Any] = field(default_factory=list)
     chart: Any = None
+    autotune: Any = None
 
     def to_markdown(self) -> str:
         lines = [f"# {self.scene.title}", "", f"Scene `{self.scene.source}`; element `{self.scene.element!r}`.", ""]
@@ -144,6 +145,8 @@ class SceneReport:
                 lines += ["No nominal value inside the swept range (set `nominal` in `[sweep]` / `[chart]`).", ""]
         if self.figure is not None:
             lines += ["## Figure", "", "```", repr(self.figure), "```", ""]
+        if self.autotune is not None:
+            lines += ["## Relay experiment and tuning", "", *self.autotune.to_markdown_lines(), ""]
         lines += ["## Stages run", "", "| stage | time (s) |", "|---|---|"]
         lines += [f"| {name} | {seconds:.3f} |" for name, seconds in self.stages]
         lines += [""] + [f"- {note}" for note in self.notes] if self.notes else []
@@ -203,6 +206,7 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
     predict = scene.data.get("analysis", {}).get("predict", True)
     plots = scene.plots if predict else ()
     planned = predict + len(plots) + (scene.sweep is not None) + (scene.chart is not None) + (figure is not None)
+    planned += scene.autotune is not None
 
     motions_before = _motions_simulated()
     with progress_bar(scene.name, planned, enabled=progress) as bar:
@@ -256,6 +260,13 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
             drawn = report.chart.plot()
             drawn.axes[0, 0].set_title(scene.title, fontsize="medium")
             report.files.append(_save(drawn.figure, out / f"{scene.name}_chart.png"))
+        if scene.autotune is not None:
+            from .autotune import run_autotune
+
+            report.autotune = stage("relay experiment and tuning", lambda: run_autotune(scene))
+            log(repr(report.autotune))
+            if report.autotune.fit is not None:
+                report.files.append(_save(report.autotune.fit.plot().figure, out / f"{scene.name}_relay_fit.png"))
         if figure is not None:
             report.figure = stage(f"figure ({figure.kind})", lambda: figure_data(scene))
             log(repr(report.figure))
