@@ -1,7 +1,9 @@
-"""Order of convergence and cost of the delay-equation solver (dfloop.hybrid.dde) on static elements with a delay.
+"""Order of convergence and cost of the delay-equation solvers on elements with a delay: static elements
+(dfloop.hybrid.dde) and a backlash, whose state is part of the history (dfloop.hybrid.dde_memory).
 
 Loop 12/((s+1)(0.5s+1)) e^{-0.4s} with a saturation (kinks at +-1) and with a cubic stiffness x - 0.05 x^3
-(smooth). ``dde_orbit(..., nodes=n)`` solves at n and 2n nodes per period and returns the 2n orbit; the errors of
+(smooth); backlash (clearance 0.5) around 3/(s(s+1)) e^{-0.2s} (a stable cycle) and 4/(s+1)^2 e^{-s} (an unstable
+one). ``dde_orbit(..., nodes=n)`` solves at n and 2n nodes per period and returns the 2n orbit; the errors of
 A and w at 64, 128, 256 nodes are taken against 512 nodes, the observed order is log2 of the ratio of successive
 errors. Also: the error estimate exact_cycle reports (change from 128 to 256 nodes), the two largest multipliers,
 and the time of exact_cycle relative to predict_limit_cycles on the same loop.
@@ -20,37 +22,46 @@ import control as ct
 import dfloop as df
 from dfloop.hybrid import loop_model
 from dfloop.hybrid.dde import dde_orbit
+from dfloop.hybrid.dde_memory import memory_orbit
 from dfloop.solve.delay import delayed
 
 G = delayed(ct.tf([12.0], [1.0, 1.0]) * ct.tf([1.0], [0.5, 1.0]), 0.4)
-ELEMENTS = [("saturation (kinks)", df.Saturation(1.0)), ("cubic stiffness (smooth)", df.CubicStiffness(1.0, -0.05))]
+SHORT = (32, 64, 128, 256)        # nodes: the orbits at 64, 128, 256 steps per period against 512
+LONG = (128, 256, 512, 1024)      # the short delay needs >= 4.5 P / T = 103 steps: 256, 512, 1024 against 2048
+ELEMENTS = [("saturation (kinks)", G, df.Saturation(1.0), -1, SHORT),
+            ("cubic stiffness (smooth)", G, df.CubicStiffness(1.0, -0.05), -1, SHORT),
+            ("backlash, 3/(s(s+1)) e^-0.2s", delayed(ct.tf([3.0], [1.0, 1.0, 0.0]), 0.2), df.Backlash(h=0.5), -1,
+             LONG),
+            ("backlash, 4/(s+1)^2 e^-s", delayed(ct.tf([4.0], [1.0, 2.0, 1.0]), 1.0), df.Backlash(h=0.5), 0, SHORT)]
 
 
 def main() -> str:
-    rows = ["| element | nodes | error A | error w | order A | order w |", "|---|---|---|---|---|---|"]
-    cost = ["| element | predict (ms) | exact_cycle / predict | error estimate A, w (128 -> 256) | multipliers |",
+    rows = ["| loop | steps per period | error A | error w | order A | order w |", "|---|---|---|---|---|---|"]
+    cost = ["| loop | predict (ms) | exact_cycle / predict | error estimate A, w (128 -> 256) | multipliers |",
             "|---|---|---|---|---|"]
-    for name, N in ELEMENTS:
+    for name, G, N, which, nodes in ELEMENTS:
         df.predict_limit_cycles(G, N)                                   # warm-up
         t0 = time.perf_counter()
-        c = df.predict_limit_cycles(G, N)[0]
+        c = df.predict_limit_cycles(G, N)[which]
         t_pred = time.perf_counter() - t0
         t0 = time.perf_counter()
         e = df.exact_cycle(G, N, c)
         t_exact = time.perf_counter() - t0
-        loop = loop_model(G, N, c.amplitude, c.frequency)              # a DDELoop (the one dispatcher)
-        o = {n: dde_orbit(loop, c.amplitude, c.frequency, nodes=n) for n in (32, 64, 128, 256)}
-        ref = o[256]
-        errs = {k: [abs(o[n][k] / ref[k] - 1) for n in (32, 64, 128)] for k in ("amplitude", "frequency")}
-        for i, n in enumerate((64, 128, 256)):
+        loop = loop_model(G, N, c.amplitude, c.frequency)     # a DDELoop or MemoryDDELoop (the one dispatcher)
+        solve = memory_orbit if "backlash" in name else dde_orbit
+        o = {n: solve(loop, c.amplitude, c.frequency, nodes=n) for n in nodes}
+        ref = o[nodes[-1]]
+        errs = {k: [abs(o[n][k] / ref[k] - 1) for n in nodes[:-1]] for k in ("amplitude", "frequency")}
+        for i, n in enumerate(2 * n for n in nodes[:-1]):
             order = ["-", "-"] if i == 0 else [f"{math.log2(errs[k][i - 1] / errs[k][i]):.2f}"
                                                for k in ("amplitude", "frequency")]
             rows.append(f"| {name} | {n} | {errs['amplitude'][i]:.2e} | {errs['frequency'][i]:.2e} | {order[0]} | "
                         f"{order[1]} |")
         est = e.extra["error_estimate"]
-        mu = ", ".join(f"{abs(m):.7g}" for m in e.multipliers[:2])
+        mu = ", ".join(f"{abs(m):.7g}" for m in sorted(e.multipliers[:2], key=lambda m: abs(abs(m) - 1)))
         cost.append(f"| {name} | {1e3 * t_pred:.1f} | {t_exact / t_pred:.1f} | {est[0]:.1e}, {est[1]:.1e} | {mu} |")
-    return "\n".join(["Errors against 512 nodes per period:", "", *rows, "", *cost]) + "\n"
+    return "\n".join(["Errors against the finest orbit (512 steps (nodes) per period; 2048 for the backlash with "
+                      "the short delay, which takes at least 4.5 P / T = 103):", "", *rows, "", *cost]) + "\n"
 
 
 if __name__ == "__main__":

@@ -12,6 +12,12 @@ cycle the root of w T + atan w = (2m + 1) pi, found here by brentq), and a light
 For each row: cycles found, the worst relative frequency error over the expected cycles (inf when one is
 missing), the time (median of repeats) and its ratio to the grid rule's time in the same run.
 
+A second table: the relay around e^{-jw}/(jw + 1) on the wide window [0.1, 1e5] rad/s (15,916 cycles), the plant
+given as a callable (sampled: midpoint, golden-section and slope samples, ``GridReport.uncertified``) and as a
+first-class delay ``df.delayed(ct.tf([1], [1, 1]), 1.0)`` (the exact bound, the baseline): cycles found against
+the closed form, uncertified intervals, time of the call (one run each: seconds) and where it goes (the grid
+(resolve_plant), candidate cells, root finding), with the ratio to the delay plant in the same run.
+
 Run: python benchmarks/bench_solver_grid.py [--write]   (--write updates benchmarks/results/bench_solver_grid.md)
 """
 from __future__ import annotations
@@ -75,6 +81,53 @@ def error(w, ref):
     return max(np.min(np.abs(w - r)) / r for r in ref)
 
 
+def wide_window() -> str:
+    """The callable plant on [0.1, 1e5] rad/s against the same plant with a first-class delay."""
+    import functools
+
+    import dfloop.solve.predict as predict
+
+    f = lambda w, m: w + np.arctan(w) - (2 * m + 1) * np.pi  # noqa: E731
+    expected = sum(1 for m in range(20000) if f(0.1, m) < 0 < f(1e5, m))
+    plants = [("callable e^{-jw}/(jw + 1)", lambda w: np.exp(-1j * np.asarray(w, float)) / (1j * np.asarray(w, float) + 1)),
+              ("df.delayed(tf(1, [1, 1]), 1)", df.delayed(ct.tf([1], [1, 1]), 1.0))]
+    stages = ("resolve_plant", "candidate_cells", "find_roots")
+    rows = ["| plant | cycles found / expected | uncertified intervals | time (s) | grid (s) | candidate cells (s) "
+            "| roots (s) | time / delay plant |", "|---|---|---|---|---|---|---|---|"]
+    out = []
+    for name, G in plants:
+        spent = dict.fromkeys(stages, 0.0)
+        originals = {s: getattr(predict, s) for s in stages}
+
+        def timed_stage(fn, stage):
+            @functools.wraps(fn)
+            def run(*a, **k):
+                t0 = time.perf_counter()
+                try:
+                    return fn(*a, **k)
+                finally:
+                    spent[stage] += time.perf_counter() - t0
+            return run
+
+        for s in stages:
+            setattr(predict, s, timed_stage(originals[s], s))
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                t0 = time.perf_counter()
+                cycles = df.predict_limit_cycles(G, df.Relay(1.0), omega=(0.1, 1e5))
+                total = time.perf_counter() - t0
+        finally:
+            for s in stages:
+                setattr(predict, s, originals[s])
+        out.append((name, len(cycles), len(cycles.grid_report.uncertified), total, spent))
+    base = out[-1][3]
+    for name, n, unc, total, spent in out:
+        rows.append(f"| {name} | {n} / {expected} | {unc} | {total:.1f} | {spent['resolve_plant']:.1f} | "
+                    f"{spent['candidate_cells']:.1f} | {spent['find_roots']:.1f} | {total / base:.2f} |")
+    return "\n".join(rows)
+
+
 def main() -> str:
     rows = ["| problem | method | final grid (A x w) | cycles found / expected | max freq. error (rel.) | time (ms) "
             "| time / grid rule |", "|---|---|---|---|---|---|---|"]
@@ -95,7 +148,7 @@ def main() -> str:
 
 
 if __name__ == "__main__":
-    table = main()
+    table = main() + "\n\nWide window, relay around the delay plant on [0.1, 1e5] rad/s (one run each):\n\n" + wide_window()
     print(table)
     if "--write" in sys.argv[1:]:
         out = pathlib.Path(__file__).parent / "results" / "bench_solver_grid.md"

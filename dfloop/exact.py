@@ -16,6 +16,7 @@ autonomous flow, and the cycle is stable when all others lie inside the unit cir
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -59,7 +60,10 @@ class ExactCycle:
     stable : bool or None
         All multipliers but the trivial one (closest to 1) strictly inside the unit circle.
     amplitude_error, frequency_error : float or None
-        Relative errors of the prediction, (predicted - exact) / exact.
+        Relative errors of the prediction, (predicted - exact) / exact. For a period-k orbit (``extra["returns"]``
+        = k > 1: it repeats only after k oscillations, as after a period doubling) the exact values are those of
+        the orbit's k-th harmonic, the oscillation the DF describes; ``frequency`` and ``amplitude`` stay those
+        of the orbit's own fundamental (period ``period``).
     predicted : (float, float)
         The predicted (amplitude, frequency) the search started from.
     method : str
@@ -68,9 +72,12 @@ class ExactCycle:
         Final |phi_T(z0) - z0| relative to |z0| (inf when no Newton step was taken).
     iterations : int
         Newton iterations used.
+    mean : float or None
+        Mean of x over the orbit (its bias; 0 up to rounding for a symmetric loop without constant input).
     extra : dict
         Engine details: ``z0`` (augmented state [plant state, element state, 1] at the shooting start, which is
-        not the waveform's t = 0) and ``mode0`` (the element's mode there), for re-running the flow. On the
+        not the waveform's t = 0), ``mode0`` (the element's mode there), for re-running the flow, and ``returns``
+        (oscillations per period: 1, or k for a period-k orbit found on the settled motion). On the
         exact delay flow: ``s0`` (plant state), ``mode0``, ``u0`` (plant input), ``queue0`` (pending switches
         [instant (s), level] of the delay line), ``section`` (the switch the return map starts on) and ``delay``;
         after a failed search that was globalised, ``outcome`` and ``motions`` (:mod:`dfloop.hybrid.globalise`).
@@ -95,6 +102,7 @@ class ExactCycle:
     residual: float = math.inf
     iterations: int = 0
     extra: dict = field(default_factory=dict)
+    mean: float | None = None
 
     @property
     def distortion(self) -> float | None:
@@ -118,7 +126,7 @@ class ExactCycle:
 
         names = ("success", "message", "predicted", "method", "amplitude", "frequency", "period", "t", "x", "y",
                  "switching_times", "harmonics", "multipliers", "stable", "amplitude_error", "frequency_error",
-                 "residual", "iterations", "distortion", "largest_multiplier")
+                 "residual", "iterations", "distortion", "largest_multiplier", "mean")
         return {name: plain(getattr(self, name)) for name in names}
 
     def to_csv(self, path) -> None:
@@ -143,7 +151,9 @@ class ExactCycle:
         if not self.success:
             return (f"ExactCycle(not found: {self.message}; predicted amplitude={A0:.6g}, frequency={w0:.6g} rad/s; "
                     f"{self.method})")
-        return (f"ExactCycle(amplitude={self.amplitude:.8g}, frequency={self.frequency:.8g} rad/s, "
+        shifted = self.mean is not None and abs(self.mean) > 1e-9 * self.amplitude
+        return (f"ExactCycle({f'mean={self.mean:.8g}, ' if shifted else ''}amplitude={self.amplitude:.8g}, "
+                f"frequency={self.frequency:.8g} rad/s, "
                 f"{'stable' if self.stable else 'unstable'} (largest non-trivial |multiplier| "
                 f"{self.largest_multiplier:.4g}); DF error: amplitude {100 * self.amplitude_error:+.3g} %, "
                 f"frequency {100 * self.frequency_error:+.3g} %; {self.switching_times.size} switches/period, "
@@ -183,7 +193,8 @@ def _failure(message, predicted, method, residual=math.inf, iterations=0) -> Exa
 @single_threaded_blas
 def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, tol: float = 1e-11,
                 max_iterations: int = 40, settle_periods: float | None = None, max_events: int = 10_000,
-                max_deviation: float = 0.5, nodes: int = 8, globalise: bool = True) -> ExactCycle:
+                max_deviation: float = 0.5, nodes: int = 8, globalise: bool = True, r0: float = 0.0,
+                load: float = 0.0, bias: float | None = None) -> ExactCycle:
     """Find the true periodic orbit near a predicted limit cycle, its Floquet multipliers and the DF's errors.
 
     Parameters
@@ -192,7 +203,9 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
         SISO plant (from the element's output y to c; x = -c), strictly proper (except around a dynamic
         backlash, whose output x1 is a state); with a pure delay (:func:`dfloop.solve.delay.delayed`) a
         piecewise-constant element (relays, quantizer) runs on the exact delay flow
-        (:mod:`dfloop.hybrid.delay`: Newton on the return map to a switch), other elements raise ``ValueError``.
+        (:mod:`dfloop.hybrid.delay`: Newton on the return map to a switch), other static elements and elements with
+        memory (backlash) on the discretised delay equation (:mod:`dfloop.hybrid.dde`,
+        :mod:`dfloop.hybrid.dde_memory`, error estimate in ``extra``), impact elements raise ``ValueError``.
     N : DescribingFunction
         The element; its ``time_model`` decides the engine (:func:`dfloop.hybrid.loop_model`): piecewise-affine
         elements (relays, saturation, dead zone, backlash, quantizer, ...) run on the exact hybrid engine, a
@@ -228,6 +241,13 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
         When shooting from the prediction fails, look further before answering (default; see Returns). False
         answers from the shooting alone (its failure is then "not checked", never "no orbit"): for callers that
         try many seeds themselves, such as a design chart's exact samples.
+    r0, load : float
+        A constant input (:mod:`dfloop.solve.bias`): reference r0 at the summing junction (x = r0 - c) and a load
+        added to the element's output before the plant (piecewise-affine and smooth elements, no delay).
+    bias : float or None
+        The predicted mean of x (the orbit sought is x ~ bias + A sin(w t)); None takes ``cycle.bias`` (a
+        :class:`~dfloop.solve.bias.BiasedCycle`), else 0. The shooting starts on that biased orbit, so unstable
+        biased cycles are found as stable ones (``settle_periods`` 0).
 
     Returns
     -------
@@ -238,12 +258,15 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
         orbit" answer says where the motions went (``extra["outcome"]``, ``extra["motions"]``).
     """
     from ._checks import flag, in_closed_interval
-    from .hybrid import ShootingError, delay_orbit, loop_model, periodic_orbit
-    from .hybrid.globalise import shoot_or_globalise
 
     N = as_element(N)
     A0, w0 = cycle_argument(cycle)
     predicted = (A0, w0)
+    from ._checks import finite
+
+    r0, load = finite("r0", r0), finite("load", load)
+    bias = finite("bias", getattr(cycle, "bias", 0.0) if bias is None else bias)
+    constant = dict(r0=r0, load=load, bias=bias)
     harmonics = int(in_closed_interval("harmonics", harmonics, 1, 1000))
     samples = int(in_closed_interval("samples", samples, 16, 10**7))
     tol = in_closed_interval("tol", tol, 1e-14, 1e-4)
@@ -261,14 +284,35 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     if is_discrete(G):   # a digital loop: a finite-dimensional map (dfloop.hybrid.discrete)
         return _discrete_result(G, N, predicted, harmonics, max_deviation, getattr(cycle, "stability", None))
 
+    from .hybrid.globalise import inside_search
+
+    if globalise and not inside_search():   # the caller's own call, not a shooting the globalisation started
+        out = _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations, settle_periods,
+                           max_events, max_deviation, nodes, m, globalise, constant)
+        cert = table_certificate(G, N, A0, w0)
+        if cert is not None:     # a tabulated N: certified at the point of use (the verdict reads it)
+            out = dataclasses.replace(out, extra={**out.extra, "table": cert})
+        return out
+    return _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations, settle_periods, max_events,
+                        max_deviation, nodes, m, globalise, constant)
+
+
+def _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations, settle_periods, max_events,
+                 max_deviation, nodes, m, globalise, constant) -> ExactCycle:
+    from .hybrid import ShootingError, delay_orbit, loop_model, periodic_orbit
+    from .hybrid.globalise import shoot_or_globalise
+
+    A0, w0 = predicted
+    r0, load, bias = constant["r0"], constant["load"], constant["bias"]
     # no false "no orbit": the whole search below runs inside the globalisation wrapper, which globalises a failure
     options = dict(harmonics=harmonics, samples=samples, tol=tol, max_iterations=max_iterations,
-                   settle_periods=settle_periods, max_events=max_events, max_deviation=max_deviation, nodes=nodes)
+                   settle_periods=settle_periods, max_events=max_events, max_deviation=max_deviation, nodes=nodes,
+                   **constant)
     outer = None if not globalise else shoot_or_globalise(
-        G, N, predicted, lambda c, **kw: exact_cycle(G, N, c, **{**options, **kw}), max_deviation)
+        G, N, predicted, lambda c, **kw: exact_cycle(G, N, c, **{**options, **kw}), max_deviation, constant)
     if outer is not None:
         return outer
-    loop = loop_model(G, N, A0, w0, what="exact_cycle")
+    loop = loop_model(G, N, A0 + abs(bias), w0, what="exact_cycle", r0=r0, load=load)
     if loop.delay > 0:   # a pure delay: Newton on the return map of the exact delay flow (dfloop.hybrid.delay)
         return ExactCycle(**delay_orbit(loop, A0, w0, tol=tol, max_iterations=max_iterations, harmonics=harmonics,
                                         samples=samples, max_events=max_events, max_deviation=max_deviation))
@@ -279,14 +323,15 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     try:
         orbit = periodic_orbit(loop, N, A0, w0, tol=tol, max_iterations=max_iterations,
                                settle_periods=loop.settle_periods if settle_periods is None else settle_periods,
-                               nodes=m, max_events=max_events)
+                               nodes=m, max_events=max_events, bias=bias)
     except ShootingError as exc:
         return _failure(str(exc), predicted, loop.method, exc.residual, exc.iterations)
     out = _result(loop, orbit, predicted, harmonics, samples)
     if not out.amplitude > 1e-12 * A0:
         return _failure(f"the motion settles to rest (fundamental amplitude {out.amplitude:.3g} of x): no "
                         "periodic orbit near the prediction", predicted, loop.method, orbit.residual, orbit.iterations)
-    deviation = max(abs(math.log(out.amplitude / A0)), abs(math.log(out.frequency / w0)))
+    k = out.extra["returns"]        # a period-k orbit is compared with the prediction through its k-th harmonic
+    deviation = max(abs(math.log(abs(out.harmonics[k - 1]) / A0)), abs(math.log(k * out.frequency / w0)))
     if deviation > max_deviation:
         return _failure(f"Newton converged to another orbit (A={out.amplitude:.6g}, w={out.frequency:.6g} rad/s, "
                         f"{'stable' if out.stable else 'unstable'}), farther from the prediction than max_deviation "
@@ -294,6 +339,94 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
                         "orbit; raise max_deviation to accept it", predicted, loop.method, orbit.residual,
                         orbit.iterations)
     return out
+
+
+_TABLE_AGREEMENT = 3.0      # a table value within this many of its error estimates of the direct value is confirmed
+_REFINE_ITERATIONS = 8
+
+
+def table_certificate(G, N, A: float, w: float) -> dict | None:
+    """Certify a tabulated N at the point of use: the table's value, its error estimate and validity at (A, w),
+    and N re-simulated directly there (elements whose time model is an
+    :class:`~dfloop.describing.time_model.Impact`: :func:`dfloop.impact.extract.impact_describing_function`).
+
+    Returns None for an element without a table (a closed form or a static element: ``error_estimate`` 0 or not
+    finite). Otherwise a dict: ``table`` (complex N from the table), ``error`` (its error estimate, absolute),
+    ``valid`` (the table's validity flag), ``direct`` (the re-simulated N, None without a direct evaluation),
+    ``regular`` (the direct run found a periodic motion), ``difference`` |direct - table|, ``status``:
+    ``"confirmed"`` (within 3 error estimates, or 1e-6 relative), ``"replaced"`` (the direct value differs: the
+    motion from rest may flip into another basin in a window narrower than the table's probing) or ``"not
+    re-simulated"``; when replaced, ``refined`` holds the root (A, w) of 1 + G(jw) N(A, w) = 0 found by Newton's
+    method on direct values from (A, w), or None with ``refine_message`` saying why.
+    """
+    from .describing.time_model import Impact
+
+    try:
+        err = float(np.asarray(N.error_estimate(A, w) if N.frequency_dependent else N.error_estimate(A)))
+    except (TypeError, ValueError, NotImplementedError):
+        return None
+    if not (math.isfinite(err) and err > 0.0):
+        return None
+    n_table = complex(N(A, w) if N.frequency_dependent else N(A))
+    valid = bool(np.all(N.validity(A, w) if N.frequency_dependent else N.validity(A)))
+    out = {"table": n_table, "error": err, "valid": valid, "direct": None, "regular": None, "difference": None,
+           "status": "not re-simulated"}
+    tm = N.time_model(A)
+    if not isinstance(tm, Impact):
+        return out
+    direct = _impact_direct(tm)
+    d, regular = direct(A, w)
+    diff = abs(d - n_table)
+    out.update(direct=d, regular=regular, difference=diff,
+               status="confirmed" if diff <= max(_TABLE_AGREEMENT * err, 1e-6 * abs(n_table)) else "replaced")
+    if out["status"] == "replaced":
+        out["refined"], out["refine_message"] = _refine_root(G, direct, A, w)
+    return out
+
+
+def _impact_direct(tm):
+    """N(F, w) of the impact element re-simulated at one point: (complex N, regular motion)."""
+    from .impact.extract import impact_describing_function
+
+    def direct(F, w):
+        r = impact_describing_function(tm.m1, tm.m2, tm.h, tm.restitution, F, w, effects=tm.effects,
+                                       chatter_tol=tm.chatter_tol)
+        return complex(r.N), bool(r.regular)
+
+    return direct
+
+
+def _refine_root(G, direct, A: float, w: float):
+    """Newton on 1 + G(jw) N(A, w) = 0 in (ln A, ln w) with N re-simulated (forward differences, relative step
+    1e-5): ((A, w), message), or (None, why)."""
+    from .hybrid.delay import split_delay
+
+    free, delay = split_delay(G)
+    free = getattr(free, "lti", None) or free          # a dfloop Plant carries its python-control system
+
+    def R(u, v):
+        F, om = math.exp(u), math.exp(v)
+        g = complex(free(1j * om)) * complex(np.exp(-1j * om * delay))
+        return 1.0 + g * direct(F, om)[0]
+
+    u, v = math.log(A), math.log(w)
+    r = R(u, v)
+    for it in range(1, _REFINE_ITERATIONS + 1):
+        if abs(r) < 1e-10:
+            return (math.exp(u), math.exp(v)), f"converged in {it - 1} Newton iteration(s), |1 + G N| {abs(r):.1e}"
+        d = 1e-5
+        ru, rv = (R(u + d, v) - r) / d, (R(u, v + d) - r) / d
+        J = np.array([[ru.real, rv.real], [ru.imag, rv.imag]])
+        try:
+            du, dv = np.linalg.solve(J, [-r.real, -r.imag])
+        except np.linalg.LinAlgError:
+            return None, "singular Jacobian of 1 + G N on the direct values"
+        u, v = u + du, v + dv
+        r = R(u, v)
+    if abs(r) < 1e-8:
+        return (math.exp(u), math.exp(v)), f"|1 + G N| {abs(r):.1e} after {_REFINE_ITERATIONS} iterations"
+    return None, (f"no root of 1 + G N on the direct values within {_REFINE_ITERATIONS} Newton iterations "
+                  f"(|1 + G N| {abs(r):.1e}; a jump of N there)")
 
 
 def _discrete_result(G, N, predicted, harmonics: int, max_deviation: float, stability=None) -> ExactCycle:
@@ -330,6 +463,7 @@ def _result(loop, orbit, predicted, harmonics: int, samples: int) -> ExactCycle:
     w = 2.0 * math.pi / T
     nx = loop.size - 1
     X = 2j * loop.fourier(fl, T, w, harmonics)                     # x ~ Im(X_k e^{jkwt})
+    mean = float(loop.fourier(fl, T, 0.0, 1)[0].real) if hasattr(loop, "r0") else None   # k = 0: the mean
     phase = float(np.angle(X[0]))
     shift = phase / w                                              # new time t' = t + shift
     k = np.arange(1, harmonics + 1)
@@ -343,16 +477,24 @@ def _result(loop, orbit, predicted, harmonics: int, samples: int) -> ExactCycle:
     stable = bool(np.all(np.abs(_nontrivial(mu)) < 1.0))
     A_exact = float(X[0].real)
     A0, w0 = predicted
-    if not A_exact > 0:   # a loop at rest: no oscillation (exact_cycle reports it)
+    if not A_exact > 0 and orbit.returns == 1:   # a loop at rest: no oscillation (exact_cycle reports it)
         return ExactCycle(False, "rest", predicted, loop.method, amplitude=A_exact)
     trivial = float(np.min(np.abs(mu - 1.0)))
     msg = f"converged in {orbit.iterations} Newton iteration(s), residual {orbit.residual:.1e}"
+    k = orbit.returns
+    if k > 1:   # the DF's oscillation is the k-th harmonic of the orbit: its errors are measured there
+        A_dom = float(abs(X[k - 1]))
+        msg = (f"period-{k} orbit: it repeats after {k} oscillations of {k * w:.6g} rad/s (the predicted "
+               f"oscillation; period {T:.6g} s, dominant amplitude {A_dom:.6g}); " + msg)
+    else:
+        A_dom = A_exact
     if orbit.residual > 1e-11:
         msg += " (the rounding floor of the switch times)"
     if trivial > 1e-6:
         msg += f"; the trivial multiplier is off 1 by {trivial:.1e} (multipliers less accurate)"
     return ExactCycle(True, msg, predicted, loop.method, amplitude=A_exact, frequency=w, period=T, t=t_new, x=x,
                       y=y, switching_times=switches, harmonics=X, multipliers=mu, stable=stable,
-                      amplitude_error=(A0 - A_exact) / A_exact, frequency_error=(w0 - w) / w,
+                      amplitude_error=(A0 - A_dom) / A_dom, frequency_error=(w0 - k * w) / (k * w),
                       residual=orbit.residual, iterations=orbit.iterations,
-                      extra={"z0": orbit.z, "mode0": orbit.mode})
+                      extra={"z0": orbit.z, "mode0": orbit.mode, "returns": k},
+                      mean=float(np.mean(x)) if mean is None else mean)

@@ -47,7 +47,8 @@ def _run_options(periods, steps_per_period) -> tuple[float, int]:
 
 @single_threaded_blas
 def simulate_loop(G, N, amplitude: float, frequency: float, *, periods: float = 80,
-                  steps_per_period: int = 400) -> LoopSimulation:
+                  steps_per_period: int = 400, r0: float = 0.0, load: float = 0.0,
+                  bias: float = 0.0) -> LoopSimulation:
     """Run the loop from the harmonic-balance state of a cycle of the given amplitude and frequency.
 
     The plant starts in the steady state it would have if the element's input were exactly
@@ -70,6 +71,9 @@ def simulate_loop(G, N, amplitude: float, frequency: float, *, periods: float = 
     steps_per_period : int
         Samples per period of the returned signals (>= 20); the step of the fixed-step fallback only.
         ``periods * steps_per_period`` is at most ``MAX_SAMPLES`` (1e7).
+    r0, load, bias : float
+        A constant input (reference r0 at the summing junction, load at the element's output) and the start's
+        mean of x: the run starts on x = bias + amplitude sin(frequency t) (:func:`dfloop.hybrid.loop_model`).
 
     Returns
     -------
@@ -81,11 +85,14 @@ def simulate_loop(G, N, amplitude: float, frequency: float, *, periods: float = 
     N = as_element(N)  # anything else (a number, None) is a ValueError naming N, before any work
     A0, w = scale("amplitude", amplitude), scale("frequency", frequency)
     periods, steps_per_period = _run_options(periods, steps_per_period)
-    loop = loop_model(G, N, A0, w, steps_per_period=steps_per_period)
+    from ._checks import finite
+
+    r0, load, bias = finite("r0", r0), finite("load", load), finite("bias", bias)
+    loop = loop_model(G, N, A0 + abs(bias), w, steps_per_period=steps_per_period, r0=r0, load=load)
     if loop.delay > 0:   # a pure delay: the exact delay flow from the predicted orbit's switches
         return delay_simulation(loop, A0, w, periods, steps_per_period, diverge=_DIVERGED)
-    z, mode = start_on_prediction(loop, N, A0, w)
-    return simulate(loop, z, mode, 2 * np.pi / w, periods, steps_per_period, limit=_DIVERGED * A0)
+    z, mode = start_on_prediction(loop, N, A0, w, bias=bias)
+    return simulate(loop, z, mode, 2 * np.pi / w, periods, steps_per_period, limit=_DIVERGED * (A0 + abs(bias)))
 
 
 @dataclass
@@ -113,6 +120,8 @@ class Verification:
     exact_amplitude : float or None
         Amplitude of the exact orbit the verified cycle carried (``predict_limit_cycles(..., exact=True)``),
         None without one.
+    means : (float or None, float or None)
+        Mean of x over the whole periods in the last tenth of each run (its bias; None for a diverged run).
     """
 
     amplitude: float
@@ -125,6 +134,7 @@ class Verification:
     method: str = ""
     runs: tuple | None = field(default=None, compare=False, repr=False)
     exact_amplitude: float | None = None
+    means: tuple = (None, None)
 
     @property
     def stable(self) -> bool:
@@ -133,14 +143,15 @@ class Verification:
     def to_dict(self) -> dict:
         """One flat row: ``amplitude``, ``frequency``, ``verdict``, ``perturbation``, ``message``, ``method`` and
         each run's steady state as ``inside_amplitude``, ``inside_frequency``, ``inside_periodicity``,
-        ``inside_n_periods``, ``inside_oscillating`` (``outside_...`` likewise)."""
+        ``inside_n_periods``, ``inside_oscillating``, ``inside_mean`` (``outside_...`` likewise)."""
         from dataclasses import asdict
 
         from .export import flat
 
         return flat({"amplitude": self.amplitude, "frequency": self.frequency, "verdict": self.verdict,
                      "perturbation": self.perturbation, "message": self.message, "method": self.method,
-                     "inside": asdict(self.inside), "outside": asdict(self.outside)})
+                     "inside": {**asdict(self.inside), "mean": self.means[0]},
+                     "outside": {**asdict(self.outside), "mean": self.means[1]}})
 
     def to_csv(self, path) -> None:
         """Write :meth:`to_dict` as a one-row CSV file."""
@@ -183,9 +194,26 @@ def _describe(run: SteadyState, sim: LoopSimulation, A0: float, d: float) -> str
             f"({'periodic' if run.periodicity < 1e-3 else f'periodicity {run.periodicity:.2g}'})")
 
 
+def _final_mean(sim: LoopSimulation) -> float:
+    """Mean of x over the whole periods in the last tenth of a run (between its first and last upward crossings of
+    the tail's mean level; the tail's plain mean when it does not oscillate)."""
+    from .harmonics import upward_crossings
+
+    k = max(sim.x.size // 10, 2)
+    t, x = sim.t[-k:], sim.x[-k:]
+    c = upward_crossings(t, x, float(np.mean(x)))
+    if c.size < 2:
+        return float(np.mean(x))
+    inner = (t > c[0]) & (t < c[-1])
+    ts = np.concatenate([[c[0]], t[inner], [c[-1]]])
+    xs = np.interp(ts, t, x)
+    return float(np.sum(0.5 * (xs[1:] + xs[:-1]) * np.diff(ts)) / (c[-1] - c[0]))
+
+
 @single_threaded_blas
 def verify_cycle(G, N, cycle, *, perturbation: float = 0.3, periods: float = 80, steps_per_period: int = 400,
-                 measure_periods: int = 10) -> Verification:
+                 measure_periods: int = 10, r0: float = 0.0, load: float = 0.0,
+                 bias: float | None = None) -> Verification:
     """Simulate the loop from inside and outside a predicted cycle and report whether it attracts.
 
     Parameters
@@ -200,6 +228,12 @@ def verify_cycle(G, N, cycle, *, perturbation: float = 0.3, periods: float = 80,
         Samples per period of the runs (the step only of the fixed-step fallback, see :func:`simulate_loop`).
     measure_periods : int
         Periods at the end of each run over which the steady oscillation is measured.
+    r0, load : float
+        A constant input (reference at the summing junction, load at the element's output).
+    bias : float or None
+        The predicted mean of x (None: ``cycle.bias`` of a :class:`~dfloop.solve.bias.BiasedCycle`, else 0). The
+        runs start on x = bias + (1 -/+ perturbation) A sin(w t), and each steady oscillation is measured about
+        its own mean (``Verification.means``).
     """
     from ._checks import in_closed_interval
     from .exact import cycle_argument
@@ -209,15 +243,19 @@ def verify_cycle(G, N, cycle, *, perturbation: float = 0.3, periods: float = 80,
     d = in_closed_interval("perturbation", perturbation, 1e-3, 0.95)
     periods, steps_per_period = _run_options(periods, steps_per_period)
     measure_periods = int(in_closed_interval("measure_periods", measure_periods, 1, 10**6))
-    runs, words, method, sims = [], [], "", []
+    bias = getattr(cycle, "bias", 0.0) if bias is None else bias
+    runs, words, method, sims, means = [], [], "", [], []
     for factor in (1 - d, 1 + d):
-        sim = simulate_loop(G, N, A0 * factor, w, periods=periods, steps_per_period=steps_per_period)
+        sim = simulate_loop(G, N, A0 * factor, w, periods=periods, steps_per_period=steps_per_period, r0=r0,
+                            load=load, bias=bias)
         sims.append(sim)
         method = sim.method
+        means.append(None if sim.diverged else _final_mean(sim))
         if sim.diverged:
             runs.append(SteadyState(float(np.max(np.abs(sim.x))), 0.0, 0.0, 0, False))
-        else:
-            runs.append(steady_state(sim.t, sim.x, measure_periods))
+        else:   # measured about the run's final mean (0 for a symmetric loop without constant input)
+            centre = means[-1] if (r0 != 0.0 or load != 0.0 or bias != 0.0) else 0.0
+            runs.append(steady_state(sim.t, sim.x - centre, measure_periods))
         words.append(_describe(runs[-1], sim, A0, d))
     offset = d * A0
     errors = [abs(r.amplitude - A0) for r in runs]
@@ -230,4 +268,5 @@ def verify_cycle(G, N, cycle, *, perturbation: float = 0.3, periods: float = 80,
     message = f"from inside: {words[0]}; from outside: {words[1]}"
     ex = getattr(cycle, "exact", None)
     exact_amplitude = float(ex.amplitude) if ex is not None and ex.success else None
-    return Verification(A0, w, runs[0], runs[1], d, verdict, message, method, tuple(sims), exact_amplitude)
+    return Verification(A0, w, runs[0], runs[1], d, verdict, message, method, tuple(sims), exact_amplitude,
+                        tuple(means))

@@ -1,8 +1,12 @@
 """Random loops for the standing fuzz of predict_limit_cycles (tests/test_solve_random.py, benchmarks/fuzz_solver.py).
 
 Each case is a plant (order 1-7, damping down to 1e-6, optional unstable poles, integrators, gains 1e-3..1e3,
-optional delay as a callable), an element of any kind, and a window choice (default or explicit). ``run_case``
-solves it with dfloop and with the independent reference of ``df_reference`` and returns the counts.
+optional delay as a callable), an element of any kind, and a window choice (default or explicit). The kinds
+``*_resonance`` put a frequency-dependent element (a lead-lag then a backlash; the mass-backlash) behind a sharp
+resonance (damping 3e-7..1e-4, gain up to 1e6, one or two real poles more): |G| up to ~1e11 there, so the roots
+lie within ~1e-11 (relative) of the edge of the element's dead band; their windows are default, explicit or
+narrow around the resonance. ``run_case`` solves it with dfloop and with the independent reference of
+``df_reference`` and returns the counts.
 """
 from __future__ import annotations
 
@@ -20,7 +24,21 @@ from dfloop.solve import as_plant
 import df_reference as ref
 
 KINDS = ["saturation", "deadzone", "relay", "relay_hyst", "backlash", "cubic", "coulomb", "preload", "quantizer",
-         "linear_then_static", "mass_backlash", "numeric_static", "numeric_hysteretic"]
+         "linear_then_static", "mass_backlash", "numeric_static", "numeric_hysteretic", "linear_then_static_resonance",
+         "mass_backlash_resonance"]
+_RESONANCE = "_resonance"
+
+
+def resonant_plant(rng: np.random.Generator, n_real: int):
+    """A resonance of damping 10^U(-6.5, -4) at w_n in [0.3, 3] rad/s, static gain 10^U(-3, 6), with ``n_real``
+    real poles in [0.1, 10] rad/s more (the phase lag a dead-band edge root needs: N's phase there is about
+    -90 degrees for the lead-lag and backlash, +90 for the mass-backlash)."""
+    zeta, wn = 10 ** rng.uniform(-6.5, -4), 10 ** rng.uniform(-0.5, 0.5)
+    real = [-10 ** rng.uniform(-1, 1) for _ in range(n_real)]
+    poles = [complex(-zeta * wn, wn * math.sqrt(1 - zeta ** 2)), complex(-zeta * wn, -wn * math.sqrt(1 - zeta ** 2))]
+    poles += real
+    gain = 10 ** rng.uniform(-3, 6) * wn ** 2 * abs(np.prod(real))
+    return ct.tf([gain], np.real(np.poly(poles))), np.array(poles, complex), np.array([], complex), 0.0, wn
 
 
 def random_plant(rng: np.random.Generator, order_max: int = 7):
@@ -160,11 +178,19 @@ def run_case(seed: int, default_windows: bool | None = None, kind: str | None = 
     G, poles, zeros, T = random_plant(rng)
     drawn = KINDS[int(rng.integers(len(KINDS)))]
     kind = drawn if kind is None else kind
+    resonance = kind.endswith(_RESONANCE)
+    if resonance:
+        kind = kind[:-len(_RESONANCE)]
+        G, poles, zeros, T, wn = resonant_plant(rng, 2 if kind == "mass_backlash" else 1)
     N = random_element(rng, kind)
     if default_windows is None:
         default_windows = bool(rng.random() < 0.5) and T == 0
+    narrow = resonance and not default_windows and rng.random() < 0.5
     if default_windows:
         omega, amplitude = None, None
+    elif narrow:  # around the resonance only, the element's amplitude window by default
+        d = 10 ** rng.uniform(-4, -1)
+        omega, amplitude = (wn * (1 - d), wn * (1 + d)), None
     else:
         omega = (10 ** rng.uniform(-2, -0.5), 10 ** rng.uniform(0.5, 1.5))
         s = _span(N, kind)
@@ -174,8 +200,9 @@ def run_case(seed: int, default_windows: bool | None = None, kind: str | None = 
     plant = G if T == 0 else (lambda w, G=G, T=T: np.exp(-1j * w * T) * as_plant(G)(w))
     if T and omega is None:
         omega = (0.05, 20.0)
-    out = {"seed": seed, "kind": kind, "G": G, "T": T, "N": N, "omega": omega, "amplitude": amplitude,
-           "misses": [], "extras": [], "bad_residual": [], "error": None}
+    out = {"seed": seed, "kind": kind + (_RESONANCE if resonance else ""), "G": G, "T": T, "N": N, "omega": omega,
+           "amplitude": amplitude, "misses": [], "extras": [], "extras_verified": [], "bad_residual": [],
+           "error": None}
     t0 = time.perf_counter()
     try:
         with warnings.catch_warnings():
@@ -212,13 +239,28 @@ def run_case(seed: int, default_windows: bool | None = None, kind: str | None = 
     if not N.frequency_dependent:  # the solver searches N's domain from its lower end (1 + 1e-9) (documented)
         d_lo = float(N.amplitude_domain()[0])
         want = [r for r in want if r[0] > d_lo * (1 + 1e-9)]
+
+    def residual(A, w):
+        gw = complex(plant(np.array([w]))[0]) if T else complex(G(1j * w))
+        return 1 + gw * complex(N(A, w) if N.frequency_dependent else N(A))
+
     misses, extras = ref.match(want, found)
-    out["misses"], out["extras"] = misses, extras
+    # a returned root the reference does not have, but whose residual from python-control's G and the element is
+    # at rounding level (relative 1e-9), is a root the reference's scans missed: counted apart, not as an extra
+    verified = [x for x in extras if abs(residual(*x)) <= 1e-9 * (2 + abs(residual(*x)))]
+    out["misses"], out["extras"] = misses, [x for x in extras if x not in verified]
+    out["extras_verified"] = verified
     for c in cyc:
-        gw = complex(plant(np.array([c.frequency]))[0]) if T else complex(G(1j * c.frequency))
-        n = complex(N(c.amplitude, c.frequency) if N.frequency_dependent else N(c.amplitude))
-        r = abs(1 + gw * n) / (1 + abs(gw * n))
-        if r > 1e-6:
-            out["bad_residual"].append((c.amplitude, c.frequency, r))
+        r = residual(c.amplitude, c.frequency)
+        if abs(r) <= 1e-6 * (2 + abs(r)):
+            continue
+        # beyond 1e-6 only at the floor rounding sets: R changes that much within 8 float steps of ln A or ln w
+        # (a root 1e-11 from a dead-band edge under |G| = 1e10); measured here on R itself, not on the solver
+        la, lw = math.log(c.amplitude), math.log(c.frequency)
+        ua, uw = (8 * max(np.spacing(abs(x)), np.finfo(float).eps) for x in (la, lw))
+        floor = 4 * (abs(residual(math.exp(la + ua), c.frequency) - residual(math.exp(la - ua), c.frequency))
+                     + abs(residual(c.amplitude, math.exp(lw + uw)) - residual(c.amplitude, math.exp(lw - uw))))
+        if abs(r) > floor:
+            out["bad_residual"].append((c.amplitude, c.frequency, abs(r) / (1 + abs(r - 1))))
     out["n_reference"] = len(want)
     return out

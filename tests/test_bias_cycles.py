@@ -161,31 +161,33 @@ def test_bad_input():
 
 
 def test_exact_biased_orbit_from_the_engine():
-    """dfloop's exact engine on the shifted loop gives the orbit derived above (matrix exponential + fsolve)."""
-    from dfloop.biased import exact_biased_cycle
+    """dfloop's exact engine with the constant input gives the orbit derived above (matrix exponential + fsolve)."""
+    from dfloop import exact_cycle
 
     M1, M2, K, r0 = 1.5, 0.6, 4.0, 0.4
     G = ct.tf([K], [1, 3, 3, 1])
     relay = DualInputDF.piecewise_affine([0.0], [-M2, M1], [0.0, 0.0])
     (c,) = predict_biased_cycles(G, relay, r0=r0, amplitude=(0.01, 50))
-    ex = exact_biased_cycle(G, relay, c, r0=r0)
+    ex = exact_cycle(G, relay.describing_function, c, r0=r0)
     frac = (math.pi + 2 * math.asin(c.bias / c.amplitude)) / (2 * math.pi)
     t1, t2, _, _ = _exact_relay_orbit(G, M1, M2, r0, [frac * c.period, (1 - frac) * c.period])
     T = t1 + t2
     assert ex.success and ex.stable
     assert 2 * math.pi / ex.frequency == pytest.approx(T, rel=1e-10)
-    # e's mean from the engine's uniform samples of a period against the duty cycle of u (measured 1.2e-13)
-    assert ex.bias == pytest.approx(r0 - K * (M1 * t1 - M2 * t2) / T, abs=1e-10)
-    assert "ExactBiasedCycle" in repr(ex)
-    with pytest.raises(DfloopError, match="memory"):
-        exact_biased_cycle(G, Relay(1.0, hysteresis=0.1), c, r0=r0)
+    # e's exact mean (the flow's integral) against the duty cycle of u
+    assert ex.mean == pytest.approx(r0 - K * (M1 * t1 - M2 * t2) / T, abs=1e-12)
+    assert "mean=" in repr(ex)
+    with pytest.raises(ValueError, match="constant input"):   # no constant input with a delay
+        from dfloop.solve.delay import delayed
+
+        exact_cycle(delayed(G, 0.1), relay.describing_function, c, r0=r0)
 
 
 def test_two_biased_cycles_stability_against_the_exact_flow():
     """A dead-zone relay with a load around 3/(s(s+1)(s+2)): an inner cycle the reduced Loeb test calls unstable
-    and an outer one it calls stable. The exact engine confirms the outer orbit (stable by its multipliers) and,
-    flowing 30 periods from the inner prediction, leaves it for the outer orbit."""
-    from dfloop.biased import exact_biased_cycle
+    and an outer one it calls stable. The exact engine confirms the outer orbit (stable by its multipliers); from
+    the inner prediction (a DF artefact this close to the dead zone) every motion goes to the outer orbit."""
+    from dfloop import exact_cycle
 
     G, relay = ct.tf([3.0], [1, 3, 2, 0]), Relay(1.0, dead_zone=0.2)
     cycles = predict_biased_cycles(G, relay, load=0.1, amplitude=(0.201, 20))
@@ -193,9 +195,10 @@ def test_two_biased_cycles_stability_against_the_exact_flow():
     inner, outer = sorted(cycles, key=lambda c: c.amplitude)
     for c in cycles:  # the DF balance with an integrator: mean output cancels the load
         assert c.mean_output == pytest.approx(-0.1, abs=1e-12)
-    ex = exact_biased_cycle(G, relay, outer, load=0.1)
+    ex = exact_cycle(G, relay, outer, load=0.1)
     assert ex.success and ex.stable
     assert abs(ex.amplitude - outer.amplitude) < 0.05 * ex.amplitude  # DF error measured: -2.9 %
-    assert abs(ex.bias - outer.bias) < 0.01  # measured: exact -0.0814, DF -0.0868
-    gone = exact_biased_cycle(G, relay, inner, load=0.1)
-    assert not gone.success and "another orbit" in gone.exact.message
+    assert abs(ex.mean - outer.bias) < 0.01  # measured: exact -0.0814, DF -0.0868
+    gone = exact_cycle(G, relay, inner, load=0.1)
+    assert not gone.success and gone.extra["outcome"] == "another cycle"
+    assert f"A={ex.amplitude:.6g}" in gone.message

@@ -79,6 +79,23 @@ def test_cache_dir_from_environment(monkeypatch, tmp_path):
     assert cache.cache_dir() == tmp_path / "xdg" / "dfloop"
 
 
+@pytest.mark.parametrize("value", ["", "  "])
+def test_empty_cache_dir_is_refused_by_the_table_code_too(monkeypatch, value):
+    """DFLOOP_CACHE_DIR set but blank is one rule everywhere: refused with its name (the CLI and cache admin
+    refuse it too), never silently the default directory."""
+    from dfloop.cache_admin import cache_info
+    from dfloop.tables.store import TableStore
+
+    monkeypatch.setenv("DFLOOP_CACHE_DIR", value)
+    with pytest.raises(ValueError, match="DFLOOP_CACHE_DIR is set but empty"):
+        cache.cache_dir()
+    store = TableStore("probe", lambda: {"x": 1}, lambda arrays: None)
+    with pytest.raises(ValueError, match="DFLOOP_CACHE_DIR is set but empty"):
+        store.load_cached()
+    with pytest.raises(ValueError, match="DFLOOP_CACHE_DIR is set but empty"):
+        cache_info()
+
+
 def test_code_version_covers_every_module_the_tables_run():
     """The cache key hashes the sources that decide a table's content: every module of dfloop.impact and
     dfloop.tables that dynamic_backlash.py imports, directly or through another one (relative imports of any

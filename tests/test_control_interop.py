@@ -335,8 +335,17 @@ def test_dynamic_backlash_says_what_to_use_instead():
 
     with pytest.raises(ValueError, match="simulate_loop"):
         to_control(DynamicBacklash(1.0, 1.0, 0.1, 0.5))
-    with pytest.raises(ValueError, match="hysteretic NumericDF"):
-        to_control(df.NumericDF(df.Backlash(h=1.0))).to_nlsys(dt=0.1)
+
+    class Stop:   # a user's hysteretic operator: its state is opaque to dfloop
+        def __init__(self):
+            self.y = 0.0
+
+        def __call__(self, x):
+            self.y = min(max(self.y + 0.1 * x, -1.0), 1.0)
+            return self.y
+
+    with pytest.raises(ValueError, match="hysteretic NumericDF of an operator other than"):
+        to_control(df.NumericDF(Stop(), hysteretic=True)).to_nlsys(dt=0.1)
 
     class OnlyDF(df.DescribingFunction):   # a DF without any time-domain model
         def _evaluate(self, A, omega):
@@ -375,3 +384,62 @@ def test_control_loop_rejects_what_it_cannot_simulate():
         control_loop(ct.tf([1.0, 1.0], [1.0, 2.0]), df.Saturation(1.0))
     with pytest.raises(ValueError, match="G must be a SISO python-control tf or ss"):
         control_loop(lambda s: 1 / s, df.Saturation(1.0))
+
+
+@pytest.mark.parametrize("element", [df.Backlash(h=1.0, k=2.0), df.Relay(M=1.0, hysteresis=0.2, dead_zone=0.5),
+                                     df.Relay(M=1.5, hysteresis=0.3)], ids=["backlash", "relay-3-level", "relay-hyst"])
+def test_hysteretic_numeric_df_of_dfloop_operators_is_a_play_nlsys(element):
+    """A hysteretic NumericDF of dfloop's play or relay operator converts like the element itself: F(x) is the
+    operator from rest, the discrete-time nlsys (state: the play) gives the same outputs on a random input, and
+    describing_function(A) is the NumericDF's own N(A)."""
+    N = df.NumericDF(element.operator(), hysteretic=True)
+    rng = np.random.default_rng(8)
+    x = np.cumsum(rng.normal(0.0, 0.3, 300))
+    op = element.operator()
+    expected = np.array([op(v) for v in x])
+    F = to_control(N)
+    np.testing.assert_array_equal(F(x), expected)
+    resp = ct.input_output_response(F.to_nlsys(dt=0.1), np.arange(x.size) * 0.1, x, [0.0])
+    np.testing.assert_allclose(resp.outputs, expected, rtol=0, atol=1e-12)
+    amps = np.array([0.9, 2.5])
+    np.testing.assert_array_equal(ct.describing_function(F, amps), N(amps))
+
+
+def test_closed_loop_of_a_hysteretic_numeric_df_settles_on_the_exact_cycle():
+    """control_loop(G, NumericDF(play operator)) in control.input_output_response settles on the exact cycle of the
+    same loop with the analytic Backlash (the same map; dfloop's exact engine): amplitude and frequency within 1e-5."""
+    G = ct.tf([5.0], [1.0, 1.0, 0.0])
+    cycles = df.predict_limit_cycles(G, df.Backlash(h=1.0), exact=True)
+    (cycle,) = [c for c in cycles if c.stable]
+    assert cycle.exact.success
+    loop = control_loop(G, df.NumericDF(df.Backlash(h=1.0).operator(), hysteretic=True))
+    T = np.linspace(0.0, 15 * cycle.period, 1501)
+    resp = ct.input_output_response(loop, T, 0.0, loop.initial_state((cycle.amplitude, cycle.frequency)),
+                                    solve_ivp_kwargs=dict(rtol=1e-8, atol=1e-10))
+    run = steady_state(T, resp.outputs[0], 4)
+    assert run.amplitude == pytest.approx(cycle.exact.amplitude, rel=1e-5)
+    assert run.frequency == pytest.approx(cycle.exact.frequency, rel=1e-5)
+
+
+def test_closed_loop_of_linear_then_static_with_feedthrough_settles_on_the_exact_cycle():
+    """A lag (0.5 s + 1)/(2 s + 1) (D = 1/4: a feedthrough into the play) then a backlash, around 2 / (s^2 + s):
+    the loop is the backlash loop around G G_lin, whose exact cycle (dfloop's exact engine) gives the element's
+    output y(t). control_loop(G, N) in control.input_output_response, started from the harmonic-balance orbit of the
+    composite's stable cycle, settles on it: frequency and the fundamental amplitude of y within 1e-4. A standalone
+    nlsys of this element is refused (its play needs the input's rate)."""
+    lin, G, bl = ct.tf([0.5, 1.0], [2.0, 1.0]), ct.tf([2.0], [1.0, 1.0, 0.0]), df.Backlash(h=1.0)
+    N = df.LinearThenStatic(lin, bl)
+    equivalent = df.predict_limit_cycles(G * lin, bl, exact=True)
+    (ex,) = [c.exact for c in equivalent if c.exact.success and c.exact.stable]
+    y_fundamental = 2 * abs(np.fft.rfft(ex.y)[1]) / ex.y.size   # y sampled uniformly over one period
+    (cycle,) = [c for c in df.predict_limit_cycles(G, N) if c.stable]
+    loop = control_loop(G, N)
+    T = np.linspace(0.0, 30 * 2 * np.pi / cycle.frequency, 3001)
+    resp = ct.input_output_response(loop, T, 0.0, loop.initial_state(cycle),
+                                    solve_ivp_kwargs=dict(rtol=1e-8, atol=1e-10))
+    run = steady_state(T, resp.outputs[1], 4)
+    assert run.frequency == pytest.approx(ex.frequency, rel=1e-4)
+    assert run.amplitude == pytest.approx(y_fundamental, rel=1e-4)
+    assert abs(cycle.frequency / ex.frequency - 1) > 1e-3   # the DF prediction alone would not pass
+    with pytest.raises(ValueError, match="control_loop"):
+        to_control(N)

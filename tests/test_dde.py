@@ -84,7 +84,8 @@ def test_time_simulation_of_the_delay_equation_settles_on_the_orbit(orbits):
 
 def test_the_dispatcher_picks_the_delay_engine_from_the_time_model():
     # loop_model reads the element's time model only: a static map (checked against the element's own output and
-    # breakpoints) -> the delay equation; piecewise constant -> the exact delay flow; memory -> ValueError naming N
+    # breakpoints) -> the delay equation; piecewise constant -> the exact delay flow; memory -> the delay equation with
+    # the element's state in the history; impacts -> ValueError naming N
     from dfloop.hybrid import DDELoop, DelayLoop
     from dfloop.hybrid.dde import static_map
 
@@ -101,5 +102,20 @@ def test_the_dispatcher_picks_the_delay_engine_from_the_time_model():
     for el in (df.Relay(1.0), df.Relay(1.0, hysteresis=0.1, dead_zone=0.2), df.Quantizer(0.5)):
         assert isinstance(loop_model(G, el, 2.0, 2.0), DelayLoop)
     assert static_map(df.Relay(1.0, hysteresis=0.1).time_model(2.0)) == (None, None)   # hysteretic: not a map
-    with pytest.raises(ValueError, match="N: Backlash"):
-        loop_model(G, df.Backlash(h=0.5), 2.0, 2.0)
+    from dfloop.hybrid.dde_memory import MemoryDDELoop
+
+    assert isinstance(loop_model(G, df.Backlash(h=0.5), 2.0, 2.0), MemoryDDELoop)   # memory: its state in history
+    with pytest.raises(ValueError, match="N: DynamicBacklash"):                     # impacts with a delay: not here
+        loop_model(G, df.DynamicBacklash(1.0, 1.0, 0.1, 0.5), 2.0, 2.0)
+
+
+def test_multipliers_with_a_delay_longer_than_the_period():
+    # the history window then wraps the periodic node indices more than once (an IndexError before); the
+    # multipliers still converge with the resolution, and the 2.74 rad/s cycle (period 2.29 s < T = 3 s) is
+    # unstable through a complex pair
+    G, N = delayed(ct.tf([4.0], [1.0, 1.0]), 3.0), df.Saturation(1.0)
+    c = sorted(df.predict_limit_cycles(G, N), key=lambda c: c.frequency)[1]
+    loop = loop_model(G, N, c.amplitude, c.frequency)
+    mu = [dde_orbit(loop, c.amplitude, c.frequency, nodes=n)["multipliers"] for n in (64, 128)]
+    assert abs(mu[1][0] - mu[0][0]) < 1e-4 * abs(mu[1][0]) and abs(mu[1][0]) > 1.2
+    assert abs(mu[1][0].imag) > 1.0 and np.min(np.abs(mu[1] - 1)) < 1e-4     # the pair, and the trivial one

@@ -73,9 +73,11 @@ def test_every_prediction_is_classified():
     text = repr(df.predict_limit_cycles(G, N, exact=True))
     assert "artefact" in text and "confirmed" in text
     assert df.predict_limit_cycles(G, N)[0].verdict.kind == "not checked"
-    # a delay with an element with memory has no exact engine: not checked, with the reason naming N
+    # a delay with an element with memory is checked (the delay equation with the element's state in the
+    # history); here the DF's unstable cycle sits between motions that rest and motions that diverge and shooting
+    # from it does not converge: inconclusive, never "artefact"
     bl = df.predict_limit_cycles(delayed(ct.tf([4.0], [1.0, 1.0, 0.0]), 0.3), df.Backlash(h=0.5), exact=True)
-    assert bl and all(c.verdict.kind == "not checked" and "N: Backlash" in c.verdict.detail for c in bl)
+    assert bl and all(c.verdict.kind == "not checked" and "unstable orbit may lie" in c.verdict.detail for c in bl)
 
 
 def test_relay_delay_scene_report_classifies_its_five_cycles(tmp_path):
@@ -103,3 +105,39 @@ def test_nyquist_labels_carry_the_verdicts():
     for c in cycles:
         assert any(f"{N.input_name}={c.amplitude:.3g}" in t and c.verdict.kind in t for t in texts)
     assert {c.verdict.kind for c in cycles} == {"artefact", "confirmed"}
+
+
+def test_dead_zone_motion_resting_off_zero_is_rest_with_where_never_not_periodic():
+    # a dead zone around a plant with an integrator: the motion started inside the (unstable) predicted cycle
+    # crosses zero a few times, then rests at a nonzero x inside the dead band (any x with |x| <= 0.5 is an
+    # equilibrium); the globalisation must say "rest" and where, never "not periodic"
+    from scipy.integrate import solve_ivp
+
+    from dfloop.hybrid import harmonic_balance_state, loop_model
+    from dfloop.hybrid.globalise import RUN_PERIODS
+    from dfloop.solve.verdict import exact_kind
+
+    G, N = ct.tf([3.0], [1.0, 2.0, 1.0, 0.0]), df.DeadZone(0.5)
+    c = df.predict_limit_cycles(G, N)[0]
+    pred = (0.85 * c.amplitude, c.frequency)
+    e = df.exact_cycle(G, N, pred, max_deviation=0.1)   # the unstable orbit (A ~ 1.85) is farther than 0.1
+    assert not e.success and "not periodic" not in e.message
+    first = e.extra["motions"][0]
+    assert first["outcome"] == "rest" and first["y_end"] == 0.0
+    assert 0.05 < abs(first["x_end"]) < 0.5                       # off zero, inside the dead band
+    assert f"comes to rest at x = {first['x_end']:.4g}" in e.message
+    # some motions rest, one diverges: an unstable orbit may separate them (here it does, A ~ 1.85, farther than
+    # max_deviation), so nothing is ruled out: not checked, never "artefact"
+    assert e.extra["outcome"] == "boundary" and exact_kind(e) == "not checked"
+    # independent truth: the same start integrated by scipy (the dead zone is continuous: no events needed)
+    loop = loop_model(G, N, *pred)
+    A, B = loop.plant
+    Cr = -loop.x_row[:A.shape[0]]
+    s0 = harmonic_balance_state(loop, N, *pred)
+
+    def rhs(t, s):
+        x = -Cr @ s
+        return A @ s + B * (np.sign(x) * max(abs(x) - 0.5, 0.0))
+
+    sol = solve_ivp(rhs, (0.0, RUN_PERIODS * 2 * np.pi / pred[1]), s0, method="DOP853", rtol=1e-11, atol=1e-12)
+    assert first["x_end"] == pytest.approx(-Cr @ sol.y[:, -1], abs=1e-6)

@@ -9,15 +9,21 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp, trapezoid
 
-from dfloop.impact.effects import (GROUND_EVENT, CoulombFriction, EffectsRun, LoadSpring, ViscousDamping,
-                                   simulate_with_effects)
+from dfloop.impact.effects import GROUND_EVENT, CoulombFriction, EffectsRun, LoadSpring, ViscousDamping
 from dfloop.impact.extract import describing_function_from_trajectory
 from dfloop.errors import EventLimitError
-from dfloop.impact.kernel import simulate
+from dfloop.impact.kernel import forced_motion, simulate
 from dfloop.impact.model import ImpactParameters
 from dfloop.impact.reference import simulate_solve_ivp
 
 M1, M2, H, F = 1.0, 1.0, 0.1, 50.0
+
+
+def simulate_with_effects(p, t_end, effects, max_events, chatter_tol):
+    """The forced motion from rest on the linear-mode engine (effects, or the paper's model without them)."""
+    run = forced_motion(p, effects, chatter_tol, closed_form=False)
+    run.advance(t_end, max_events)
+    return run.trajectory()
 
 
 @pytest.mark.parametrize("eps,w", [(0.8, 35.0), (0.0, 30.0), (0.5, 10.0)])
@@ -257,7 +263,7 @@ def test_jit_step_scan_takes_the_short_last_step_and_propagate_matches_expm():
 _PLAIN_SCRIPT = """
 import json, math
 from dfloop.impact.effects import CoulombFriction, ViscousDamping
-from dfloop.impact.kernel import simulate
+from dfloop.impact.kernel import forced_motion, simulate
 tr = simulate(1.0, 1.0, 0.1, 0.5, 50.0, 15.0, 1.0, effects=(ViscousDamping(0.5), CoulombFriction(20.0, "m2")))
 print(json.dumps({"t": tr.t0.tolist(), "cause": tr.cause.tolist(), "x1": tr.evaluate([0.3, 0.9])["x1"].tolist()}))
 """
@@ -288,17 +294,18 @@ def test_scene_damping_case_settles_its_chatter_and_keeps_momentum_balance():
     assert np.max(np.abs(p - (F42 / w * np.sin(w * imp["t"]) - c * x1))) < 1e-10 * F42 / w
 
 
-def test_record_from_bounds_the_records_and_keeps_the_df():
+def test_window_bounds_the_records_and_keeps_the_df():
     p = ImpactParameters(M1, M2, H, 0.5, F, 10.0)
     tp = 2 * math.pi / 10.0
     effects = (ViscousDamping(1.0),)
     full = simulate_with_effects(p, 40 * tp, effects, 10 ** 6, 1e-9)
-    tail = simulate_with_effects(p, 40 * tp, effects, 10 ** 6, 1e-9, record_from=30 * tp)
-    assert tail.t0[0] <= 30 * tp < tail.t0[1] and tail.t0.size < 0.4 * full.t0.size
-    assert tail.n_events == full.n_events
+    run = forced_motion(p, effects, 1e-9)
+    tail = run.window(30 * tp, 40 * tp, 10 ** 6)
+    assert tail.t0[0] == 30 * tp and tail.t0.size < 0.4 * full.t0.size
+    assert run.n_events == full.n_events
     a = describing_function_from_trajectory(full, 30, 10)
     b = describing_function_from_trajectory(tail, 30, 10)
-    assert a.N == b.N and a.n_impacts == b.n_impacts
+    assert a.n_impacts == b.n_impacts and abs(a.N - b.N) <= 1e-12 * abs(a.N)
     with pytest.raises(ValueError, match="t must lie"):
         tail.evaluate([tp])
 
@@ -336,7 +343,7 @@ def test_continued_run_is_the_single_run(effects, w):
     # advance / forget / advance as an adaptive transient uses it: the same motion as one run from rest
     p = ImpactParameters(M1, M2, H, 0.5, F, w)
     tp = 2 * math.pi / w
-    one = simulate_with_effects(p, 45 * tp, effects, 10 ** 6, 1e-9, record_from=25 * tp)
+    one = simulate_with_effects(p, 45 * tp, effects, 10 ** 6, 1e-9)
     run = EffectsRun(p, effects, 1e-9)
     run.advance(10 * tp, 10 ** 6, keep=False)
     run.advance(25 * tp, 10 ** 6, keep=False)
@@ -352,3 +359,19 @@ def test_continued_run_is_the_single_run(effects, w):
     np.testing.assert_allclose(cont.evaluate(t)["x1"], one.evaluate(t)["x1"], rtol=0, atol=1e-12)
     with pytest.raises(EventLimitError):
         EffectsRun(p, effects, 1e-9).advance(45 * tp, 10)
+
+
+@pytest.mark.parametrize("initial", [(0.01, -0.3, 0.0, 0.7), (-0.02, 0.1, 0.1, -0.4), (0.0, 0.0, 0.03, 0.0)])
+def test_both_paths_of_the_engine_agree_from_any_start(initial):
+    """forced_motion: the closed-form fast path and the linear-mode engine from the same free-flight start (on a wall
+    or inside the clearance) are one motion, impact for impact."""
+    p = ImpactParameters(M1, 1.3, H, 0.7, F, 25.0)
+    tp = p.period
+    fast = forced_motion(p, (), 1e-9, initial)
+    general = forced_motion(p, (), 1e-9, initial, closed_form=False)
+    a, b = fast.window(3 * tp, 6 * tp, 10 ** 6), general.window(3 * tp, 6 * tp, 10 ** 6)
+    t = np.linspace(3 * tp, 6 * tp, 401)
+    for key in ("x1", "v1", "gap"):
+        np.testing.assert_allclose(b.evaluate(t)[key], a.evaluate(t)[key], rtol=0, atol=1e-11)
+    ta, tb = (r.impacts["t"][r.impacts["t"] > 3 * tp] for r in (a, b))    # the window's impacts (the closed form
+    assert ta.size > 0 and np.max(np.abs(ta - tb)) < 1e-12                  # also keeps the one starting its segment)

@@ -57,7 +57,10 @@ def test_the_estimate_bounds_the_measured_peak(case):
     points = np.prod(res.grid_report.shape)
     per_point = BYTES_PER_POINT[case == "frequency-dependent"]
     assert peak <= per_point * points
-    assert peak >= 0.25 * per_point * points  # and the estimate is not a loose guess that refuses feasible grids
+    if case == "frequency-dependent":  # and the estimate is not a loose guess that refuses feasible grids
+        assert peak >= 0.25 * per_point * points
+    else:  # the loop product is read at the candidate cells only: not even one complex na x nv array (16 B/point)
+        assert peak < 16 * points
 
 
 def test_the_bound_is_a_knob(monkeypatch):

@@ -188,6 +188,23 @@ def test_forced_response():
     assert styles == {"-", "--"}
 
 
+def test_jump_region_and_exact_forced_points():
+    from dfloop.hybrid.forced import exact_forced_response
+    from dfloop.solve.forced import forced_response, jump_region
+
+    G, N = ct.tf([1.0], [1.0, 0.2, 1.0]), df.CubicStiffness(1.0, 0.5)
+    res = forced_response(G, N, 0.3, [1.5, 1.8, 2.1], amplitude=(1e-3, 20.0))
+    cplt = exact_forced_response(G, N, res, observe=False).plot()
+    check_figure(cplt.figure, "forced response with exact points")
+    labels = {line.get_label() for line in cplt.lines[2]}
+    assert labels == {"exact, stable", "exact, unstable"}
+    region = jump_region(G, N, [0.05, 0.1, 0.2, 0.3], np.linspace(0.5, 3.0, 26), amplitude=(1e-3, 20.0))
+    cplt = region.plot()
+    check_figure(cplt.figure, "jump region")
+    assert len(cplt.lines[1]) == 1 and {line.get_label() for line in cplt.lines[0]} == {"jump sweeping up",
+                                                                                         "jump sweeping down"}
+
+
 def _chart_loop(K, h):
     return K * ct.tf([1.0], [1.0, 3.0, 2.0, 0.0]), df.Backlash(h)
 
@@ -258,7 +275,8 @@ GALLERY = {"plot_nyquist": test_nyquist_pictures, "plot_residual_map": test_freq
            "plot_verification": test_time_domain_pictures, "plot_time_response": test_time_domain_pictures,
            "plot_sweep": test_sweep_and_collision_map, "plot_collision_map": test_sweep_and_collision_map,
            "plot_element_study": test_scene_figure_study, "plot_chart": test_design_chart,
-           "plot_forced_response": test_forced_response, "plot_relay_fit": test_relay_fit}
+           "plot_forced_response": test_forced_response, "plot_jump_region": test_jump_region_and_exact_forced_points,
+           "plot_relay_fit": test_relay_fit}
 
 
 def test_the_gallery_covers_every_plot_function():

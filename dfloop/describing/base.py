@@ -73,11 +73,16 @@ class DescribingFunction(ABC):
     ----------
     frequency_dependent : bool
         Whether N depends on omega. Amplitude-only elements accept and ignore ``omega``.
+    continuous : bool
+        Whether N is known to be continuous in (A, omega) for A, omega > 0, the edges of its amplitude domain
+        included (N rises from 0 there). The solver then never reports a winding of 1 + G N as a jump crossing:
+        it yields a root or says where it could not (``GridReport.uncertified``). False (unknown) by default.
     input_name, input_unit : str
         Name and unit of the input amplitude (e.g. ``"X"``, ``"m"``; ``"F"``, ``"N"``).
     """
 
     frequency_dependent: bool = False
+    continuous: bool = False
     input_name: str = "A"
     input_unit: str = ""
 

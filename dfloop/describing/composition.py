@@ -103,6 +103,11 @@ class LinearThenStatic(DescribingFunction):
             x = np.where(mag == 0.0, 0.0, mag * A)  # G_lin = 0 exactly: the element sees no input at any A
         return _product(g, self.static(x))
 
+    @property
+    def continuous(self) -> bool:
+        """Whether N is continuous: when the static element's N is (G_lin is finite and continuous)."""
+        return bool(self.static.continuous)
+
     def amplitude_domain(self, omega=None):
         """The static element's domain divided by |G_lin(j omega)| (omega required)."""
         if omega is None:

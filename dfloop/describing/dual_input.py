@@ -29,11 +29,14 @@ How each element is evaluated:
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .._checks import integer_at_least, real_array
 from ..errors import DfloopError
 from .base import DescribingFunction
+from .time_model import PiecewiseAffine
 from .static import (Backlash, CoulombViscousFriction, DeadZone, PreloadedSpring, Relay, Saturation,
                      StaticElement)
 
@@ -112,6 +115,7 @@ class DualInputDF:
         self._affine = None
         self._relay = None
         self._f = None
+        self._time_model = None
         self.function, levels = None, np.empty(0)
         if isinstance(element, StaticElement):
             self.function = element.output
@@ -154,8 +158,8 @@ class DualInputDF:
         elif isinstance(element, StaticElement):
             self._f = element.output
         elif isinstance(element, DescribingFunction):
-            raise DfloopError(f"element {element!r} has no dual-input DF in dfloop (static elements, relays and "
-                              "backlash have one; pass a static function f(x) with its breakpoints)")
+            self._time_model = _time_model_of(element)
+            self.memory = True
         elif callable(element):
             self._f = element
         else:
@@ -164,6 +168,9 @@ class DualInputDF:
             self.function, self.breakpoints = _affine_map(*self._affine), self._affine[0]
         self.method = ("closed form" if self._affine is not None else "switching phases" if self._relay is not None
                        else "shift invariance" if isinstance(element, Backlash) else "quadrature")
+        if self._time_model is not None:
+            self.method = ("switching phases of the time model" if isinstance(self._time_model, PiecewiseAffine)
+                           else f"sampled operator ({_SAMPLED} samples per period)")
 
     @classmethod
     def piecewise_affine(cls, levels, offsets, slopes) -> "DualInputDF":
@@ -197,6 +204,18 @@ class DualInputDF:
         new.element = f"piecewise affine (levels={L.tolist()}, offsets={c0.tolist()}, slopes={c1.tolist()})"
         return new
 
+    @property
+    def describing_function(self) -> DescribingFunction:
+        """The element as a :class:`~dfloop.DescribingFunction` with a time model, for :func:`dfloop.exact_cycle`
+        and :func:`dfloop.verify_cycle`: the element itself, or the static map as a
+        :class:`~dfloop.NumericDF` with its breakpoints (each level used as +-level)."""
+        if isinstance(self.element, DescribingFunction):
+            return self.element
+        from .numeric import NumericDF
+
+        levels = np.unique(np.abs(self.breakpoints))
+        return NumericDF(self.function, breakpoints=levels if levels.size else None)
+
     # ------------------------------------------------------------------------------------------------ values
 
     def mean(self, B, A) -> np.ndarray:
@@ -226,8 +245,15 @@ class DualInputDF:
 
     def error_estimate(self, B, A) -> np.ndarray:
         """Estimated |error| of (m, N_A) (the larger of the two): 0 for the exact paths; for the quadrature the
-        difference between ``nodes`` and ``nodes // 2`` nodes per piece."""
+        difference between ``nodes`` and ``nodes // 2`` nodes per piece; for a sampled operator the difference
+        between its sampled period and one of half as many samples."""
         b, a = _bias_amplitude(B, A)
+        if self._time_model is not None:
+            if isinstance(self._time_model, PiecewiseAffine):
+                return np.zeros(b.shape)
+            m1, n1 = _sampled_moments(self._time_model, b, a, _SAMPLED)
+            m2, n2 = _sampled_moments(self._time_model, b, a, _SAMPLED // 2)
+            return np.maximum(np.abs(m1 - m2), np.abs(n1 - n2))
         if self._f is None or self._affine is not None:
             return np.zeros(b.shape)
         m1, n1 = self._quadrature(b, a, self.nodes)
@@ -235,6 +261,10 @@ class DualInputDF:
         return np.maximum(np.abs(m1 - m2), np.abs(n1 - n2))
 
     def _moments(self, b: np.ndarray, a: np.ndarray):
+        if self._time_model is not None:
+            if isinstance(self._time_model, PiecewiseAffine):
+                return _modes_moments(self._time_model, b, a)
+            return _sampled_moments(self._time_model, b, a, _SAMPLED)
         if self._affine is not None:
             return self._closed(b, a)
         if self._relay is not None:
@@ -302,53 +332,182 @@ class DualInputDF:
         return np.where(held, np.where(b >= 0, M, -M), m), np.where(held, 0.0, n)
 
     def _switching(self, b, a):
-        """Relays with hysteresis and dead zone: the output is constant between the phases where e crosses one of
-        the switching levels +-on, +-off; those phases are exact, and the level held on each interval follows from
-        the relay's switching rule (that of :class:`~dfloop.describing.static.RelayOperator`) run over three
-        periods of the interval midpoints (vectorised over the points; the last two periods must agree)."""
+        """Relays with hysteresis and dead zone, in closed form: over the rising half of e = B + A sin(theta)
+        (theta from -pi/2 to pi/2) the relay can only release -M at e = -off and switch on at e = +on, over the
+        falling half only release +M at e = +off and switch to -M at e = -on (the switching rule of
+        :class:`~dfloop.describing.static.RelayOperator`); each crossing phase is exact (asin), the state held at
+        the input's minimum is the fixed point of the period's state map (reached from the level on B's side in
+        at most three periods), and the output, constant between the phases, is integrated exactly."""
         relay = self._relay
         M, on, off = relay.M, relay.on_level, relay.off_level
         bf, af = b.ravel(), a.ravel()
-        n = bf.size
-        lo = -0.5 * np.pi
-        cuts = []
-        for L in (on, off, -on, -off):
-            s = (L - bf) / af
-            inside = np.abs(s) < 1
-            t = np.arcsin(np.clip(s, -1.0, 1.0))
-            cuts += [np.where(inside, t, lo), np.where(inside, np.pi - t, lo)]
-        fixed = [np.full(n, lo), np.full(n, 0.5 * np.pi), np.full(n, 1.5 * np.pi)]
-        bounds = np.sort(np.stack(fixed + cuts, axis=1), axis=1)
-        left, right = bounds[:, :-1], bounds[:, 1:]
-        x_mid = bf[:, None] + af[:, None] * np.sin(0.5 * (left + right))
-        state = np.zeros(n)
-        up = (bf >= 0) & (bf - af >= off)  # +M never released: the upper level (see Notes)
-        down = (bf < 0) & (bf + af <= -off)
-        state[up], state[down] = 1.0, -1.0
-        periods = []
-        for _ in range(3):
-            held = np.empty_like(x_mid)
-            for k in range(x_mid.shape[1]):
-                x = x_mid[:, k]
-                new = state.copy()
-                leave = (state == 1) & (x < off)
-                new[leave] = np.where(x[leave] < -on, -1.0, 0.0)
-                leave = (state == -1) & (x > -off)
-                new[leave] = np.where(x[leave] > on, 1.0, 0.0)
-                rest = state == 0
-                new[rest & (x > on)], new[rest & (x < -on)] = 1.0, -1.0
-                state = new
-                held[:, k] = state
-            periods.append(held)
-        if not np.array_equal(periods[1], periods[2]):
-            row = int(np.argmax(np.any(periods[1] != periods[2], axis=1)))
+        x_min, x_max = bf - af, bf + af
+
+        def phase(level, falling):
+            t = np.arcsin(np.clip((level - bf) / af, -1.0, 1.0))
+            return np.pi - t if falling else t
+
+        # rising: release of -M (at -off) then switch-on (at +on); falling: release of +M (at off), switch to -M
+        rel_up, on_up = (x_min < -off) & (x_max > -off), x_max > on
+        rel_dn, on_dn = (x_max > off) & (x_min < off), x_min < -on
+        t_rel_up, t_on_up, t_rel_dn, t_on_dn = phase(-off, False), phase(on, False), phase(off, True), phase(-on, True)
+
+        def half(s, release, switch):
+            """State after a half period from state s: (state after the release, state at the end)."""
+            mid = np.where((s == release[0]) & release[1], 0.0, s)
+            return mid, np.where((mid == 0) & switch[1], switch[0], mid)
+
+        s = np.where(bf >= 0, np.where(x_max > on, 1.0, np.where(x_min < -on, -1.0, 0.0)),
+                     np.where(x_min < -on, -1.0, np.where(x_max > on, 1.0, 0.0)))
+        s = np.where((bf >= 0) & (x_min >= off), 1.0, np.where((bf < 0) & (x_max <= -off), -1.0, s))
+        for _ in range(4):
+            previous = s
+            _, s1 = half(s, (-1.0, rel_up), (1.0, on_up))
+            _, s = half(s1, (1.0, rel_dn), (-1.0, on_dn))
+        if not np.array_equal(s, previous):
+            row = int(np.argmax(s != previous))
             raise DfloopError(f"the relay's output is not periodic at B = {bf[row]!r}, A = {af[row]!r}")
-        y = M * periods[2]
-        m = np.sum(y * (right - left), axis=1) / (2 * np.pi)
-        fs = np.sum(y * (np.cos(left) - np.cos(right)), axis=1)
-        fc = np.sum(y * (np.sin(right) - np.sin(left)), axis=1)
+        s0 = s
+        u1, s1 = half(s0, (-1.0, rel_up), (1.0, on_up))
+        u2, s2 = half(s1, (1.0, rel_dn), (-1.0, on_dn))
+        lo, hi = -0.5 * np.pi, 0.5 * np.pi
+        # pieces (start, end, level): the release and switch phases only where they happen
+        ta = np.where((s0 == -1) & rel_up, t_rel_up, lo)
+        tb = np.where((u1 == 0) & on_up, t_on_up, hi)
+        tc = np.where((s1 == 1) & rel_dn, t_rel_dn, hi)
+        td = np.where((u2 == 0) & on_dn, t_on_dn, 1.5 * np.pi)
+        pieces = ((lo, ta, s0), (ta, tb, u1), (tb, hi, s1), (hi, tc, s1), (tc, td, u2), (td, 1.5 * np.pi, s2))
+        m = sum(level * (t1 - t0) for t0, t1, level in pieces) * (M / (2 * np.pi))
+        fs = M * sum(level * (np.cos(t0) - np.cos(t1)) for t0, t1, level in pieces)
+        fc = M * sum(level * (np.sin(t1) - np.sin(t0)) for t0, t1, level in pieces)
         return m.reshape(b.shape), ((fs + 1j * fc) / (np.pi * af)).reshape(b.shape)
 
     def __repr__(self) -> str:
         name = self.element if isinstance(self.element, str) else repr(self.element)
         return f"DualInputDF({name}, method={self.method!r})"
+
+
+# ------------------------------------------------------------------------- any element with a time model
+
+_SAMPLED = 8192          # samples per period of an operator-only element
+_PERIODS = 8             # bound on the periods run to reach the periodic regime of a piecewise-affine element
+_EVENTS = 1000           # bound on the switches of one period
+
+
+def _time_model_of(element):
+    """The element's time model for its dual-input DF (PiecewiseAffine or Sampled), or ValueError."""
+    from .time_model import Sampled
+
+    try:
+        tm = element.time_model(1.0)
+    except NotImplementedError:
+        tm = None
+    if not isinstance(tm, (PiecewiseAffine, Sampled)):
+        raise DfloopError(f"element {element!r} has no dual-input DF in dfloop: it needs a piecewise-affine or "
+                          "sampled time model (time_model()), or pass its static function f(x) with breakpoints")
+    return tm
+
+
+def _modes_moments(tm, b: np.ndarray, a: np.ndarray):
+    """Mean and N_A of any piecewise-affine element (its modes and guards, :mod:`dfloop.describing.time_model`)
+    driven by e = B + A sin(theta): within a mode the output is a + b sin(theta) and every guard
+    alpha + beta sin(theta) + gamma cos(theta) (x' taken as dx/dtheta: rate-independent guards), so each switching
+    phase is exact (an arcsine) and the output's moments are integrated exactly. The element starts in the mode its
+    own ``initial`` gives after a sampled period of the input and runs until two consecutive periods end in the same
+    state (at most ``_PERIODS``); the last period is integrated."""
+    bf, af = b.ravel(), a.ravel()
+    m_out, n_out = np.empty(bf.size), np.empty(bf.size, complex)
+    for i, (B, A) in enumerate(zip(bf, af)):
+        m_out[i], n_out[i] = _modes_one(tm, float(B), float(A))
+    return m_out.reshape(b.shape), n_out.reshape(b.shape)
+
+
+def _modes_one(tm, B: float, A: float):
+    theta0 = -0.5 * math.pi
+    history = B + A * np.sin(theta0 + 2 * np.pi * (np.arange(16) / 16 - 1.0))   # coarse: the periods below settle it
+    mode, e = tm.initial(np.append(history, B - A), 0.0)
+    previous = None
+    for _ in range(_PERIODS):
+        pieces, (mode, e) = _one_period(tm, B, A, theta0, int(mode), float(e))
+        state = (mode, e)
+        if previous is not None and previous[0] == state[0] and abs(previous[1] - state[1]) <= 1e-12 * (
+                abs(B) + A + abs(e)):
+            break
+        previous = state
+    else:
+        raise DfloopError(f"the element's output does not become periodic within {_PERIODS} periods at B = {B!r}, "
+                          f"A = {A!r}")
+    total = fs = fc = 0.0
+    for t0, t1, c0, c1 in pieces:
+        s0, s1, k0, k1 = math.sin(t0), math.sin(t1), math.cos(t0), math.cos(t1)
+        total += c0 * (t1 - t0) + c1 * (k0 - k1)
+        fs += c0 * (k0 - k1) + c1 * (0.5 * (t1 - t0) - 0.25 * (math.sin(2 * t1) - math.sin(2 * t0)))
+        fc += c0 * (s1 - s0) + c1 * 0.5 * (s1 * s1 - s0 * s0)
+    return total / (2 * math.pi), (fs + 1j * fc) / (math.pi * A)
+
+
+def _one_period(tm, B: float, A: float, theta0: float, mode: int, e: float):
+    """Pieces (theta0, theta1, c0, c1) with y = c0 + c1 sin(theta) over one period from theta0, and the end state."""
+    end = theta0 + 2 * math.pi
+    t = theta0
+    pieces = []
+
+    for _ in range(_EVENTS):
+        md = tm.modes[mode]
+        x0 = B + A * math.sin(t)
+        c0 = md.gx * B + md.ge * (e + md.de * (B - x0)) + md.g1
+        c1 = (md.gx + md.ge * md.de) * A
+        best, which = end, None
+        for j, g in enumerate(md.guards):
+            alpha = (g.cx + g.ce * md.de) * B + g.c1 + g.ce * (e - md.de * x0)
+            beta, gamma = (g.cx + g.ce * md.de) * A, g.cxd * A
+            hit = _down_crossing(alpha, beta, gamma, t, end)
+            if hit is not None and hit < best:
+                best, which = hit, j
+        pieces.append((t, best, c0, c1))
+        e = e + md.de * (B + A * math.sin(best) - x0)
+        if which is None:
+            return pieces, (mode, e)
+        g = md.guards[which]
+        if g.target < 0:
+            raise DfloopError(f"the input B + A sin(theta) (B = {B!r}, A = {A!r}) leaves the range the element's "
+                              "model covers")
+        x = B + A * math.sin(best)
+        if g.reset is not None:
+            e = g.reset[0] * x + g.reset[1]
+        mode, t = g.target, best
+    raise DfloopError(f"more than {_EVENTS} switches in one period at B = {B!r}, A = {A!r} (a chattering element?)")
+
+
+def _down_crossing(alpha: float, beta: float, gamma: float, t0: float, t1: float):
+    """First phase in (t0, t1] where alpha + beta sin(theta) + gamma cos(theta) falls through 0 (or is already
+    below 0 and falling at t0: then t0), None if none."""
+    rho = math.hypot(beta, gamma)
+    scale = abs(alpha) + rho
+    if scale == 0.0:
+        return None
+    g0 = alpha + beta * math.sin(t0) + gamma * math.cos(t0)
+    d0 = beta * math.cos(t0) - gamma * math.sin(t0)
+    if g0 < -1e-12 * scale or (abs(g0) <= 1e-12 * scale and d0 < -1e-12 * scale):
+        return t0          # outside the mode already (entered at a switch whose guard here fails): leave now
+    if rho <= abs(alpha):
+        return None        # never reaches 0 (or touches it only)
+    phi = math.atan2(gamma, beta)   # g = alpha + rho sin(theta + phi)
+    psi = math.pi - math.asin(min(max(-alpha / rho, -1.0), 1.0)) - phi   # falling zero
+    k = math.ceil((t0 - psi) / (2 * math.pi))
+    hit = psi + 2 * math.pi * k
+    if hit <= t0 + 1e-13 * (1.0 + abs(t0)):
+        hit += 2 * math.pi
+    return float(hit) if hit <= t1 else None
+
+
+def _sampled_moments(tm, b: np.ndarray, a: np.ndarray, samples: int):
+    """Mean and N_A of an operator-only element from its periodic response to ``samples`` samples of a period."""
+    theta = 2 * np.pi * np.arange(samples) / samples
+    bf, af = b.ravel(), a.ravel()
+    m_out, n_out = np.empty(bf.size), np.empty(bf.size, complex)
+    for i, (B, A) in enumerate(zip(bf, af)):
+        y = np.asarray(tm.response(B + A * np.sin(theta)), float)
+        m_out[i] = float(np.mean(y))
+        n_out[i] = 2j * np.mean(y * np.exp(-1j * theta)) / A
+    return m_out.reshape(b.shape), n_out.reshape(b.shape)

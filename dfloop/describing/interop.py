@@ -39,9 +39,12 @@ hysteretic (Backlash, Relay with hysteresis,           ``ControlNonlinearity``: 
 hysteretic NumericDF)                                  rest (python-control's own convention for its
                                                        friction_backlash_nonlinearity), ``_isstatic()`` False;
                                                        ``to_nlsys(dt)`` a discrete-time ``nlsys`` whose state is
-                                                       the play (Backlash, Relay only)
+                                                       the play (Backlash, Relay, and a hysteretic NumericDF of
+                                                       dfloop's PlayOperator or RelayOperator)
 dynamic (LinearThenStatic, MassBacklash)               a continuous-time ``nlsys``: the linear block's states and
-                                                       the static part's play
+                                                       the static part's play (a proper block with D != 0 before
+                                                       a play: in :func:`control_loop` only, which knows the
+                                                       input's rate)
 DynamicBacklash                                        ``ValueError``: impacts (velocity jumps) are no ``nlsys``;
                                                        :func:`dfloop.verify.simulate_loop` runs its loop exactly
 =====================================================  =========================================================
@@ -68,7 +71,7 @@ from ..errors import DfloopError
 from .base import DescribingFunction
 from .composition import LinearThenStatic
 from .numeric import NumericDF
-from .static import Backlash, Relay, Saturation, StaticElement
+from .static import Backlash, PlayOperator, Relay, RelayOperator, Saturation, StaticElement
 from .time_model import impact_model
 
 __all__ = ["as_element", "ControlDescribingFunction", "to_control", "control_loop", "control_initial_state"]
@@ -334,29 +337,32 @@ class _PlayModel:
 
 
 class _LinearModel:
-    """A strictly proper linear block (A, B, C) followed by an element model (input C z)."""
+    """A proper linear block (A, B, C, D) followed by an element model (input C z + D u).
 
-    needs_rate = False
+    With D != 0 and an inner play, the play's rate needs the input's rate du/dt (``needs_rate``): known inside
+    :func:`control_loop` (from the plant's state), not in a standalone ``nlsys``."""
 
-    def __init__(self, A, B, C, inner):
-        self.A, self.B, self.C, self.inner = A, B, C, inner
+    def __init__(self, A, B, C, inner, D: float = 0.0):
+        self.A, self.B, self.C, self.D, self.inner = A, B, C, float(D), inner
         self.n = A.shape[0]
         self.nstates = self.n + inner.nstates
+        self.needs_rate = self.D != 0.0 and inner.needs_rate
 
     def output(self, s, u: float) -> float:
-        return self.inner.output(s[self.n:], float(self.C @ s[:self.n]))
+        return self.inner.output(s[self.n:], float(self.C @ s[:self.n]) + self.D * u)
 
     def rate(self, s, u: float, udot: float) -> np.ndarray:
         z = s[:self.n]
         zdot = self.A @ z + self.B * u
-        return np.concatenate([zdot, self.inner.rate(s[self.n:], float(self.C @ z), float(self.C @ zdot))])
+        return np.concatenate([zdot, self.inner.rate(s[self.n:], float(self.C @ z) + self.D * u,
+                                                     float(self.C @ zdot) + self.D * udot)])
 
     def step(self, s, u: float) -> np.ndarray:
         raise ValueError("a linear block has no discrete-time model here: use the continuous-time system")
 
     def initial(self, X: complex, w: float) -> np.ndarray:
         Z = np.linalg.solve(1j * w * np.eye(self.n) - self.A, self.B) * X   # the block's periodic state phasor
-        return np.concatenate([Z.imag, self.inner.initial(complex(self.C @ Z), w)])
+        return np.concatenate([Z.imag, self.inner.initial(complex(self.C @ Z) + self.D * X, w)])
 
 
 def _relay_output(M: float, d: float):
@@ -364,7 +370,8 @@ def _relay_output(M: float, d: float):
 
 
 def _ss_matrices(G, name: str, *, proper_only: bool = True):
-    """(A, B, C) of a SISO python-control tf/ss (``ValueError`` naming ``name`` otherwise)."""
+    """(A, B, C) of a SISO python-control tf/ss (``ValueError`` naming ``name`` otherwise); with
+    ``proper_only=False`` (A, B, C, D), D a float."""
     import control as ct
 
     if not isinstance(G, (ct.TransferFunction, ct.StateSpace)) or G.ninputs != 1 or G.noutputs != 1:
@@ -375,7 +382,8 @@ def _ss_matrices(G, name: str, *, proper_only: bool = True):
     if proper_only and np.any(np.asarray(s.D) != 0):
         raise ValueError(f"{name} must be strictly proper (D = 0: a direct feedthrough closes an algebraic loop "
                          f"through the element), got D = {float(np.asarray(s.D).ravel()[0])!r}")
-    return np.asarray(s.A, float), np.asarray(s.B, float)[:, 0], np.asarray(s.C, float)[0]
+    mats = np.asarray(s.A, float), np.asarray(s.B, float)[:, 0], np.asarray(s.C, float)[0]
+    return mats if proper_only else (*mats, float(np.asarray(s.D).ravel()[0]))
 
 
 def _model(N):
@@ -390,6 +398,12 @@ def _model(N):
         return _StaticModel(np.vectorize(out, otypes=[float])) if N.hysteresis == 0.0 else _PlayModel(N.hysteresis, out)
     if isinstance(N, NumericDF) and not N.hysteretic:
         return _StaticModel(N.element)
+    if isinstance(N, NumericDF) and type(N.element) is PlayOperator:   # its state is the play: a state vector
+        k = N.element.k
+        return _PlayModel(0.5 * N.element.h, lambda c: k * c)
+    if isinstance(N, NumericDF) and type(N.element) is RelayOperator:
+        op = N.element                       # on = d + a, off = d - a
+        return _PlayModel(0.5 * (op.on - op.off), _relay_output(op.M, 0.5 * (op.on + op.off)))
     if isinstance(N, ControlDescribingFunction):
         f = N.nonlinearity
         static = getattr(f, "_isstatic", None)
@@ -403,7 +417,8 @@ def _model(N):
             return _LinearModel(*N.linear.state_space(), inner)
         if ct is None or not isinstance(N.linear, ct.LTI):
             return None
-        return _LinearModel(*_ss_matrices(N.linear, "the element's linear block"), inner)
+        A, B, C, D = _ss_matrices(N.linear, "the element's linear block", proper_only=False)
+        return _LinearModel(A, B, C, inner, D)
     return None
 
 
@@ -411,8 +426,8 @@ def _no_model(N) -> ValueError:
     why = ("its impacts (velocity jumps) are no python-control nlsys; dfloop.verify.simulate_loop(G, N, "
            "amplitude, frequency) runs its closed loop on the exact impact engine"
            if impact_model(N) is not None else
-           "it has no state model here (a hysteretic NumericDF keeps its state inside its operator; a LinearThenStatic "
-           "needs a python-control tf/ss linear block)")
+           "it has no state model here (a hysteretic NumericDF of an operator other than dfloop's play or relay "
+           "keeps its state inside that operator; a LinearThenStatic needs a python-control tf/ss linear block)")
     return ValueError(f"N = {N!r} cannot be converted to a python-control system: {why}")
 
 
@@ -482,8 +497,9 @@ def _nonlinearity_class():
 
             A static element gives a static ``nlsys`` (no state). Backlash and relays with hysteresis give a
             discrete-time ``nlsys`` with sampling period ``dt`` (s, > 0) whose state is the play (the exact
-            operator at the samples); in continuous time the play needs its input's rate, which only a closed
-            loop provides: :func:`dfloop.control_loop`.
+            operator at the samples; also a hysteretic NumericDF of dfloop's PlayOperator or RelayOperator); in
+            continuous time the play needs its input's rate, which only a closed loop provides:
+            :func:`dfloop.control_loop`.
             """
             model = _model(self.element)
             if model is None:
@@ -550,6 +566,10 @@ def to_control(element: Any) -> Any:
     model = _model(N)
     if model is None:
         raise _no_model(N)
+    if model.needs_rate:
+        raise ValueError(f"N = {N!r} cannot be a standalone python-control nlsys: its linear block passes the input "
+                         "straight through (D != 0) to a play, whose motion needs the input's rate; build the closed "
+                         "loop with dfloop.control_loop(G, N), which knows that rate from the plant's state")
 
     def rhs(t, s, u, p):
         return model.rate(s, float(np.ravel(u)[0]), 0.0)
@@ -606,7 +626,8 @@ def control_loop(G: Any, N: Any, *, name: str = "dfloop_loop") -> Any:
     G : control.TransferFunction or control.StateSpace
         SISO, continuous-time, strictly proper (D = 0).
     N : DescribingFunction or anything :func:`as_element` accepts
-        Any element with a state model (all but the dynamic backlash and hysteretic ``NumericDF``).
+        Any element with a state model: all but the dynamic backlash (impacts) and a hysteretic ``NumericDF`` of
+        an operator other than dfloop's ``PlayOperator`` / ``RelayOperator`` (its state is opaque).
 
     Returns
     -------

@@ -320,6 +320,12 @@ class NumericDF(DescribingFunction):
         self.nodes, self.samples, self.method = int(nodes), int(samples), method
         self.input_name, self.input_unit = text("input_name", input_name), text("input_unit", input_unit)
 
+    @property
+    def continuous(self) -> bool:
+        """Whether N is known to be continuous: for a static f (a bounded f(A sin t) moves its average
+        continuously with A); a hysteretic operator may switch on at a non-zero fundamental (a jump)."""
+        return not self.hysteretic
+
     def time_model(self, amplitude: float):
         """A static f: piecewise affine between its breakpoints or smooth; a hysteretic operator with its own
         ``time_model`` (the relay and play operators): that; any other operator:

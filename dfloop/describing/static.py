@@ -95,7 +95,11 @@ def _domain(lo: float, hi: float, omega) -> tuple[np.ndarray, np.ndarray]:
 
 
 class StaticElement(DescribingFunction):
-    """A memoryless odd element y = f(x): real N, a vectorised :meth:`output` and a static operator."""
+    """A memoryless odd element y = f(x): real N, a vectorised :meth:`output` and a static operator.
+
+    N is continuous in A > 0 (the average of a bounded f(A sin t) sin t moves continuously with A)."""
+
+    continuous = True
 
     @abstractmethod
     def output(self, x) -> np.ndarray:
@@ -172,7 +176,7 @@ class Backlash(DescribingFunction):
     f(u) = (2/pi)(asin u + u sqrt(1 - u^2)), rewritten so that it keeps full relative precision near
     X = h/2 and for X >> h. N = 0 exactly for X <= h/2; N(h) = k/2 - j k/pi; N -> k as X -> inf.
 
-    Limits: N(0) = 0, N(inf) = k.
+    Limits: N(0) = 0, N(inf) = k. N is continuous (it rises from 0 at X = h/2).
 
     Parameters
     ----------
@@ -182,6 +186,7 @@ class Backlash(DescribingFunction):
         Slope of the engaged characteristic, > 0.
     """
 
+    continuous = True
     input_name = "X"
     input_unit = "m"
 
@@ -362,7 +367,8 @@ class Relay(DescribingFunction):
     a = 0. Switching needs x to pass a level strictly, so N = 0 exactly for A <= d + a (no switching, no
     fundamental), and N(0) = inf for the ideal relay (a = d = 0).
 
-    Limits: N(0) = inf for the ideal relay (a = d = 0), 0 otherwise; N(inf) = 0.
+    Limits: N(0) = inf for the ideal relay (a = d = 0), 0 otherwise; N(inf) = 0. N is continuous for A > 0
+    without hysteresis; with it, N jumps from 0 to a non-zero value at A = d + a.
 
     Parameters
     ----------
@@ -378,6 +384,11 @@ class Relay(DescribingFunction):
         self.M = positive("M", M)
         self.hysteresis = nonnegative("hysteresis", hysteresis)
         self.dead_zone = nonnegative("dead_zone", dead_zone)
+
+    @property
+    def continuous(self) -> bool:
+        """Whether N is continuous (no hysteresis)."""
+        return self.hysteresis == 0.0
 
     @property
     def on_level(self) -> float:

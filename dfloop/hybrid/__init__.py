@@ -21,7 +21,9 @@ Every other loop model has ``size``, ``x_row``, ``method``, ``exact`` (flows car
 (periods to run before shooting), ``plant`` (A, B), ``start(s0, x_history)``, ``admissible_mode(z, mode)``,
 ``flow(z, mode, t_end, monodromy=, max_events=)`` -> :class:`Flow`, ``signals(flow, t)`` -> (x, y),
 ``fourier(flow, T, w, K)`` and (when ``exact``) ``field(z, mode)`` and ``states(flow, t)``.
-:mod:`dfloop.hybrid.shooting` finds periodic orbits of any exact loop model and :func:`simulate` runs any of them.
+:mod:`dfloop.hybrid.shooting` finds periodic orbits of any exact loop model (autonomous, or at a fixed forcing
+period: :func:`forced_orbit`, used by :mod:`dfloop.hybrid.forced`) and :func:`simulate` runs any of them. A constant
+input (``loop_model(..., r0=, load=)``) rides on the constant state of piecewise-affine and smooth loops.
 """
 from .dde import DDELoop
 from .delay import DelayLoop, delay_orbit, delay_simulation
@@ -30,9 +32,9 @@ from .loop import Flow, HybridError, HybridLoop, plant_matrices
 from .model import harmonic_balance_state, input_history, loop_model, start_on_prediction
 from .run import LoopSimulation, simulate
 from .sampled import SampledLoop
-from .shooting import Orbit, ShootingError, periodic_orbit
+from .shooting import Orbit, ShootingError, forced_orbit, periodic_orbit
 from .smooth import SmoothLoop
 
 __all__ = ["DDELoop", "DelayLoop", "delay_orbit", "delay_simulation", "Flow", "HybridError", "HybridLoop", "SmoothLoop", "ImpactLoop", "SampledLoop", "plant_matrices",
            "loop_model", "harmonic_balance_state", "input_history", "start_on_prediction", "LoopSimulation", "simulate",
-           "Orbit", "ShootingError", "periodic_orbit"]
+           "Orbit", "ShootingError", "periodic_orbit", "forced_orbit"]

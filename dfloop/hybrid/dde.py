@@ -261,7 +261,10 @@ def multipliers(A, B, C, f, delay, S: np.ndarray, P: float, kinks=(), count: int
     dde = DelayDDE(A, B, C, f, delay, P / N, kinks)
     (k, E, idx, w), xi = _residual(dde, S)[1]
     fp = dde.slope(xi)
-    rel = (idx - k[:, None] + N // 2) % N - N // 2          # node offsets relative to the step (<= 0)
+    # node offsets relative to the step (<= 0): congruent to idx - k modulo N, within the 5-node window around
+    # -T / h (a delay longer than half the period, or than the period, wraps the periodic indices)
+    r_lo = -int(math.ceil(delay / dde.h)) - 3
+    rel = (idx - k[:, None] - r_lo) % N + r_lo
     lo = int(rel.min())
     H = -lo + 1                                              # history slots: x_{k+lo} .. x_k
     D = n + H

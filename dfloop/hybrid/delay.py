@@ -32,6 +32,7 @@ from scipy.optimize import brentq
 
 from ..describing.time_model import OUT_OF_RANGE, PiecewiseAffine
 from .dde import DDELoop, dde_orbit, dde_simulation
+from .dde_memory import DelayMemoryError, MemoryDDELoop, memory_orbit, memory_simulation
 from .run import LoopSimulation
 
 __all__ = ["DelayLoop", "DelayFlow", "DelayError", "piecewise_constant", "predicted_start", "return_map",
@@ -511,14 +512,18 @@ def _pack(s, queue):
     return np.concatenate([s, [q[0] for q in queue]])
 
 
-def delay_orbit(loop: DelayLoop | DDELoop, A0: float, w0: float, *, tol: float = 1e-11, max_iterations: int = 40,
+def delay_orbit(loop: DelayLoop | DDELoop | MemoryDDELoop, A0: float, w0: float, *, tol: float = 1e-11, max_iterations: int = 40,
                 harmonics: int = 15, samples: int = 512, max_events: int = 100_000, max_deviation: float = 0.5,
                 start=None) -> dict:
     """:func:`delay_periodic_orbit` (:func:`~dfloop.hybrid.dde.dde_orbit` for a
-    :class:`~dfloop.hybrid.dde.DDELoop`) with the prediction's errors and the ``max_deviation`` test: a dict of the
+    :class:`~dfloop.hybrid.dde.DDELoop`, :func:`~dfloop.hybrid.dde_memory.memory_orbit` for a
+    :class:`~dfloop.hybrid.dde_memory.MemoryDDELoop`) with the prediction's errors and the ``max_deviation`` test: a dict of the
     fields of :class:`dfloop.exact.ExactCycle` (``ExactCycle(**delay_orbit(...))``)."""
     if isinstance(loop, DDELoop):   # a static element with sloped pieces or a smooth one: the delay equation
         out = dde_orbit(loop, A0, w0, harmonics=harmonics, samples=samples)
+    elif isinstance(loop, MemoryDDELoop):   # an element with memory (backlash): its state in the history
+        out = memory_orbit(loop, A0, w0, tol=max(tol, 1e-12), max_iterations=max_iterations, harmonics=harmonics,
+                           samples=samples)
     else:
         out = delay_periodic_orbit(loop, A0, w0, tol=tol, max_iterations=max_iterations, harmonics=harmonics,
                                    samples=samples, max_events=max_events, start=start)
@@ -656,17 +661,23 @@ def _orbit_fields(loop, fl, J, s, mode, u, queue, section, P, residual, it, harm
                        "section": section, "delay": loop.delay})
 
 
-def delay_simulation(loop: DelayLoop | DDELoop, amplitude: float, frequency: float, periods: float,
+def delay_simulation(loop: DelayLoop | DDELoop | MemoryDDELoop, amplitude: float, frequency: float, periods: float,
                      steps_per_period: int, diverge: float = 1e6, max_events: int = 10_000_000) -> LoopSimulation:
     """Run the delayed loop from the predicted orbit of (amplitude, frequency) (:func:`predicted_start`, time 0
     at the switch into the element's highest level) for ``periods`` periods; x and y sampled uniformly. A
-    :class:`~dfloop.hybrid.dde.DDELoop` runs its method of steps instead (:func:`dde_simulation`).
+    :class:`~dfloop.hybrid.dde.DDELoop` runs its method of steps instead (:func:`dde_simulation`), a
+    :class:`~dfloop.hybrid.dde_memory.MemoryDDELoop` its own (:func:`memory_simulation`).
 
     Returns the :class:`~dfloop.hybrid.run.LoopSimulation`; the run stops early when |x| exceeds ``diverge``
     times the amplitude.
     """
     if isinstance(loop, DDELoop):
         return dde_simulation(loop, amplitude, frequency, periods, steps_per_period, diverge)
+    if isinstance(loop, MemoryDDELoop):
+        try:
+            return memory_simulation(loop, amplitude, frequency, periods, steps_per_period, diverge)
+        except DelayMemoryError as exc:
+            raise DelayError(str(exc)) from None
     P = 2.0 * math.pi / frequency
     s, mode, u, queue, _ = predicted_start(loop, amplitude, frequency)
     t_end = periods * P

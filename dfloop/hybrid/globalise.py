@@ -8,13 +8,15 @@ Before answering "no orbit", :func:`shoot_or_globalise`:
    set that straddles a fast switch can stall where single shooting converges);
 2. simulates the loop on the exact flow from the prediction and from starts 0.7 and 1.4 times its amplitude
    (``RUN_PERIODS`` predicted periods each) and measures where each motion went: a periodic motion (amplitude,
-   frequency, periodicity), rest, divergence, or a motion not periodic within the run;
+   frequency, periodicity), rest (anywhere: at x = 0 or off it inside the element's dead band or play, with
+   ``x_end`` and the element's output ``y_end`` there), divergence, or a motion not periodic within the run;
 3. shoots from every oscillating motion found (after settling on it for 20 more periods).
 
 An orbit found within ``max_deviation`` of the prediction is returned (its message says how it was found). A
 "no periodic orbit" answer carries the evidence: ``extra["motions"]`` (one dict per start) and
 ``extra["outcome"]``, one of ``"another cycle"`` (the motions settle on an exact orbit far from the
-prediction; its numbers are in the message), ``"rest"``, ``"divergence"``, ``"not periodic"``, or
+prediction; its numbers are in the message), ``"rest"``, ``"divergence"``, ``"not periodic"``, ``"boundary"``
+(some motions decay to rest, others diverge: an unstable orbit may lie between them, so no orbit is ruled out), or
 ``"shooting failed"`` (a periodic motion was seen but no shooting from it converged).
 """
 from __future__ import annotations
@@ -30,7 +32,7 @@ from .delay import DelayError, delay_simulation, split_delay
 from .loop import HybridError
 from .model import loop_model, start_on_prediction
 
-__all__ = ["shoot_or_globalise", "RUN_PERIODS", "STARTS"]
+__all__ = ["shoot_or_globalise", "inside_search", "RUN_PERIODS", "STARTS"]
 
 RUN_PERIODS = 200          # predicted periods per run
 STARTS = (1.0, 0.7, 1.4)   # start amplitudes, relative to the prediction
@@ -43,8 +45,15 @@ _DIVERGED = 1e6
 _INSIDE = contextvars.ContextVar("dfloop_exact_cycle_inside", default=False)
 
 
-def shoot_or_globalise(G, N, predicted: tuple, shoot, max_deviation: float):
+def inside_search() -> bool:
+    """True inside a shooting that :func:`shoot_or_globalise` started (its ``exact_cycle`` calls)."""
+    return _INSIDE.get()
+
+
+def shoot_or_globalise(G, N, predicted: tuple, shoot, max_deviation: float, constant: dict | None = None):
     """Run ``shoot(cycle, **options)`` (one :func:`dfloop.exact_cycle` call) and globalise when it fails.
+
+    ``constant``: the loop's constant input and the predicted bias (``r0``, ``load``, ``bias``), for the runs.
 
     Returns None when called from inside a shooting started here (the caller then shoots itself), otherwise
     an :class:`~dfloop.exact.ExactCycle`.
@@ -56,16 +65,18 @@ def shoot_or_globalise(G, N, predicted: tuple, shoot, max_deviation: float):
         first = shoot(predicted)
         if first.success:
             return first
-        return _globalise(G, N, predicted, first, shoot, max_deviation)
+        return _globalise(G, N, predicted, first, shoot, max_deviation, constant or {})
     finally:
         _INSIDE.reset(token)
 
 
-def _simulate(G, N, A: float, w: float, periods: float):
-    """(t, x, diverged, method) of the loop run on its exact flow from the predicted orbit of (A, w), or None
-    when the loop has no exact flow (a run that fails part-way returns the part before the failure)."""
+def _simulate(G, N, A: float, w: float, periods: float, r0: float = 0.0, load: float = 0.0, bias: float = 0.0):
+    """(t, x, diverged, method, y_end) of the loop run on its exact flow from the predicted orbit of (A, w), or None
+    when the loop has no exact flow (a run that fails part-way returns the part before the failure). With a
+    constant input (r0, load) the run starts on x = bias + A sin(w t) and x is returned less its final mean;
+    y_end is the element's output at the end of the run."""
     try:
-        loop = loop_model(G, N, A, w)
+        loop = loop_model(G, N, A + abs(bias), w, r0=r0, load=load)
     except ValueError:
         return None
     if not loop.exact:
@@ -75,53 +86,73 @@ def _simulate(G, N, A: float, w: float, periods: float):
             sim = delay_simulation(loop, A, w, periods, 64, diverge=_DIVERGED)
         except DelayError as exc:
             if "left the range" in str(exc):          # the quantizer's modelled range (64 A): a divergence
-                return np.array([0.0]), np.array([_DIVERGED * A]), True, str(exc)
+                return np.array([0.0]), np.array([_DIVERGED * A]), True, str(exc), math.nan
             if "never switches" in str(exc):          # the element stays at rest: so does its output
-                return np.array([0.0]), np.array([0.0]), False, str(exc)
+                return np.array([0.0]), np.array([0.0]), False, str(exc), 0.0
             return None
-        return sim.t, sim.x, sim.diverged, sim.method
+        return sim.t, sim.x, sim.diverged, sim.method, float(sim.y[-1])
     P = 2.0 * math.pi / w
     ts, xs = [], []
-    diverged = False
+    diverged, y_end = False, math.nan
     try:
-        z, mode = start_on_prediction(loop, N, A, w)
+        z, mode = start_on_prediction(loop, N, A, w, bias=bias)
         for p in range(int(periods)):
             fl = loop.flow(z, mode, P, max_events=100_000)
             tk = np.arange(64) * (P / 64)
-            xk = loop.signals(fl, tk)[0]
+            xk, yk = loop.signals(fl, tk)
+            y_end = float(yk[-1])
             ts.append(p * P + tk)
             xs.append(xk)
             z, mode = fl.z, fl.mode
-            if not np.all(np.isfinite(xk)) or np.max(np.abs(xk)) > _DIVERGED * A:
+            if not np.all(np.isfinite(xk)) or np.max(np.abs(xk - bias)) > _DIVERGED * A:
                 diverged = True
                 break
     except HybridError:
         if not ts:
             return None
-    return np.concatenate(ts), np.concatenate(xs), diverged, loop.method
+    x = np.concatenate(xs)
+    if (r0 != 0.0 or load != 0.0 or bias != 0.0) and not diverged:
+        x = x - np.mean(x[-max(x.size // 10, 1):])
+    return np.concatenate(ts), x, diverged, loop.method, y_end
 
 
-def _motion(G, N, A0: float, w0: float, factor: float) -> dict:
+def _motion(G, N, A0: float, w0: float, factor: float, constant: dict | None = None) -> dict:
     """Where the motion started on the predicted orbit scaled by ``factor`` went."""
     A = factor * A0
-    run = _simulate(G, N, A, w0, RUN_PERIODS)
+    run = _simulate(G, N, A, w0, RUN_PERIODS, **(constant or {}))
     out = {"start_amplitude": A, "start_frequency": w0, "periods": RUN_PERIODS}
     if run is None:
         return {**out, "outcome": "no simulation"}
-    t, x, diverged, _ = run
+    t, x, diverged, _, y_end = run
     if diverged:
         return {**out, "outcome": "divergence", "amplitude": float(np.max(np.abs(x)))}
     if t.size < 3:          # the element never switches from this start: its output stays at rest
         return {**out, "outcome": "rest", "amplitude": 0.0, "note": run[3]}
     tail = x[t > t[-1] - 0.1 * (t[-1] - t[0])]
     if np.max(np.abs(tail)) < _REST * A:
-        return {**out, "outcome": "rest", "amplitude": float(np.max(np.abs(tail))), "x_end": float(x[-1])}
+        return {**out, "outcome": "rest", "amplitude": float(np.max(np.abs(tail))), "x_end": float(x[-1]),
+                "y_end": y_end}
+    if _at_rest(tail, A):   # rest off zero (inside a dead band or play, or an equilibrium of a biased loop)
+        return {**out, "outcome": "rest", "amplitude": float(np.ptp(tail) / 2), "x_end": float(x[-1]),
+                "y_end": y_end}
     st = steady_state(t, x, _MEASURE)
     if not st.oscillating:   # no zero crossing left: at rest, possibly off zero (in a play or dead band)
-        return {**out, "outcome": "rest", "amplitude": float(st.amplitude), "x_end": float(x[-1])}
+        return {**out, "outcome": "rest", "amplitude": float(st.amplitude), "x_end": float(x[-1]), "y_end": y_end}
     kind = "periodic" if st.periodicity < _PERIODIC else "not periodic"
     return {**out, "outcome": kind, "amplitude": float(st.amplitude), "frequency": float(st.frequency),
             "periodicity": float(st.periodicity)}
+
+
+def _at_rest(tail: np.ndarray, A: float) -> bool:
+    """True when x comes to rest anywhere, not only at 0 (an equilibrium in the element's zero set, e.g. inside a
+    dead zone around a plant with an integrator): over the last tenth of the run x either no longer moves (its
+    spread below ``_REST`` times the start amplitude) or stays on one side of its end value's sign while its
+    spread shrinks (the last quarter of the tail moves less than half as much as the first quarter)."""
+    if np.ptp(tail) <= _REST * A:
+        return True
+    q = max(tail.size // 4, 2)
+    one_side = bool(np.all(tail > 0) or np.all(tail < 0))
+    return one_side and np.ptp(tail[-q:]) < 0.5 * np.ptp(tail[:q])
 
 
 def _words(m: dict) -> str:
@@ -135,7 +166,10 @@ def _words(m: dict) -> str:
     if k == "rest":
         if "note" in m:
             return f"{start}: the element never switches ({m['note']})"
-        return f"{start}: comes to rest at x = {m['x_end']:.4g}"
+        where = f"{start}: comes to rest at x = {m['x_end']:.4g}"
+        if m.get("y_end") == 0.0 and m["x_end"] != 0.0:
+            where += " (element output 0 there: inside its dead band or play)"
+        return where
     if k == "divergence":
         return f"{start}: diverges (|x| reached {m['amplitude']:.3g})"
     return f"{start}: the loop cannot be simulated here"
@@ -150,7 +184,7 @@ def _rebase(found, predicted, how: str):
                                extra={**found.extra, "outcome": "orbit", "globalised": how})
 
 
-def _globalise(G, N, predicted, first, shoot, max_deviation):
+def _globalise(G, N, predicted, first, shoot, max_deviation, constant):
     A0, w0 = predicted
     tried = [f"shooting from the prediction: {first.message}"]
     delayed = split_delay(G)[1] > 0
@@ -163,7 +197,7 @@ def _globalise(G, N, predicted, first, shoot, max_deviation):
             if r.success:
                 return _rebase(r, predicted, f"single/multiple shooting with {nodes} node(s) from the prediction")
             tried.append(f"{nodes} node(s): {r.message}")
-    motions = [_motion(G, N, A0, w0, f) for f in STARTS]
+    motions = [_motion(G, N, A0, w0, f, constant) for f in STARTS]
     others = []
     for m in motions:
         if m["outcome"] not in ("periodic", "not periodic"):
@@ -204,6 +238,13 @@ def _globalise(G, N, predicted, first, shoot, max_deviation):
                                "it are not periodic within the runs (chaotic, quasi-periodic or slowly settling)",
                "rest": "no periodic orbit near the prediction: motions started on and around it decay to rest",
                }[outcome]
+        if outcome == "divergence" and "rest" in kinds:
+            # a boundary between rest and divergence: an unstable orbit may separate them, so nothing is ruled out
+            outcome = "boundary"
+            msg = (f"no periodic orbit found near the prediction, but none ruled out: of the motions started on and "
+                   f"around it {kinds.count('rest')} decay to rest and {kinds.count('divergence')} diverge, so the "
+                   "prediction lies near the boundary between the two, where an unstable orbit may lie (shooting "
+                   "did not converge to one)")
     extra = {**first.extra, "outcome": outcome, "motions": motions, "attempts": tried}
     return dataclasses.replace(first, message=f"{msg}. Evidence: {evidence}. First attempt: {first.message}",
                                extra=extra)

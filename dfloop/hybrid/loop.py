@@ -47,8 +47,26 @@ def plant_system(G, *, what: str = "the exact flow"):
     if not sys.isctime():
         raise ValueError(f"G must be a continuous-time system for {what}, got dt = {sys.dt!r} (a digital loop is a "
                          "map: exact_cycle and dfloop.hybrid.discrete find its orbits)")
-    return (np.asarray(sys.A, float), np.asarray(sys.B, float)[:, 0], np.asarray(sys.C, float)[0],
-            float(np.asarray(sys.D, float)[0, 0]))
+    return balanced(np.asarray(sys.A, float), np.asarray(sys.B, float)[:, 0], np.asarray(sys.C, float)[0]) + \
+        (float(np.asarray(sys.D, float)[0, 0]),)
+
+
+_IMBALANCE = 1e4            # ||A|| over the balanced ||D^-1 A D|| beyond which a realisation is rebalanced
+
+
+def balanced(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(A, B, C) unchanged, or by the diagonal similarity D^-1 A D, D^-1 B, C D (D powers of 2: no rounding) when
+    that shrinks ||A|| by more than ``_IMBALANCE``: the companion form python-control gives a high-order tf (a
+    Pade chain of order 10 has entries up to 1e15) loses the flow's accuracy to rounding (1e-7 on its trivial
+    multiplier); balanced, the same plant keeps it (the element sees x = -C s, the same in both)."""
+    from scipy.linalg import matrix_balance
+
+    if A.size == 0:
+        return A, B, C
+    Ab, (d, _) = matrix_balance(A, permute=False, separate=True)
+    if np.linalg.norm(A, 1) <= _IMBALANCE * np.linalg.norm(Ab, 1):
+        return A, B, C
+    return Ab, B / d, C * d
 
 
 def plant_matrices(G, *, what: str = "the exact flow"):
@@ -58,6 +76,28 @@ def plant_matrices(G, *, what: str = "the exact flow"):
         raise ValueError(f"G must be strictly proper (D = 0) for {what} (a direct feedthrough closes an "
                          f"algebraic loop through the element); got D = {D!r}")
     return A, B, C
+
+
+REAL_STEP = 0.5              # |lambda| dt for a fast real mode (its curvature changes by e^0.5 < 2 in a step)
+
+
+def mode_step(Am: np.ndarray, time_scale: float) -> float:
+    """The scan step (s) of a mode: ``time_scale`` / 32, and per eigenvalue lambda of A_m: 1 / (32 |lambda|) for an
+    oscillating one (32 steps per radian), ``REAL_STEP`` / |lambda| for a real one. A real mode's contribution is
+    monotone with a curvature of one sign that changes by at most e^0.5 within such a step, which is all the scan's
+    dip test assumes (the bracketing of events stays complete), and its Taylor refinement is accurate there: a
+    stiff plant (fast real poles 1e4 times the period's rate) is then scanned 16 times faster than at 32 steps per
+    fast time constant, with the same events."""
+    lam = np.linalg.eigvals(Am)
+    size = np.abs(lam)
+    keep = size > 1e-12 * max(float(size.max(initial=0.0)), 1e-300)
+    lam, size = lam[keep], size[keep]
+    dt = time_scale / STEPS_PER_SCALE
+    if lam.size:
+        real = np.abs(lam.imag) <= 1e-9 * size
+        per = np.where(real, REAL_STEP / size, 1.0 / (STEPS_PER_SCALE * size))
+        dt = min(dt, float(per.min()))
+    return dt
 
 
 def saltation(R: np.ndarray, f_minus: np.ndarray, f_plus: np.ndarray, r: np.ndarray,
@@ -156,20 +196,27 @@ class HybridLoop(LoopModel):
     time_scale : float
         Longest step allowed (s) times 32, e.g. the expected period; steps are also bounded by the fastest
         time constant of every mode.
+    r0, load : float
+        Constant input: the element's input is x = r0 - C s (a reference at the summing junction) and the plant
+        is driven by y + load (a load at the element's output). Both ride on the constant last component of z,
+        so every mode stays linear and the flow exact.
     """
 
     method = "exact (matrix exponential between switches, switches located to rounding level)"
     exact = True           # flows carry a monodromy: periodic orbits can be shot
     settle_periods = 0.0   # the predicted sinusoid sets the element's state: no transient needed before shooting
 
-    def __init__(self, A, B, C, element: PiecewiseAffine, time_scale: float):
+    def __init__(self, A, B, C, element: PiecewiseAffine, time_scale: float, *, r0: float = 0.0,
+                 load: float = 0.0):
         self.plant = (A, B)
+        self.r0, self.load = float(r0), float(load)
         n = A.shape[0]
         self.n, self.element = n, element
         self.size = n + element.n_states + 1
         N = self.size
         self.x_row = np.zeros(N)
         self.x_row[:n] = -C
+        self.x_row[-1] = self.r0
         one = np.zeros(N)
         one[-1] = 1.0
         e_unit = np.zeros(N)
@@ -181,7 +228,7 @@ class HybridLoop(LoopModel):
             y_row = mode.gx * self.x_row + mode.ge * e_unit + mode.g1 * one
             Am = np.zeros((N, N))
             Am[:n, :n] = A
-            Am[:n] += np.outer(B, y_row)
+            Am[:n] += np.outer(B, y_row + self.load * one)
             xd_row = self.x_row @ Am
             if element.n_states:
                 Am[n] = mode.de * xd_row
@@ -195,10 +242,7 @@ class HybridLoop(LoopModel):
                 resets.append(R)
             if not rows:
                 rows, targets, resets = [one.copy()], [_NEVER], [np.eye(N)]
-            lam = np.abs(np.linalg.eigvals(Am))
-            lam = lam[lam > 1e-12 * max(lam.max(), 1e-300)]
-            scale = min(time_scale, float(1.0 / lam.max()) if lam.size else time_scale)
-            dt = scale / STEPS_PER_SCALE
+            dt = mode_step(Am, time_scale)
             self.matrices.append(Am)
             self.y_rows.append(y_row)
             self.rows.append(np.array(rows))
@@ -290,14 +334,22 @@ class HybridLoop(LoopModel):
         """
         z = np.array(z0, dtype=float)
         mode = int(mode0)
+        pending = []
         if not admissible(self.matrices[mode], self.rows[mode], z):
-            raise HybridError(f"the start state violates a guard of mode {self.element.modes[mode].label!r}")
+            # a switch due at t = 0 (the previous flow of a run ended on it, within rounding): take it now; a flow
+            # with a monodromy (shooting) never starts on a switch, so there it is an error
+            far = (self.rows[mode] @ z < 0) & ~rows_on_zero(self.rows[mode], z)   # violated beyond rounding
+            if monodromy or np.any(far):
+                raise HybridError(f"the start state violates a guard of mode {self.element.modes[mode].label!r}")
+            from_mode = mode
+            z, mode = self.admissible_mode(z, mode)
+            pending.append((0.0, -1, from_mode, mode))
         if t_end == 0.0:
             return Flow(z, mode, np.eye(self.size) if monodromy else None, np.array([0.0]), z[None, :].copy(),
                         np.array([mode]), [])
         t = 0.0
         M = np.eye(self.size) if monodromy else None
-        t0s, z0s, modes, events = [0.0], [z.copy()], [mode], []
+        t0s, z0s, modes, events = [0.0], [z.copy()], [mode], pending
         seg_t = 0.0
         leaving = rows_on_zero(self.rows[mode], z)
         while t < t_end:

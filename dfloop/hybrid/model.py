@@ -7,6 +7,7 @@ import numpy as np
 
 from ..describing.time_model import Impact, PiecewiseAffine, Sampled, Smooth
 from .dde import DDELoop, static_map
+from .dde_memory import MemoryDDELoop
 from .delay import DelayLoop, piecewise_constant, split_delay
 from .impact import ImpactLoop
 from .loop import HybridLoop, plant_matrices, plant_system
@@ -19,7 +20,7 @@ HISTORY_SAMPLES = 256    # samples of the predicted sinusoid that set the elemen
 
 
 def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: int = 400,
-               what: str = "the exact flow"):
+               what: str = "the exact flow", r0: float = 0.0, load: float = 0.0):
     """The loop of plant G and element N as a loop model (the one dispatcher on the element's time model).
 
     Parameters
@@ -29,8 +30,9 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
         delay T > 0 (``delayed(G, T)``) the loop is a :class:`DelayLoop` (exact delay flow) for elements whose
         output is piecewise constant (relays with hysteresis and dead zone, quantizer), a
         :class:`~dfloop.hybrid.dde.DDELoop` (the delay differential equation, discretised) for other static
-        elements (saturation, dead zone, cubic stiffness, ...); elements with memory (backlash) or impacts
-        with a delay raise ``ValueError`` naming N.
+        elements (saturation, dead zone, cubic stiffness, ...), a :class:`~dfloop.hybrid.dde_memory.MemoryDDELoop`
+        (the same with the element's state in the history) for piecewise-affine elements with memory (backlash);
+        impact and sampled elements with a delay raise ``ValueError`` naming N.
     N : DescribingFunction
         The element; its ``time_model(amplitude)`` says how it behaves in time.
     amplitude, frequency : float
@@ -39,12 +41,15 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
         The step of a sampled (fixed-step) loop, per period of ``frequency``.
     what : str
         The caller's name for error messages.
+    r0, load : float
+        Constant input: a reference r0 at the summing junction (x = r0 - c) and a load added to the element's
+        output before the plant (piecewise-affine and smooth elements without delay; 0 for the others).
 
     Raises
     ------
     ValueError
         N has no time model (naming N), or G is not a suitable plant (naming G), or G has a delay and N's output
-        has memory (naming N).
+        has memory (naming N), or a constant input with a delay, an impact or a sampled element (naming r0).
     """
     if not callable(getattr(N, "time_model", None)):
         raise ValueError(f"N must be a DescribingFunction (with time_model()), got {type(N).__name__}")
@@ -55,6 +60,11 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
                          "time_model() (dfloop.describing.time_model) or operator()") from None
     time_scale = 2.0 * math.pi / frequency
     G, delay = split_delay(G)
+    constant = {"r0": float(r0), "load": float(load)}
+    if (r0 != 0.0 or load != 0.0) and (delay > 0.0 or not isinstance(tm, (PiecewiseAffine, Smooth))):
+        raise ValueError(f"r0 = {r0!r}, load = {load!r}: a constant input is supported for piecewise-affine and "
+                         f"smooth elements without a pure delay, not for {type(N).__name__} "
+                         f"({type(tm).__name__}{', delay' if delay > 0.0 else ''})")
     if delay > 0.0:
         A, B, C = plant_matrices(G, what=what)
         if piecewise_constant(tm):     # relays, quantizer: the exact delay flow
@@ -62,10 +72,13 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
         f, kinks = static_map(tm)
         if f is not None:              # sloped or smooth static elements: the delay differential equation
             return DDELoop(A, B, C, f, kinks, delay, tm.name)
+        if isinstance(tm, PiecewiseAffine) and tm.n_states == 1:   # memory (backlash): its state in the history
+            return MemoryDDELoop(A, B, C, tm, delay)
         raise ValueError(f"N: {type(N).__name__} with a pure delay in G is not supported here: the exact delay flow "
                          "needs an element whose output is constant between switches (Relay with hysteresis and "
-                         "dead zone, Quantizer), static elements with sloped pieces run as a delay differential "
-                         "equation, but elements with memory (backlash) with a delay are not available (use "
+                         "dead zone, Quantizer), static elements with sloped pieces and piecewise-affine elements "
+                         "with a state (backlash) run as a delay differential equation, but impact and sampled "
+                         f"elements ({type(tm).__name__} time model) with a delay are not available (use "
                          "delayed(G, T).pade(n) for an approximation)")
     if isinstance(tm, Impact):
         A, B, C, D = plant_system(G, what=what)
@@ -73,33 +86,58 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
     else:
         A, B, C = plant_matrices(G, what=what)
         if isinstance(tm, PiecewiseAffine):
-            model = HybridLoop(A, B, C, tm, time_scale)
+            model = HybridLoop(A, B, C, tm, time_scale, **constant)
         elif isinstance(tm, Smooth):
-            model = SmoothLoop(A, B, C, tm.f, tm.name, time_scale, tm.slope)
+            model = SmoothLoop(A, B, C, tm.f, tm.name, time_scale, tm.slope, **constant)
         elif isinstance(tm, Sampled):
             model = SampledLoop(A, B, C, tm, time_scale / steps_per_period, steps_per_period)
         else:
             raise ValueError(f"N: {type(N).__name__}.time_model() returned {type(tm).__name__}, not one of "
                              "PiecewiseAffine, Smooth, Impact, Sampled (dfloop.describing.time_model)")
+    model.response = tm.response   # the element's periodic response: the biased start's mean and fundamental
     return model
 
 
-def harmonic_balance_state(loop, N, amplitude: float, frequency: float, t: float = 0.0) -> np.ndarray:
-    """Plant state at time t of the sinusoidal orbit x = amplitude sin(frequency t) that the DF assumes."""
+def harmonic_balance_state(loop, N, amplitude: float, frequency: float, t: float = 0.0,
+                           bias: float = 0.0) -> np.ndarray:
+    """Plant state at time t of the orbit x = bias + amplitude sin(frequency t) that the DF assumes.
+
+    With a bias or a constant input (``loop.r0``, ``loop.load``) the element's mean output m and fundamental come
+    from its periodic response to that input (``loop.response``), and the plant's mean state s solves
+    A s + B (m + load) = 0 with r0 - C s = bias in the least-squares sense (exactly with an integrator, where A
+    alone does not fix s)."""
     A, B = loop.plant
+    r0, load = getattr(loop, "r0", 0.0), getattr(loop, "load", 0.0)
+    if bias != 0.0 or r0 != 0.0 or load != 0.0:
+        return _biased_state(loop, amplitude, frequency, t, bias, r0, load)
     n_val = complex(N(amplitude, frequency) if N.frequency_dependent else N(amplitude))
     X = np.linalg.solve(1j * frequency * np.eye(A.shape[0]) - A, B) * n_val * amplitude
     return (X * np.exp(1j * frequency * t)).imag.copy()
 
 
-def input_history(amplitude: float, frequency: float, t: float) -> np.ndarray:
-    """Samples of the predicted input amplitude sin(frequency t') over the period before time t."""
+def _biased_state(loop, amplitude, frequency, t, bias, r0, load) -> np.ndarray:
+    A, B = loop.plant
+    C = -loop.x_row[:A.shape[0]]
+    theta = 2.0 * math.pi * np.arange(HISTORY_SAMPLES) / HISTORY_SAMPLES
+    y = np.asarray(loop.response(bias + amplitude * np.sin(theta)), float)
+    m = float(np.mean(y))
+    fundamental = 2j * np.mean(y * np.exp(-1j * theta))            # y ~ m + Im(fundamental e^{j theta})
+    X = np.linalg.solve(1j * frequency * np.eye(A.shape[0]) - A, B) * fundamental
+    stacked = np.vstack([A, C[None, :]])
+    s_mean = np.linalg.lstsq(stacked, np.append(-B * (m + load), r0 - bias), rcond=None)[0]
+    return s_mean + (X * np.exp(1j * frequency * t)).imag
+
+
+def input_history(amplitude: float, frequency: float, t: float, bias: float = 0.0) -> np.ndarray:
+    """Samples of the predicted input bias + amplitude sin(frequency t') over the period before time t."""
     T = 2.0 * math.pi / frequency
-    return amplitude * np.sin(frequency * (t + T * (np.arange(HISTORY_SAMPLES) / HISTORY_SAMPLES - 1.0)))
+    return bias + amplitude * np.sin(frequency * (t + T * (np.arange(HISTORY_SAMPLES) / HISTORY_SAMPLES - 1.0)))
 
 
-def start_on_prediction(loop, N, amplitude: float, frequency: float, t: float = 0.0):
-    """(z, mode) at time t of the predicted orbit: the plant in its harmonic-balance state, the element in the
-    state the predicted sinusoid leaves (the masses of an impact element at rest, gap centred)."""
-    return loop.start(harmonic_balance_state(loop, N, amplitude, frequency, t), input_history(amplitude, frequency, t))
+def start_on_prediction(loop, N, amplitude: float, frequency: float, t: float = 0.0, bias: float = 0.0):
+    """(z, mode) at time t of the predicted orbit x = bias + amplitude sin(frequency t): the plant in its
+    harmonic-balance state, the element in the state the predicted input leaves (the masses of an impact element
+    at rest, gap centred)."""
+    return loop.start(harmonic_balance_state(loop, N, amplitude, frequency, t, bias),
+                      input_history(amplitude, frequency, t, bias))
 

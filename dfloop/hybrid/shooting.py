@@ -6,7 +6,9 @@ For any exact loop model of :mod:`dfloop.hybrid` (piecewise affine, smooth, impa
 
 in the nodes z_i and the period T (the last row keeps the correction orthogonal to the flow). Nodes start on
 the predicted sinusoidal orbit (``settle_periods`` = 0: right for unstable cycles, which a flow leaves) or on a
-flow settled for some periods from it (then the period is detected on the settled motion). The first node lies
+flow settled for some periods from it (then the period is detected on the settled motion: the spacing of the
+upward crossings of x through its mean, times the number k <= MAX_RETURNS of crossings after which the state
+recurs, so period-k orbits such as those after a period doubling are shot whole). The first node lies
 in the middle of the longest segment between switches, so small corrections never move a switch across a node.
 """
 from __future__ import annotations
@@ -20,13 +22,16 @@ from ..harmonics import upward_crossings
 from .loop import Flow, HybridError
 from .model import start_on_prediction
 
-__all__ = ["Orbit", "ShootingError", "periodic_orbit", "detect_period"]
+__all__ = ["Orbit", "ShootingError", "periodic_orbit", "detect_period", "forced_orbit"]
 
 LINE_SEARCH = 8    # step halvings per Newton iteration
 FLOOR = 1e-9       # a residual below this that stops decreasing is the rounding floor: accepted
 _DETECT_PERIODS = 8   # settled periods over which the period is detected
 DIVERGED = 1e6        # |x| beyond this many predicted amplitudes while settling: the motion diverges
 _PLAUSIBLE = math.log(8.0)   # a detected period within a factor 8 of the predicted one is used
+MAX_RETURNS = 4       # crossings per period looked for on the settled motion (period-k orbits, k <= 4)
+_RECUR = 1e-2         # relative state distance below which the settled motion has recurred (crossing times are
+                      # interpolated between 64 samples per period: their states agree to ~1e-3, not to rounding)
 
 
 class ShootingError(RuntimeError):
@@ -40,7 +45,8 @@ class ShootingError(RuntimeError):
 @dataclass
 class Orbit:
     """A converged periodic orbit: start state ``z`` and ``mode``, ``period`` (s), the ``flow`` over one period
-    from there (with its monodromy), the final relative ``residual`` and the Newton ``iterations``."""
+    from there (with its monodromy), the final relative ``residual``, the Newton ``iterations``, and ``returns``:
+    the oscillations (upward crossings of x through its mean) per period, k > 1 for a period-k orbit."""
 
     z: np.ndarray
     mode: object
@@ -48,6 +54,7 @@ class Orbit:
     flow: Flow
     residual: float
     iterations: int
+    returns: int = 1
 
 
 def detect_period(t: np.ndarray, x: np.ndarray) -> float | None:
@@ -57,7 +64,7 @@ def detect_period(t: np.ndarray, x: np.ndarray) -> float | None:
 
 
 def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, max_iterations: int,
-                   settle_periods: float, nodes: int, max_events: int) -> Orbit:
+                   settle_periods: float, nodes: int, max_events: int, bias: float = 0.0) -> Orbit:
     """Periodic orbit of ``loop`` near the predicted cycle (amplitude, frequency) by multiple shooting.
 
     Parameters
@@ -78,6 +85,8 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
         Shooting nodes per period.
     max_events : int
         Bound on the events of one flow.
+    bias : float
+        Mean of the predicted input, x ~ bias + amplitude sin(frequency t) (a loop with a constant input).
 
     Raises
     ------
@@ -87,18 +96,20 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
     T = 2.0 * math.pi / frequency
     m = nodes
     c = np.full(m, 1.0 / m)            # node intervals as fractions of the period
+    returns = 1
     try:
         if settle_periods > 0:
-            zs, modes, T, c = _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events)
+            zs, modes, T, c, returns = _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events,
+                                                      bias)
             m = len(zs)
         else:   # nodes on the predicted sinusoidal orbit itself (right for unstable cycles, which a flow leaves)
             t_first = 0.0
             if loop.switching:
-                z, mode = start_on_prediction(loop, N, amplitude, frequency)
+                z, mode = start_on_prediction(loop, N, amplitude, frequency, bias=bias)
                 _, _, t_first = _section_point(loop.flow(z, mode, T, max_events=max_events), T, T)
             zs, modes = [], []
             for i in range(m):
-                zi, mi = start_on_prediction(loop, N, amplitude, frequency, t_first + i * T / m)
+                zi, mi = start_on_prediction(loop, N, amplitude, frequency, t_first + i * T / m, bias)
                 zi, mi = loop.admissible_mode(zi, mi)
                 zs.append(zi)
                 modes.append(mi)
@@ -139,17 +150,17 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
         fl = loop.join(flows, T, max_events=max_events)
     except HybridError as exc:
         raise ShootingError(f"the converged orbit cannot be followed over one period: {exc}", residual, it) from None
-    return Orbit(zs[0], modes[0], T, fl, residual, it)
+    return Orbit(zs[0], modes[0], T, fl, residual, it, returns)
 
 
-def _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events):
+def _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events, bias=0.0):
     """Flow ``settle_periods`` predicted periods (one flow per period), detect the period on the last ones, and
     put the nodes on one period of the settled motion from the middle of its longest segment."""
     T = 2.0 * math.pi / frequency
-    z, mode = start_on_prediction(loop, N, amplitude, frequency)
+    z, mode = start_on_prediction(loop, N, amplitude, frequency, bias=bias)
     whole = int(math.floor(settle_periods))
     spans = [T] * whole + ([(settle_periods - whole) * T] if settle_periods > whole else [])
-    tail_t, tail_x = [], []
+    tail_t, tail_x, tail_flows = [], [], []
     for p, span in enumerate(spans):
         fl = loop.flow(z, mode, span, max_events=max_events)
         tk = np.arange(64) * (span / 64)
@@ -157,13 +168,20 @@ def _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events)
         if p >= len(spans) - _DETECT_PERIODS:
             tail_t.append(p * T + tk)
             tail_x.append(x)
+            tail_flows.append((p * T, span, fl))
         z, mode = fl.z, fl.mode
-        if not np.all(np.isfinite(z)) or np.max(np.abs(x)) > DIVERGED * amplitude:
+        if not np.all(np.isfinite(z)) or np.max(np.abs(x - bias)) > DIVERGED * amplitude:
             raise HybridError(f"the motion diverged while settling: |x| passed {DIVERGED:g} times the predicted "
                               f"amplitude in period {p + 1} of {settle_periods:g}")
-    detected = detect_period(np.concatenate(tail_t), np.concatenate(tail_x))
+    t_tail, x_tail = np.concatenate(tail_t), np.concatenate(tail_x)
+    detected, returns = detect_period(t_tail, x_tail), 1
+    if detected is not None:
+        returns = _returns_per_period(loop, tail_flows, upward_crossings(t_tail, x_tail, float(np.mean(x_tail))))
     if detected is not None and abs(math.log(detected / T)) < _PLAUSIBLE:
-        T = detected
+        T = detected * returns        # one oscillation times the oscillations per period
+        m *= returns                  # as many nodes per oscillation as a period-1 orbit gets
+    else:
+        returns = 1
     fl = loop.flow(z, mode, T, max_events=max_events)
     _, mode, t_mid = _section_point(fl, T, T)
     fl = loop.flow(loop.states(fl, t_mid)[0], mode, T, max_events=max_events)
@@ -175,7 +193,36 @@ def _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events)
         t[1:] = np.clip(t, bounds[k] + margin, bounds[k + 1] - margin)[1:]
         t = np.unique(t)
     seg = np.clip(np.searchsorted(fl.t0, t, side="right") - 1, 0, fl.t0.size - 1)
-    return list(loop.states(fl, t)), [int(fl.modes[k]) for k in seg], T, np.diff(np.append(t, T)) / T
+    return list(loop.states(fl, t)), [int(fl.modes[k]) for k in seg], T, np.diff(np.append(t, T)) / T, returns
+
+
+def _returns_per_period(loop, tail_flows, crossings: np.ndarray) -> int:
+    """Smallest k <= MAX_RETURNS after which the state at the upward crossings recurs (1 if none does, or when
+    too few crossings were seen to tell).
+
+    The state at each crossing time comes from the settled flows; k is accepted when every pair of crossings k
+    apart is within ``_RECUR`` (relative to the largest state) while some pair one apart is not.
+    """
+    if crossings.size < 3:
+        return 1
+    states = []
+    for tc in crossings:
+        for start, span, fl in tail_flows:
+            if start <= tc <= start + span:
+                states.append(loop.states(fl, np.array([tc - start]))[0][:loop.size - 1])
+                break
+    z = np.array(states)
+    scale = max(float(np.max(np.abs(z))), 1e-300)
+
+    def spread(k):
+        return float(np.max(np.abs(z[k:] - z[:-k]))) / scale
+
+    if spread(1) <= _RECUR:
+        return 1
+    for k in range(2, min(MAX_RETURNS, z.shape[0] - 2) + 1):
+        if spread(k) <= _RECUR:
+            return k
+    return 1
 
 
 def _section_point(fl, t_end: float, T: float):
@@ -254,3 +301,108 @@ def _line_search(loop, zs, flows, T, c, delta, residual, nx, max_events):
 def _mode_reaching(flows, i: int):
     """The mode the flow reaching node i ends in."""
     return flows[i - 1].mode
+
+
+def forced_orbit(loop, zs: list, modes: list, period: float, free: np.ndarray, *, tol: float, max_iterations: int,
+                 max_events: int) -> Orbit:
+    """Periodic orbit of a driven (non-autonomous) loop at the fixed forcing ``period``, by multiple shooting.
+
+    The forcing is part of the loop's state (an exosystem, e.g. sin and cos of the forcing phase), so the loop
+    model stays autonomous; only the components ``free`` (plant and element states) are unknowns, the others
+    (the forcing's phase, the constant 1) are fixed by time. Newton solves phi_{T/m}(z_i)[free] = z_{i+1}[free]
+    (i = 0..m-1, z_m = z_0) with the node flows' monodromies as Jacobian blocks; there is no phase condition and
+    the period is not an unknown.
+
+    Parameters
+    ----------
+    loop : exact loop model
+        With the forcing in its state.
+    zs, modes : list
+        The m nodes' start states (at times i T / m) and modes.
+    period : float
+        The forcing period T (s).
+    free : ndarray of int
+        Indices of the unknown components of the state.
+    tol, max_iterations, max_events
+        As for :func:`periodic_orbit`.
+
+    Returns
+    -------
+    Orbit
+        Its ``flow`` over one period from the first node, with the monodromy (the multipliers are the
+        eigenvalues of ``flow.monodromy[free][:, free]``).
+
+    Raises
+    ------
+    ShootingError
+        With the reason (flow failure, no convergence within ``max_iterations``, singular Jacobian, no decreasing
+        step): then no orbit at the forcing period was found near the start.
+    """
+    m = len(zs)
+    k = free.size
+    tau = period / m
+    zs = [np.array(z, float) for z in zs]
+    modes = list(modes)
+
+    def flows_of(nodes, node_modes):
+        return loop.flow_many(nodes, node_modes, tau, monodromy=True, max_events=max_events)
+
+    def defect(flows, nodes):
+        d = np.concatenate([flows[i].z[free] - nodes[(i + 1) % m][free] for i in range(m)])
+        scale = max(float(np.linalg.norm(np.concatenate([z[free] for z in nodes]))), 1e-300)
+        return float(np.linalg.norm(d)) / scale, d
+
+    residual, it = math.inf, 0
+    try:
+        flows = flows_of(zs, modes)
+    except HybridError as exc:
+        raise ShootingError(f"the flow from the start failed: {exc}") from None
+    for it in range(1, max_iterations + 1):
+        previous = residual
+        residual, d = defect(flows, zs)
+        consistent = all(flows[i].mode == modes[(i + 1) % m] for i in range(m))
+        if consistent and (residual <= tol or (residual <= FLOOR and residual > 0.5 * previous)):
+            break
+        if it == max_iterations:
+            raise ShootingError(f"Newton did not converge in max_iterations = {max_iterations} (residual "
+                                f"{residual:.2e} > tol = {tol:g}): no orbit at the forcing period near the start "
+                                "(a subharmonic or quasi-periodic response?); raise max_iterations or start elsewhere",
+                                residual, it)
+        J = np.zeros((m * k, m * k))
+        for i in range(m):
+            r = slice(i * k, (i + 1) * k)
+            J[r, r] = flows[i].monodromy[np.ix_(free, free)]
+            j = (i + 1) % m
+            J[r, j * k:(j + 1) * k] -= np.eye(k)
+        try:
+            delta = np.linalg.solve(J, -d)
+        except np.linalg.LinAlgError:
+            raise ShootingError(f"singular shooting Jacobian at iteration {it} (a multiplier equal to 1: a fold of "
+                                "the forced response)", residual, it) from None
+        step, found = 1.0, None
+        for _ in range(LINE_SEARCH + 1):
+            try:
+                new_z, new_modes = [], []
+                for i in range(m):
+                    zi = zs[i].copy()
+                    zi[free] += step * delta[i * k:(i + 1) * k]
+                    zi, mi = loop.admissible_mode(zi, flows[i - 1].mode)
+                    new_z.append(zi)
+                    new_modes.append(mi)
+                trial = flows_of(new_z, new_modes)
+                if defect(trial, new_z)[0] < residual or residual < FLOOR:
+                    found = new_z, new_modes, trial
+                    break
+            except HybridError:
+                pass
+            step *= 0.5
+        if found is None:
+            raise ShootingError(f"Newton iteration {it}: no step reduces the residual {residual:.2e} (no orbit at "
+                                "the forcing period near the start, or a subharmonic / quasi-periodic response)",
+                                residual, it)
+        zs, modes, flows = found
+    try:
+        fl = loop.join(flows, period, max_events=max_events)
+    except HybridError as exc:
+        raise ShootingError(f"the converged orbit cannot be followed over one period: {exc}", residual, it) from None
+    return Orbit(zs[0], modes[0], period, fl, residual, it)

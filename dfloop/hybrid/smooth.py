@@ -63,12 +63,14 @@ class SmoothLoop(LoopModel):
     batched = True         # flow_many integrates all nodes at once
     switching = False      # one mode: no switches to keep away from the shooting nodes
 
-    def __init__(self, A, B, C, f: Callable, name: str, time_scale: float, slope: Callable | None = None):
+    def __init__(self, A, B, C, f: Callable, name: str, time_scale: float, slope: Callable | None = None, *,
+                 r0: float = 0.0, load: float = 0.0):
+        self.r0, self.load = float(r0), float(load)   # x = r0 - C s, the plant driven by f(x) + load
         self.n = A.shape[0]
         self.size = self.n + 1
         self.plant = (A, B)
         self.A, self.B, self.C, self.f, self.name = A, B, C, f, name
-        self.x_row = np.append(-C, 0.0)
+        self.x_row = np.append(-C, self.r0)
         self.max_step = time_scale / _MAX_STEPS_PER_SCALE
         self.method = f"DOP853 (rtol {RTOL:g}; {name} is not piecewise linear, so not exact)"
         self._slope = slope if slope is not None else self._central_slope
@@ -85,7 +87,7 @@ class SmoothLoop(LoopModel):
 
     def field(self, z, mode: int = 0) -> np.ndarray:
         s = z[:self.n]
-        return np.append(self.A @ s + self.B * float(self.f(np.array(-self.C @ s))), 0.0)
+        return np.append(self.A @ s + self.B * (float(self.f(np.array(self.r0 - self.C @ s))) + self.load), 0.0)
 
     def admissible_mode(self, z, mode: int = 0):
         return np.asarray(z, float), 0
@@ -110,13 +112,13 @@ class SmoothLoop(LoopModel):
         width = n + n * n if monodromy else n
         S0 = np.array([np.asarray(z, float)[:n] for z in zs])
         A, B, C = self.A, self.B, self.C
-        f, slope = self.f, self._slope
+        f, slope, r0, load = self.f, self._slope, self.r0, self.load
 
         def rhs(t, u):
             U = u.reshape(m, width)
             s = U[:, :n]
-            x = -(s @ C)
-            ds = s @ A.T + np.outer(np.asarray(f(x), float), B)
+            x = r0 - s @ C
+            ds = s @ A.T + np.outer(np.asarray(f(x), float) + load, B)
             if not monodromy:
                 return ds.ravel()
             P = U[:, n:].reshape(m, n, n)

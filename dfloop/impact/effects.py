@@ -29,10 +29,9 @@ from .. import _checks
 from . import _engine
 from ._effects_core import GROUND_EVENT  # noqa: F401  (segment cause of stick-slip events, re-exported)
 from ._effects_core import D, FREE, STUCK_B, U, V1, X1
-from .model import ImpactEvents
+from .model import ForcedRun, ImpactEvents, initial_state
 
-__all__ = ["ViscousDamping", "LoadSpring", "CoulombFriction", "simulate_with_effects", "EffectsTrajectory",
-           "EffectsRun"]
+__all__ = ["ViscousDamping", "LoadSpring", "CoulombFriction", "EffectsTrajectory", "EffectsRun"]
 
 C, S = 4, 5   # forcing oscillator slots of the open-loop state
 
@@ -187,28 +186,28 @@ def open_loop_system(p, effects) -> _engine.LinearModeSystem:
                                     friction=friction, extra_scales=(2.0 * math.pi / p.omega,))
 
 
-class EffectsRun:
-    """A continuable open-loop run of the engine with effects, with the interface of
-    :class:`dfloop.impact.kernel.KernelRun`: ``advance(t)`` moves the motion on to time t (s), ``forget()``
-    drops the stored segments, ``trajectory()`` is the motion since the last forget.
-
-    An adaptive transient (longer windows until the period is detected) then simulates every period once,
-    instead of from rest again for every window.
+class EffectsRun(ForcedRun):
+    """A continuable forced motion on the linear-mode engine (any effects, or none): the :class:`ForcedRun`
+    protocol. ``advance(t)`` moves the motion on to time t (s), ``forget()`` drops the stored segments,
+    ``trajectory()`` is the motion since the last forget; every period is simulated once.
 
     Parameters
     ----------
     params : ImpactParameters
     effects : tuple
-        Effect objects of this module.
+        Effect objects of this module (empty: the paper's model on the general engine).
     chatter_tol : float
-        See :func:`simulate_with_effects`.
+        Relative post-impact speed (of max(h w, F/(M2 w))) below which a converging chatter sticks.
+    initial : (x1, v1, gap, u), optional
+        Free-flight state at t = 0 (m, m/s); default rest with a centred gap.
     """
 
-    def __init__(self, params, effects, chatter_tol: float):
+    def __init__(self, params, effects, chatter_tol: float, initial=None):
         self.params, self.effects = params, tuple(effects)
         self._system = open_loop_system(params, self.effects)
         self._v_stick = chatter_tol * max(params.h * params.omega, params.force / (params.m2 * params.omega))
-        self._z = np.array([0.0, 0.0, 0.5 * params.h, 0.0, 1.0, 0.0, 1.0])   # rest, centred gap, at t = 0
+        x1, v1, gap, u = (0.0, 0.0, 0.5 * params.h, 0.0) if initial is None else initial_state(initial, params.h)
+        self._z = np.array([x1, v1, gap, u, 1.0, 0.0, 1.0])   # at t = 0: cos wt = 1, sin wt = 0
         self._ref = 0
         self._run = None            # segments since the last forget
         self.n_events = 0           # events since t = 0
@@ -240,33 +239,3 @@ class EffectsRun:
         if self._run is None:
             raise ValueError("no motion stored since the last forget(): advance first")
         return EffectsTrajectory(self.params, self.effects, self._run)
-
-
-def simulate_with_effects(p, t_end: float, effects: tuple, max_events: int, chatter_tol: float, *,
-                          record_from: float = 0.0) -> EffectsTrajectory:
-    """Event-driven simulation with optional effects (called by :func:`dfloop.impact.kernel.simulate`).
-
-    Parameters
-    ----------
-    p : ImpactParameters
-    t_end : float
-        End time (s); the motion starts from rest, x1 = 0, gap h/2, force F cos(w t) from t = 0.
-    effects : tuple
-        Effect objects of this module (an empty tuple simulates the paper's model on this engine).
-    max_events : int
-        Bound on the number of events; reaching it raises EventLimitError saying how to raise it.
-    chatter_tol : float
-        Relative post-impact speed (of max(h w, F/(M2 w))) below which a converging chatter sticks.
-    record_from : float, optional
-        Time (s) before which segments are not kept (only the one running at that time): memory stays bounded
-        by the recorded window when only the steady state is wanted (e.g. for the DF after a transient).
-    """
-    v_stick = chatter_tol * max(p.h * p.omega, p.force / (p.m2 * p.omega))
-    record_from = _checks.nonnegative("record_from", record_from)
-    system = open_loop_system(p, effects)
-    z = np.array([0.0, 0.0, 0.5 * p.h, 0.0, 1.0, 0.0, 1.0])
-    periods = max(t_end - record_from, 0.0) / p.period
-    run = _engine.run(system, z, t_end, v_stick, max_events, record_from=record_from,
-                      capacity=int(4 * periods) + 16,   # two impacts per period, twice: rarely regrown
-                      what=f"forced motion F = {p.force:g} N, w = {p.omega:g} rad/s")
-    return EffectsTrajectory(p, effects, run)

@@ -18,14 +18,14 @@ import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 
 from .. import _checks
 from . import _core
 from ._core import IMPACT_A, IMPACT_B
-from .effects import EffectsRun
-from .kernel import KernelRun, Trajectory, kernel_arrays
+from .kernel import Trajectory, forced_motion, kernel_arrays
 from .model import (DEFAULT_CHATTER_TOL, EventLimitError, ImpactParameters, default_max_events, effects_tuple,
                     event_limit_message, initial_state, run_periods)
 from .limits import beta_lower_limit
@@ -356,33 +356,18 @@ def impact_describing_function(m1: float, m2: float, h: float, restitution: floa
     if max_events is None:
         max_events = default_max_events(p.restitution, chatter_tol, longest)
     max_events = _checks.integer_at_least("max_events", max_events, 1)
-    if effects:
-        if initial is not None or attractor is not None:
-            raise ValueError("initial, attractor: supported by the paper's model only (no effects)")
-
-        erun = EffectsRun(p, effects, chatter_tol)
-
-        def window(t_a: float, t_b: float) -> Trajectory:  # every period simulated once, only the window kept
-            erun.advance(t_a, max_events, keep=False)
-            erun.forget()
-            erun.advance(t_b, max_events)
-            return erun.trajectory()
-
-        return _describe(p, window, transient, periods, max_transient)
-    if transient is None:
+    if effects and (initial is not None or attractor is not None):
+        raise ValueError("initial, attractor: supported by the paper's model only (no effects)")
+    if transient is None and not effects:
         return _adaptive_point(p, chatter_tol, initial, periods, max_transient, max_events, attractor)
     if attractor is not None:
         raise ValueError("attractor: supported with the adaptive transient only (transient_periods=None)")
+    if effects:       # effects break the similarity law: the run is in SI units
+        run = forced_motion(p, effects, chatter_tol)
+        return _describe(p, partial(run.window, max_events=max_events), transient, periods, max_transient)
     scaled, initial = _similarity(p, initial)
-    run = KernelRun(scaled, chatter_tol, initial)
-
-    def window(t_a: float, t_b: float) -> Trajectory:
-        run.advance(t_a, max_events, keep=False)
-        run.forget()
-        run.advance(t_b, max_events)
-        return run.trajectory()
-
-    r = _describe(scaled, window, transient, periods, max_transient)
+    run = forced_motion(scaled, (), chatter_tol, initial)
+    r = _describe(scaled, partial(run.window, max_events=max_events), transient, periods, max_transient)
     return replace(r, N=p.h * r.X1 / p.force, X1=p.h * r.X1)
 
 

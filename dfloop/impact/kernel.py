@@ -9,7 +9,10 @@ they then move as one body until the contact force changes sign (a closed-form i
 
 Free flights are closed form in local time; impact instants are roots of the gap function bracketed by its
 closed-form turning points and refined by Newton with a bisection safeguard to ~machine precision.
-With optional effects (see :mod:`dfloop.impact.effects`) the same interface is served by a linear-mode engine.
+This closed form is the fast path of the exact event engine: with optional effects (see
+:mod:`dfloop.impact.effects`) the same motion runs on the linear-mode engine, which equals it without effects
+(tests/test_impact_effects.py) at about 5x the cost per impact (benchmarks/bench_effects.py).
+:func:`forced_motion` is the one entry point and chooses; both runs follow the :class:`ForcedRun` protocol.
 """
 from __future__ import annotations
 
@@ -20,11 +23,11 @@ import numpy as np
 from .. import _checks
 from . import _core
 from ._core import FREE, GAP, PHI0, STUCK_B, T0, U, U_POST, U_PRE, V1, V1_POST, V1_PRE, X1
-from .effects import simulate_with_effects
-from .model import (DEFAULT_CHATTER_TOL, EventLimitError, ImpactEvents, ImpactParameters, default_max_events,
-                    effects_tuple, event_limit_message, initial_state, run_periods)
+from .effects import EffectsRun
+from .model import (DEFAULT_CHATTER_TOL, EventLimitError, ForcedRun, ImpactEvents, ImpactParameters,
+                    default_max_events, effects_tuple, event_limit_message, initial_state, run_periods)
 
-__all__ = ["Trajectory", "simulate", "KernelRun", "kernel_arrays"]
+__all__ = ["Trajectory", "simulate", "forced_motion", "KernelRun", "kernel_arrays"]
 
 _SEGMENT_BYTES = 8 * _core.N_FLOAT_COLUMNS + 2  # one stored segment: the float row, mode and cause
 
@@ -151,7 +154,7 @@ def simulate(m1: float, m2: float, h: float, restitution: float, force: float, o
     t_end : float
         End time (s).
     effects : sequence of effect objects, optional
-        Optional physics (:mod:`dfloop.impact.effects`). Empty: the paper's model, JIT kernel.
+        Optional physics (:mod:`dfloop.impact.effects`). Empty: the paper's model (closed-form fast path).
     max_events : int, optional
         Bound on the number of events (impacts and separations); reaching it raises EventLimitError.
         Default: :func:`default_max_events` for the number of forcing periods in [0, t_end].
@@ -160,11 +163,13 @@ def simulate(m1: float, m2: float, h: float, restitution: float, force: float, o
         a stuck phase.
     initial : (x1, v1, gap, u), optional
         Initial state at t = 0 (m, m/s; gap = x2 - x1 in [0, h], u = v2 - v1), free flight. Default: rest
-        with a centred gap, (0, 0, h/2, 0). Paper's model only.
+        with a centred gap, (0, 0, h/2, 0).
 
     Returns
     -------
-    Trajectory
+    Trajectory or EffectsTrajectory
+        The motion, with the same interface either way (:class:`dfloop.impact.model.ImpactEvents`,
+        ``evaluate``, ``piece_integrals``).
     """
     p = ImpactParameters(m1, m2, h, restitution, force, omega)
     t_end = _checks.positive("t_end", t_end)
@@ -174,18 +179,36 @@ def simulate(m1: float, m2: float, h: float, restitution: float, force: float, o
     if max_events is None:
         max_events = default_max_events(p.restitution, chatter_tol, t_end / p.period)
     max_events = _checks.integer_at_least("max_events", max_events, 1)
-    if effects:
-        if initial is not None:
-            raise ValueError("initial: a start other than rest is supported by the paper's model only "
-                             "(no effects)")
-        return simulate_with_effects(p, t_end, effects, max_events, chatter_tol)
-    run = KernelRun(p, chatter_tol, initial)
+    run = forced_motion(p, effects, chatter_tol, initial)
     run.advance(t_end, max_events)
     return run.trajectory()
 
 
-class KernelRun:
-    """A continuable run of the paper's model (JIT kernel) that keeps only the segments since :meth:`forget`.
+def forced_motion(params: ImpactParameters, effects=(), chatter_tol: float = DEFAULT_CHATTER_TOL, initial=None, *,
+                  closed_form: bool = True) -> ForcedRun:
+    """The forced motion as a continuable run of the exact event engine (:class:`ForcedRun` protocol).
+
+    Parameters
+    ----------
+    params : ImpactParameters
+    effects : tuple, optional
+        Validated effect objects; any effect needs the linear-mode engine.
+    chatter_tol : float
+        See :func:`simulate`.
+    initial : (x1, v1, gap, u), optional
+        Free-flight state at t = 0 (m, m/s); default rest with a centred gap.
+    closed_form : bool
+        Without effects, use the closed-form free flight (default: the same motion, about 5x faster per impact);
+        False runs the paper's model on the linear-mode engine (the general path, for comparison).
+    """
+    if effects or not closed_form:
+        return EffectsRun(params, effects, chatter_tol, initial)
+    return KernelRun(params, chatter_tol, initial)
+
+
+class KernelRun(ForcedRun):
+    """A continuable run of the paper's model (closed-form fast path) that keeps only the segments since
+    :meth:`forget`: the :class:`ForcedRun` protocol.
 
     ``advance(t)`` moves the motion on to time t (s); ``forget()`` drops the stored segments except the
     current one (bounded memory for long transients); ``trajectory()`` is the motion since the last forget.

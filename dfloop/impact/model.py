@@ -1,9 +1,9 @@
-"""The two-mass clearance system's parameters, event and run bounds, run-setting checks and impact bookkeeping
-(no simulation).
+"""The two-mass clearance system's parameters, event and run bounds, run-setting checks, impact bookkeeping and
+the protocol of a forced run (no simulation).
 
-The lowest module of :mod:`dfloop.impact`: both simulators (the closed-form JIT kernel,
-:mod:`dfloop.impact.kernel`, and the linear-mode engine with effects, :mod:`dfloop.impact.effects`) and the DF
-extraction (:mod:`dfloop.impact.extract`) build on it; it imports neither of them.
+The lowest module of :mod:`dfloop.impact`: the exact event engine (the linear-mode engine,
+:mod:`dfloop.impact.effects`, with its closed-form fast path for the paper's model, :mod:`dfloop.impact.kernel`)
+and the DF extraction (:mod:`dfloop.impact.extract`) build on it; it imports neither of them.
 """
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from ._core import IMPACT_A, IMPACT_B
 
 __all__ = ["ImpactParameters", "ImpactEvents", "EventLimitError", "default_max_events", "event_limit_message",
            "DEFAULT_MAX_EVENTS", "DEFAULT_CHATTER_TOL", "MAX_RUN_PERIODS", "run_periods", "effects_tuple",
-           "initial_state"]
+           "initial_state", "ForcedRun"]
 
 DEFAULT_MAX_EVENTS = 5_000_000      # floor of the default event bound
 DEFAULT_CHATTER_TOL = 1e-9
@@ -156,3 +156,39 @@ class ImpactEvents:
         v1_pre, v2_pre, v1_post, v2_post = self._segment_velocities()
         return {"t": self.t0[m], "side": (self.cause[m] == IMPACT_B).astype(np.int8),
                 "v1_pre": v1_pre[m], "v2_pre": v2_pre[m], "v1_post": v1_post[m], "v2_post": v2_post[m]}
+
+
+class ForcedRun:
+    """Protocol of a continuable forced motion (the one interface of the exact event engine's open-loop runs).
+
+    ``advance(t_end, max_events, keep=True)`` moves the motion on to time ``t_end`` (s), raising
+    :class:`EventLimitError` when the events since t = 0 would exceed ``max_events``; ``keep=False`` keeps only
+    the segment running at ``t_end`` (bounded memory). ``forget()`` drops the stored segments; ``trajectory()``
+    is the motion since the last forget (an :class:`ImpactEvents` with ``evaluate`` and ``piece_integrals``).
+    Implemented by :class:`dfloop.impact.kernel.KernelRun` (closed-form free flight, the paper's model) and
+    :class:`dfloop.impact.effects.EffectsRun` (the linear-mode engine, any effects);
+    :func:`dfloop.impact.kernel.forced_motion` chooses.
+    """
+
+    params: ImpactParameters
+    n_events: int
+    t: float
+
+    def advance(self, t_end: float, max_events: int, keep: bool = True) -> None:  # pragma: no cover - protocol
+        raise NotImplementedError
+
+    def forget(self) -> None:  # pragma: no cover - protocol
+        raise NotImplementedError
+
+    def trajectory(self) -> ImpactEvents:  # pragma: no cover - protocol
+        raise NotImplementedError
+
+    def window(self, t_a: float, t_b: float, max_events: int) -> ImpactEvents:
+        """The motion over [t_a, t_b] (s): every period up to ``t_a`` simulated once and dropped, then kept.
+
+        Windows must be asked for in increasing time (``t_a`` at or after the time reached).
+        """
+        self.advance(t_a, max_events, keep=False)
+        self.forget()
+        self.advance(t_b, max_events)
+        return self.trajectory()

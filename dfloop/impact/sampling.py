@@ -80,6 +80,9 @@ class ImpactSampler:
     orbits, other : dict
         Orbits from rest and of another periodic motion found, by u = ln beta, of the current 1-D build (read by
         the window probes and the branch continuation); :meth:`reset` clears them.
+    probe_runs : list of (u, periods) arrays
+        Every window probe run so far (ln beta, forcing periods simulated): the probes' share of the
+        simulation work (benchmarks/bench_tables.py).
     """
 
     def __init__(self, m1: float, m2: float, h: float, restitution: float, effects: tuple = (), *,
@@ -96,6 +99,7 @@ class ImpactSampler:
         self.other: dict[float, np.ndarray] = {}
         self._last_orbits = np.empty(0, dtype=object)
         self._last_other = np.empty(0, dtype=object)
+        self.probe_runs: list[tuple[np.ndarray, np.ndarray]] = []
 
     def reset(self) -> None:
         """Forget the orbits of the last 1-D build (window probes and continuation are block-local)."""
@@ -243,6 +247,8 @@ class ImpactSampler:
         r = self.extract(np.exp(u) * self.m2 * self.h * OMEGA_REF ** 2, np.full(u.shape, OMEGA_REF),
                           attractor=orbits)
         settled = np.asarray(r.settled, dtype=bool)
+        self.probe_runs.append((np.array(u, float), np.asarray(r.transient_periods, float)
+                                + np.asarray(r.periods_used, float)))
         label, regular, _ = self.labels(r)
         value = np.nan_to_num(np.asarray(r.N, dtype=complex)) * self.m2 * OMEGA_REF ** 2
         return settled, Samples(value, label, regular & ~settled)

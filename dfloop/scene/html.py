@@ -157,6 +157,11 @@ _CAPTIONS = {"nyquist": "Nyquist plane: G(jω), the -1/N locus and the predicted
              "residual": "Residual map: each cycle sits where Re(1 + GN) = 0 meets Im(1 + GN) = 0.",
              "sweep": "The cycles followed over the swept parameter.",
              "figure": "The scene's figure.",
+             "forced": "Forced response: amplitude against the forcing frequency (solid: stable, dashed: unstable, "
+                       "arrows: jumps; circles: exact orbits at the forcing period, filled when stable; crosses: no "
+                       "orbit at the forcing period).",
+             "region": "Jump-resonance region: the multi-valued band of the forced response against the forcing "
+                       "amplitude.",
              "fit": "The recorded relay experiment against the fitted model's exact relay orbit."}
 
 
@@ -197,6 +202,11 @@ def report_html(report) -> str:
         parts += ["<h2>Sweep</h2>", f"<pre>{_e(repr(report.sweep))}</pre>"]
     if report.figure is not None:
         parts += ["<h2>Figure data</h2>", f"<pre>{_e(repr(report.figure))}</pre>"]
+    if getattr(report, "biased", None) is not None:
+        parts += ["<h2>Biased limit cycles</h2>", f"<pre>{_e(repr(report.biased))}</pre>"]
+    if getattr(report, "forced", None) is not None:
+        parts += ["<h2>Forced response</h2>",
+                  f"<pre>{_e(chr(10).join(repr(x) for x in report.forced if x is not None))}</pre>"]
     if getattr(report, "autotune", None) is not None:
         parts += ["<h2>Relay experiment and tuning</h2>", f"<pre>{_e(repr(report.autotune))}</pre>"]
     parts += ["<h2>Settings</h2>", _settings(report), "<h2>Timings</h2>", _timings(report)]

@@ -181,9 +181,17 @@ class Scene:
     loop_at: SceneLoop | None = None
     chart: Any = None
     chart_loop: ChartLoop | None = None
+    reference: float = 0.0
+    load: float = 0.0
+    forced: Any = None
     autotune: Any = None
     source: Path | None = None
     data: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def biased(self) -> bool:
+        """The loop has a constant input (``[loop] reference`` or ``load`` non-zero): its cycles are biased."""
+        return self.reference != 0.0 or self.load != 0.0
 
     @property
     def sweep_values(self) -> np.ndarray | None:
@@ -219,6 +227,10 @@ def load_scene(path: str | Path, *, progress: bool = False) -> Scene:
         for axis in ("x_axis", "y_axis"):
             problems += [Problem(f"chart.{axis}.parameter", p.message, p.suggestion, p.expected)
                          for p in check_parameter_path(data, getattr(model.chart, axis).parameter)]
+    if model is not None and model.loop is not None and (model.loop.reference or model.loop.load) \
+            and model.analysis.amplitude is None and model.analysis.predict:
+        problems.append(Problem("analysis.amplitude", "a constant input ([loop] reference / load) needs the amplitude "
+                                "window of the biased solver", None, "[lo, hi]"))
     if problems:
         raise SceneError(path, problems)
     name = model.scene.name or path.stem
@@ -265,6 +277,9 @@ def load_scene(path: str | Path, *, progress: bool = False) -> Scene:
         loop_at=loop_at,
         chart=model.chart,
         chart_loop=chart_loop,
+        reference=0.0 if model.loop is None else model.loop.reference,
+        load=0.0 if model.loop is None else model.loop.load,
+        forced=model.forced,
         autotune=model.autotune,
         source=path,
         data=data,

@@ -8,7 +8,7 @@ from typing import Any, Callable
 
 from .load import Scene
 
-__all__ = ["SceneReport", "run_scene", "predict_cycles"]
+__all__ = ["SceneReport", "run_scene", "predict_cycles", "predict_biased", "run_forced"]
 
 
 def predict_cycles(scene: Scene) -> Any:
@@ -21,6 +21,40 @@ def predict_cycles(scene: Scene) -> Any:
 
     return predict_limit_cycles(scene.plant, scene.element, omega=scene.omega, amplitude=scene.amplitude,
                                 exact=bool(scene.exact))
+
+
+def predict_biased(scene: Scene) -> Any:
+    """A scene with a constant input (``[loop]``): every biased cycle (:func:`dfloop.biased.biased_cycles`), each
+    with its confidence and, with ``[analysis] exact = true``, its exact orbit."""
+    from dfloop.biased import biased_cycles
+
+    window = scene.amplitude
+    if window is None:
+        raise ValueError("[loop] reference / load need [analysis] amplitude = [lo, hi] (the biased solver's window)")
+    options = {} if scene.omega is None else {"omega": scene.omega}
+    return biased_cycles(scene.plant, scene.element, r0=scene.reference, load=scene.load, amplitude=window,
+                         exact=bool(scene.exact), **options)
+
+
+def run_forced(scene: Scene) -> tuple[Any, Any, Any]:
+    """A scene's ``[forced]``: the DF forced response over ``num`` frequencies, its exact orbits (``exact``) and the
+    jump-resonance region (``region``): (ForcedResponse, ExactForcedResponse or None, JumpRegion or None)."""
+    import numpy as np
+
+    from dfloop.solve.forced import forced_response, jump_region
+
+    spec = scene.forced
+    window = spec.amplitude or scene.amplitude or (1e-3 * spec.forcing, 100 * spec.forcing)
+    omega = np.linspace(spec.omega[0], spec.omega[1], spec.num)
+    response = forced_response(scene.plant, scene.element, spec.forcing, omega, amplitude=tuple(window))
+    exact = None
+    if spec.exact:
+        from dfloop.hybrid.forced import exact_forced_response
+
+        exact = exact_forced_response(scene.plant, scene.element, response, every=spec.every)
+    region = None if spec.region is None else jump_region(scene.plant, scene.element, spec.region, omega,
+                                                          amplitude=tuple(window))
+    return response, exact, region
 
 
 def _percent(value: float | None) -> str:
@@ -120,6 +154,8 @@ class SceneReport:
     figure: Any = None
     margins: list[Any] = field(default_factory=list)
     chart: Any = None
+    biased: Any = None
+    forced: Any = None
     autotune: Any = None
 
     def to_markdown(self) -> str:
@@ -147,12 +183,30 @@ class SceneReport:
             lines += ["## Figure", "", "```", repr(self.figure), "```", ""]
         if self.autotune is not None:
             lines += ["## Relay experiment and tuning", "", *self.autotune.to_markdown_lines(), ""]
+        lines += _constant_input_and_forced_markdown(self)
         lines += ["## Stages run", "", "| stage | time (s) |", "|---|---|"]
         lines += [f"| {name} | {seconds:.3f} |" for name, seconds in self.stages]
         lines += [""] + [f"- {note}" for note in self.notes] if self.notes else []
         if self.files:
             lines += ["", "## Files", ""] + [f"- `{p.name}`" for p in self.files]
         return "\n".join(lines) + "\n"
+
+
+def _constant_input_and_forced_markdown(report: SceneReport) -> list[str]:
+    """The report's sections of a ``[loop]`` constant input (biased cycles) and of a ``[forced]`` stage."""
+    lines = []
+    if report.biased is not None:
+        s = report.scene
+        lines += ["## Biased limit cycles", "", f"Constant input: reference r0 = {s.reference:g}, load = {s.load:g}.",
+                  "", "```", repr(report.biased), "```", ""]
+    if report.forced is not None:
+        response, exact, region = report.forced
+        lines += ["## Forced response", "", "```", repr(response), "```", ""]
+        if exact is not None:
+            lines += ["### Exact orbits at the forcing period", "", "```", repr(exact), "```", ""]
+        if region is not None:
+            lines += ["### Jump-resonance region", "", "```", repr(region), "```", ""]
+    return lines
 
 
 def _save(fig: Any, path: Path) -> Path:
@@ -205,7 +259,10 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
     figure = figure_spec(scene)
     predict = scene.data.get("analysis", {}).get("predict", True)
     plots = scene.plots if predict else ()
-    planned = predict + len(plots) + (scene.sweep is not None) + (scene.chart is not None) + (figure is not None)
+    biased = predict and scene.biased     # a constant input: the cycles are biased (the symmetric solver's are not)
+    predict, plots = predict and not biased, () if biased else plots
+    planned = (predict + biased + len(plots) + (scene.sweep is not None) + (scene.chart is not None)
+               + (figure is not None) + (scene.forced is not None))
     planned += scene.autotune is not None
 
     motions_before = _motions_simulated()
@@ -233,6 +290,30 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
                     lambda c=cycle: verify_cycle(scene.plant, scene.element, c,
                                                  perturbation=scene.verify_perturbation)))
                 log(repr(report.verifications[-1]))
+        if biased:
+            report.biased = stage("predict biased cycles", lambda: predict_biased(scene))
+            log(repr(report.biased))
+            if scene.verify:
+                from dfloop.verify import verify_cycle
+
+                bar.set_total(planned + len(report.biased))
+                for cycle in report.biased:
+                    report.verifications.append(stage(
+                        f"verify biased cycle at w = {cycle.frequency:.4g} rad/s",
+                        lambda c=cycle: verify_cycle(scene.plant, scene.element, c, r0=scene.reference,
+                                                     load=scene.load, perturbation=scene.verify_perturbation)))
+                    log(repr(report.verifications[-1]))
+        if scene.forced is not None:
+            report.forced = stage("forced response", lambda: run_forced(scene))
+            for item in report.forced:
+                if item is not None:
+                    log(repr(item))
+            response, exact, region = report.forced
+            drawn = response.plot(exact=exact) if exact is not None else response.plot()
+            drawn.axes[0, 0].set_title(f"{scene.title}: forced response, R = {response.R:g}", fontsize="medium")
+            report.files.append(_save(drawn.figure, out / f"{scene.name}_forced.png"))
+            if region is not None:
+                report.files.append(_save(region.plot().figure, out / f"{scene.name}_region.png"))
         if scene.sweep is not None:
             from .parameters import parameter_label
 

@@ -20,7 +20,7 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Fiel
 from .errors import Problem, closest, dotted, validator_message
 
 __all__ = ["SceneFile", "SceneMeta", "TfPlant", "ZpkPlant", "SsPlant", "Analysis", "Sweep", "SweepRange", "Chart", "ChartAxis",
-           "Figure",
+           "Figure", "Loop", "Forced",
            "Autotune", "validate_scene", "validate_plant", "type_name", "PLANT_TYPES", "FIGURE_KINDS"]
 
 MAX_SWEEP_VALUES = 100_000
@@ -253,6 +253,36 @@ class Figure(_Table):
         return self
 
 
+class Loop(_Table):
+    """The loop's constant input: a reference at the summing junction and a load at the element's output."""
+
+    reference: float = Field(0.0, description="Constant r0 at the summing junction (element input units; e = r0 - "
+                                              "y). Non-zero (or a load): the prediction stage predicts biased "
+                                              "cycles e ~ B + A sin(w t) (`dfloop.biased.biased_cycles`, each with "
+                                              "its exact orbit when `[analysis] exact = true`).")
+    load: float = Field(0.0, description="Constant added to the element's output before the plant (element "
+                                         "output units: a load torque, gravity).")
+
+
+class Forced(_Table):
+    """The loop's response to a sinusoidal reference r = R sin(w t): DF solutions, jumps, exact orbits."""
+
+    forcing: float = Field(gt=0, description="Forcing amplitude R at the summing junction (element input units).")
+    omega: Window = Field(description="Frequency range [lo, hi] in rad/s of the response.")
+    num: int = Field(101, ge=2, le=MAX_FIGURE_POINTS, description="Frequencies, evenly spaced over `omega` (jumps "
+                                                                 "are located between them to rounding).")
+    amplitude: Window | None = Field(None, description="Amplitude window of the element's input (default: "
+                                                       "`[analysis] amplitude`, else [1e-3 R, 100 R] with R = `forcing`).")
+    exact: bool = Field(True, description="The exact orbit at the forcing period next to the DF solutions "
+                                          "(`dfloop.hybrid.forced.exact_forced_response`): stability by "
+                                          "multipliers, subharmonic / quasi-periodic responses marked.")
+    every: int = Field(4, ge=1, description="Exact orbits at every `every`-th frequency.")
+    region: list[Annotated[float, Field(gt=0)]] | None = Field(
+        None, min_length=1, max_length=MAX_FIGURE_POINTS,
+        description="Forcing amplitudes at which to locate the jumps: the jump-resonance region, plotted in the "
+                    "(frequency, forcing amplitude) plane (`dfloop.solve.forced.jump_region`).")
+
+
 class Autotune(_Table):
     """The relay experiment of relay-feedback auto-tuning on the scene's plant, with the scene's element (a
     `Relay`) as the relay: the DF and exact estimates of the ultimate point, PID tunings checked on the plant, and
@@ -284,6 +314,9 @@ class SceneFile(_Table):
                                                     "backlash) the forced motion's time responses and collision "
                                                     "runs, for several input amplitudes and values of one "
                                                     "parameter.")
+    loop: Loop | None = Field(None, description="The loop's constant input (reference, load).")
+    forced: Forced | None = Field(None, description="The forced response to r = R sin(w t), its jumps and the "
+                                                    "jump-resonance region.")
     autotune: Autotune | None = Field(None, description="The relay experiment and PID tuning (the element must be "
                                                         "a `Relay`).")
 

@@ -20,9 +20,10 @@ missed; the result says whether the bias equation was monotone on the grid (``bi
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize.elementwise import find_root
 
 from .._checks import finite, integer_at_least, window as checked_window
 from ..describing.base import DescribingFunction
@@ -31,7 +32,7 @@ from ..errors import DfloopError
 from .plant import as_plant
 from .predict import predict_limit_cycles
 
-__all__ = ["BiasedCycle", "BiasedCycles", "predict_biased_cycles", "static_gain"]
+__all__ = ["BiasedCycle", "BiasedCycles", "predict_biased_cycles", "static_gain", "biased_confidence"]
 
 _BISECTIONS = 200  # bisection steps on the bias (machine precision is reached in about 60 for any window)
 
@@ -76,6 +77,11 @@ class BiasedCycle:
         Index of the bias root (in increasing B) at this amplitude.
     residual : float
         |1 + G(jw) N_A(B, A)| at the answer.
+    confidence : Confidence or None
+        The harmonic distortion the dual-input DF neglects and the estimated errors of (A, w) and of the bias
+        (:func:`biased_confidence`; ``bias_error`` absolute, input units).
+    exact : ExactCycle or None
+        The exact orbit (:func:`dfloop.biased.biased_cycles`); its multipliers then decide the stability.
     """
 
     bias: float
@@ -85,6 +91,8 @@ class BiasedCycle:
     stability: str
     branch: int
     residual: float
+    confidence: object = field(default=None, compare=False)
+    exact: object = field(default=None, compare=False)
 
     @property
     def period(self) -> float:
@@ -95,9 +103,27 @@ class BiasedCycle:
     def stable(self) -> bool:
         return self.stability == "stable"
 
+    def to_dict(self) -> dict:
+        """Plain data: the attributes (``confidence`` and ``exact`` as their own ``to_dict()``, or None)."""
+        out = {k: getattr(self, k) for k in ("bias", "amplitude", "frequency", "mean_output", "stability", "branch",
+                                             "residual")}
+        for k in ("confidence", "exact"):
+            v = getattr(self, k)
+            out[k] = None if v is None else v.to_dict()
+        return out
+
     def __repr__(self) -> str:
-        return (f"BiasedCycle(bias={self.bias:.6g}, amplitude={self.amplitude:.6g}, frequency={self.frequency:.6g} "
-                f"rad/s, {self.stability}, branch {self.branch}, |1+G N_A|={self.residual:.1e})")
+        text = (f"BiasedCycle(bias={self.bias:.6g}, amplitude={self.amplitude:.6g}, frequency={self.frequency:.6g} "
+                f"rad/s, {self.stability}, branch {self.branch}, |1+G N_A|={self.residual:.1e}")
+        c = self.confidence
+        if c is not None and c.available:
+            text += (f"; distortion {100 * c.distortion:.3g} %, est. error A {100 * c.amplitude_error:+.3g} %, "
+                     f"w {100 * c.frequency_error:+.3g} %, bias {c.bias_error:+.3g}")
+        ex = self.exact
+        if ex is not None:
+            text += (f"; exact: mean={ex.mean:.8g}, A={ex.amplitude:.8g}, w={ex.frequency:.8g} rad/s, "
+                     f"{'stable' if ex.stable else 'unstable'}" if ex.success else f"; exact: {ex.message}")
+        return text + ")"
 
 
 class BiasedCycles(list):
@@ -164,17 +190,16 @@ class _BiasEquation:
         if np.any(count <= j):
             raise DfloopError(f"bias branch {j} does not exist at A = {float(A[count <= j][0])!r}")
         cell = np.argmax(np.cumsum(change, axis=1) > j, axis=1)
-        lo, hi = self.grid[cell].copy(), self.grid[cell + 1].copy()
-        f_lo = self(lo, A)
-        for _ in range(_BISECTIONS):
-            mid = 0.5 * (lo + hi)
-            if np.all((mid == lo) | (mid == hi)):
-                break
-            f_mid = self(mid, A)
-            left = np.sign(f_mid) * np.sign(f_lo) <= 0
-            hi, lo = np.where(left, mid, hi), np.where(left, lo, mid)
-            f_lo = np.where(left, f_lo, f_mid)
-        return 0.5 * (lo + hi)
+        lo, hi = self.grid[cell], self.grid[cell + 1]
+        # Chandrupatla's bracketing method (interpolation where F is smooth, bisection where it is not: the mean
+        # output of a relay with hysteresis jumps), to a bracket of a few ulps, vectorised over the amplitudes
+        res = find_root(lambda B, a: self(B, a), (lo, hi), args=(A,),
+                        tolerances=dict(xatol=np.finfo(float).tiny, xrtol=4 * np.finfo(float).eps, fatol=0.0,
+                                        frtol=0.0), maxiter=_BISECTIONS)
+        if not np.all(res.success):
+            bad = int(np.argmin(res.success))
+            raise DfloopError(f"the bias root at A = {float(A[bad])!r} did not converge in {_BISECTIONS} steps")
+        return np.asarray(res.x, float)
 
 
 class _BranchDF(DescribingFunction):
@@ -285,8 +310,9 @@ def predict_biased_cycles(G, element, *, r0: float = 0.0, load: float = 0.0, amp
             for c in found:
                 a = np.array([c.amplitude])
                 B = float(equation.root(a, j)[0])
+                conf = biased_confidence(G, dual, B, c.amplitude, c.frequency, r0=r0, load=load, dc_gain=g0)
                 cycles.append(BiasedCycle(B, c.amplitude, c.frequency, float(dual.mean(B, c.amplitude)),
-                                          c.stability, j, float(c.residual)))
+                                          c.stability, j, float(c.residual), conf))
     return BiasedCycles(cycles, r0, g0, (a_lo, a_hi), (b_lo, b_hi), omega, monotone, branches, gaps)
 
 
@@ -298,3 +324,107 @@ def _signed_window(bias) -> tuple[float, float]:
     if not lo < hi:
         raise DfloopError(f"bias must satisfy lo < hi, got {bias!r}")
     return lo, hi
+
+
+_SAMPLES = 2048      # samples of one period for the confidence
+_HARMONICS = 15      # harmonics carried through G
+_STEP = 1e-6         # relative step of the central differences of the balance's Jacobian
+
+
+def _response(dual: DualInputDF, scale: float):
+    """The element's output over one period of periodic input samples (its periodic regime), or None."""
+    if dual.function is not None:
+        f = dual.function
+        return lambda x: np.asarray(f(x), float)
+    if isinstance(dual.element, DescribingFunction):
+        try:
+            return dual.element.time_model(scale).response
+        except NotImplementedError:
+            return None
+    return None
+
+
+def biased_confidence(G, element, bias: float, amplitude: float, frequency: float, *, r0: float = 0.0,
+                      load: float = 0.0, dc_gain=None, samples: int = _SAMPLES, harmonics: int = _HARMONICS):
+    """Harmonic distortion and estimated errors of a biased cycle e ~ B + A sin(w t) (the biased counterpart of
+    :func:`dfloop.solve.confidence.cycle_confidence`).
+
+    The element is driven by B + A sin(theta); the harmonics k >= 2 of its output pass through G and give the
+    input's distortion d = sqrt(sum |X_k|^2) / A. Driven once more with the distorted input, the element's mean
+    output changes by dm and its fundamental gain by dN: the first corrections the harmonics make to the bias
+    equation B + G(0) (m + load) = r0 (m + load = 0 with an integrator) and to 1 + G(jw) N_A = 0. Solving the
+    balance linearised in (B, A, w) (central differences, relative step 1e-6) gives the estimated errors, as
+    one step of a harmonic balance with the bias and K harmonics.
+
+    Parameters
+    ----------
+    G : python-control tf or ss, or callable (then ``dc_gain`` is needed)
+    element : DualInputDF or anything it accepts
+    bias, amplitude, frequency : float
+        The predicted cycle (input units, rad/s).
+    r0, load, dc_gain
+        As for :func:`predict_biased_cycles`.
+    samples, harmonics : int
+        Samples of one period (>= 64) and harmonics carried through G (>= 2).
+
+    Returns
+    -------
+    Confidence
+        ``amplitude_error``, ``frequency_error`` relative, ``bias_error`` absolute (predicted - exact, estimated);
+        unavailable (with the reason) for an element without a time-domain response.
+    """
+    from .._checks import in_closed_interval, scale as positive_scale
+    from .confidence import Confidence, unavailable
+
+    dual = element if isinstance(element, DualInputDF) else DualInputDF(element)
+    B, A, w = finite("bias", bias), positive_scale("amplitude", amplitude), positive_scale("frequency", frequency)
+    r0, load = finite("r0", r0), finite("load", load)
+    S = int(in_closed_interval("samples", samples, 64, 2**20))
+    K = int(in_closed_interval("harmonics", harmonics, 2, S // 4))
+    response = _response(dual, abs(B) + A)
+    if response is None:
+        return unavailable(f"{dual!r} has no time-domain response")
+    plant = as_plant(G)
+    g0 = static_gain(G) if dc_gain is None else float(dc_gain)
+    k = np.arange(1, K + 1)
+    lo, hi = plant.domain
+    usable = (k * w >= lo) & (k * w <= hi)
+    Gk = np.zeros(K, complex)
+    Gk[usable] = plant(k[usable] * w)
+    theta = 2 * np.pi * np.arange(S) / S
+    x1 = B + A * np.sin(theta)
+    y1 = np.asarray(response(x1), float)
+    Y = 2j * np.fft.rfft(y1)[1:K + 1] / S
+    X = -Gk * Y
+    X[0] = A
+    distortion = float(np.sqrt(np.sum(np.abs(X[1:]) ** 2)) / A)
+    spectrum = np.zeros(S // 2 + 1, complex)
+    spectrum[2:K + 1] = -0.5j * S * X[1:]
+    y2 = np.asarray(response(x1 + np.fft.irfft(spectrum, n=S)), float)
+    dm = float(np.mean(y2) - np.mean(y1))
+    dN = (2j * np.fft.rfft(y2)[1] / S - Y[0]) / A
+
+    def balance(b, a, ww):
+        m = float(dual.mean(b, a)) + load
+        f = m if math.isinf(g0) else b + g0 * m - r0
+        r = 1 + complex(plant(np.array([ww]))[0]) * complex(dual.N_A(b, a))
+        return np.array([f, r.real, r.imag])
+
+    hB, hA, hw = _STEP * (abs(B) + A), _STEP * A, _STEP * w
+    J = np.column_stack([(balance(B + hB, A, w) - balance(B - hB, A, w)) / (2 * hB),
+                         (balance(B, A + hA, w) - balance(B, A - hA, w)) / (2 * hA),
+                         (balance(B, A, w + hw) - balance(B, A, w - hw)) / (2 * hw)])
+    gdn = Gk[0] * dN
+    rhs = -np.array([dm if math.isinf(g0) else g0 * dm, gdn.real, gdn.imag])
+    note = (f"{S} samples per period, {K} harmonics; errors from one harmonic-balance step with the bias"
+            + ("" if usable.all() else f"; G known for {int(usable.sum())} of {K} harmonics"))
+    try:
+        dB, dA, dw = np.linalg.solve(J, rhs)
+    except np.linalg.LinAlgError:
+        return Confidence(distortion, np.inf, np.inf, X, True, "the biased balance is singular in (B, A, w) here: "
+                          "no error estimate", bias_error=np.inf)
+    if not np.all(np.isfinite([dB, dA, dw])):
+        return Confidence(distortion, np.inf, np.inf, X, True, "the biased balance is singular in (B, A, w) here: "
+                          "no error estimate", bias_error=np.inf)
+    return Confidence(distortion, float(-dA / (A + dA)), float(-dw / (w + dw)), X, True, note,
+                      bias_error=float(-dB))

@@ -53,6 +53,9 @@ class Confidence:
         deviates from N(A) by up to ``sampled_spread`` (relative) over the phases phi of the samples. Above 5 %
         the DF of the sampled element is questionable (not :attr:`reliable`): compare with
         :func:`dfloop.hybrid.discrete.discrete_orbits`.
+    bias_error : float or None
+        Biased cycles only (:func:`dfloop.solve.bias.biased_confidence`): estimated error of the predicted bias,
+        predicted - exact (absolute, input units).
     """
 
     distortion: float | None
@@ -63,6 +66,7 @@ class Confidence:
     note: str
     sampled_spread: float | None = None
     samples_per_period: int | None = None
+    bias_error: float | None = None
 
     @property
     def reliable(self) -> bool:
@@ -89,7 +93,8 @@ class Confidence:
         return {"distortion": plain(self.distortion), "amplitude_error": plain(self.amplitude_error),
                 "frequency_error": plain(self.frequency_error), "available": self.available,
                 "reliable": self.reliable, "note": self.note, "harmonics": plain(self.harmonics),
-                "sampled_spread": plain(self.sampled_spread), "samples_per_period": self.samples_per_period}
+                "sampled_spread": plain(self.sampled_spread), "samples_per_period": self.samples_per_period,
+                "bias_error": plain(self.bias_error)}
 
     def to_csv(self, path) -> None:
         """Write the scalars of :meth:`to_dict` as a one-row CSV file (the harmonics are in ``to_dict``)."""

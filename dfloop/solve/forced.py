@@ -313,6 +313,18 @@ class JumpRegion:
     R: np.ndarray
     folds: list
 
+    def plot(self, ax=None):
+        """The region in the (frequency, forcing amplitude) plane (:func:`dfloop.plot.forced.plot_jump_region`)."""
+        from ..plot.forced import plot_jump_region
+
+        return plot_jump_region(self, ax=ax)
+
+    def to_dict(self) -> dict:
+        """``R`` and, per forcing amplitude, its jumps (``omega``, ``amplitude``, ``target``, ``sweep``)."""
+        return {"R": [float(r) for r in self.R],
+                "folds": [[{"omega": j.omega, "amplitude": j.amplitude, "target": j.target, "sweep": j.sweep}
+                           for j in folds] for folds in self.folds]}
+
     def band(self, i: int) -> tuple[float, float] | None:
         """(lowest, highest) fold frequency at ``R[i]`` (rad/s): the multi-valued band; None without jumps."""
         w = [j.omega for j in self.folds[i]]

@@ -39,9 +39,11 @@ FD_MIN_WIDTH = 1e-6  # the same for a frequency-dependent N, whose jumps move wi
 _MAX_POINTS = 2_000_000  # nodes per axis
 BYTES_PER_POINT = {False: 80, True: 160}
 """Upper bounds on the solver's peak memory per grid point (bytes), for an amplitude-only N (False) and a
-frequency-dependent N (True). Measured peaks (tracemalloc, tests/test_memory_bounds.py): ~23 and ~129: the
-amplitude-only solver works on the candidate cells and the products of two vectors, a frequency-dependent one
-on the whole tensor grid (G N, 1 + G N, phases, refinement masks, windings, tangent seeds)."""
+frequency-dependent N (True). Measured peaks (tracemalloc, tests/test_memory_bounds.py): under 16 and ~129:
+the amplitude-only solver reads the loop product at the candidate cells only (``roots.OuterProduct``), so its
+peak scales with them and with the roots, and the bound leaves room for grids where many more cells are
+candidates; a frequency-dependent one works on the whole tensor grid (G N, 1 + G N, phases, refinement masks,
+windings, tangent seeds)."""
 
 
 def check_memory(na: int, nv: int, frequency_dependent: bool = False) -> None:
@@ -88,7 +90,8 @@ def _non_monotone(ls: list) -> np.ndarray:
     below 1e-10 are rounding, not a turn)."""
     out = np.zeros(ls[0].shape, bool)
     for k, part in enumerate((np.real, np.imag)):
-        steps = [part(b) - part(a) for a, b in zip(ls[:-1], ls[1:])]
+        with np.errstate(invalid="ignore"):  # ln 0 - ln 0 (a dead band) is NaN: neither up nor down
+            steps = [part(b) - part(a) for a, b in zip(ls[:-1], ls[1:])]
         if k == 1:
             steps = [np.angle(np.exp(1j * d)) for d in steps]
         with np.errstate(invalid="ignore"):

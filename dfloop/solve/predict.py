@@ -16,7 +16,8 @@ from ._kernels import candidate_cells
 from .grid import FD_MIN_WIDTH, STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
 from .plant import as_plant
 from .result import GridReport, JumpCrossing, LimitCycle, LimitCycles
-from .roots import JUMP_BOX, Residual, accepted, dominant_steps, find_roots, greedy_unique
+from .roots import (JUMP_BOX, OuterProduct, Residual, accepted, dominant_steps, find_roots, greedy_unique,
+                    unresolved_boxes)
 from .stability import MARGINAL_TOL, classify
 
 __all__ = ["predict_limit_cycles"]
@@ -338,7 +339,7 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
         a, n, eps_a, n_n, _ = resolve_sampled(lambda A: res._n(A, None), a, "N along the amplitude", monotone=True)
         n_eval += n_n
         check_memory(a.size, v.size, False)
-        P = n[:, None] * g[None, :]
+        P = OuterProduct(n, g)  # read at the candidate cells only: no na x nv array
         cells = candidate_cells(clog(n), eps_a, clog(g), eps_v)
         a_rule, n_cand = "sampled", int(cells[0].size)
     if not (np.any(n) if not res.frequency_dependent else np.any(P)):
@@ -355,6 +356,12 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     ra, rv, jumps = find_roots(res, a, v, P, tol, cells)
     cycles, rejected = _build(res, ra, rv, window, marginal_tol, tol)
     report = dataclasses.replace(report, rejected=rejected)
+    lost = unresolved_boxes(res, ra, rv)
+    if lost:  # 1 + G N winds there but no root could be refined: say where (never silently dropped)
+        warnings.warn(f"{len(lost)} place(s) where 1 + G N winds around 0 but no root could be refined: " + "; ".join(
+            f"A in [{b[0]:.6g}, {b[1]:.6g}], omega in [{b[2]:.6g}, {b[3]:.6g}] rad/s" for b in lost[:3])
+            + " (see .grid_report.uncertified)", stacklevel=2)
+        report = dataclasses.replace(report, uncertified=report.uncertified + tuple(b[2:] for b in lost))
     crossings = _jump_crossings(res, jumps)
     if crossings:
         where = "; ".join(f"A={c.amplitude:.4g}, omega={c.frequency:.4g} rad/s" for c in crossings[:5])

@@ -226,8 +226,9 @@ class GridReport:
     uncertified : tuple of (float, float)
         Frequency intervals (rad/s) where the sampled bound on |d ln G| (|d ln G N|) could not be certified:
         the samples and the slopes at them still disagree at the smallest interval width (a discontinuity
-        of a callable or frd G, or a feature narrower than the sampling can follow). Roots inside them may
-        be missed. Empty for rational G.
+        of a callable or frd G, or a feature narrower than the sampling can follow), and those of places
+        where 1 + G N winds around 0 but no root could be refined (a warning names their amplitudes too).
+        Roots inside them may be missed.
     rejected : int
         Refined points dropped because they did not satisfy the residual bound (``roots.residual_bound``);
         every returned cycle satisfies it.

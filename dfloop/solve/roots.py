@@ -23,7 +23,8 @@ from .errors import ContinuumError
 from ._kernels import edge_steps, nonzero_windings, tangent_seeds
 from .plant import Plant
 
-__all__ = ["Residual", "Box", "find_roots", "dominant_steps", "greedy_unique", "accepted", "residual_bound"]
+__all__ = ["Residual", "Box", "OuterProduct", "find_roots", "dominant_steps", "greedy_unique", "accepted", "residual_bound",
+           "unresolved_boxes"]
 
 _SPLIT_PHASE = np.pi / 2  # an edge step whose phase change exceeds this is bisected
 _MAX_EDGE_DEPTH = 50  # bisection levels along an edge (2**-50 of its length)
@@ -61,6 +62,28 @@ def dominant_steps(P: np.ndarray) -> np.ndarray:
     return d > _JUMP_DOMINANCE * np.maximum(before, after)
 
 
+class OuterProduct:
+    """The loop product P[i, j] = N_i G_j of an amplitude-only N on the tensor grid, computed where it is read.
+
+    Indexing as an (na, nv) array: with two index arrays (elementwise pairs) or two slices (a block); the values
+    are bit-identical to ``N[:, None] * G[None, :]``, whose na x nv array (411 MB for the 64 x 402,116 grid of a
+    relay around a delay on [0.1, 1e5] rad/s, ~2 s of page faults) the candidate cells never need.
+    """
+
+    ndim = 2
+
+    def __init__(self, n: np.ndarray, g: np.ndarray):
+        self.n, self.g = np.asarray(n), np.asarray(g)
+        self.shape = (self.n.size, self.g.size)
+        self.size = self.n.size * self.g.size
+
+    def __getitem__(self, key) -> np.ndarray:
+        i, j = key
+        if isinstance(i, slice) and isinstance(j, slice):
+            return np.multiply.outer(self.n[i], self.g[j])
+        return self.n[i] * self.g[j]
+
+
 class Residual:
     """R = 1 + P with P(a, v) = G(j e^v) N(e^a, e^v), evaluated with numpy broadcasting.
 
@@ -76,7 +99,9 @@ class Residual:
         self.plant = plant
         self.N = N
         self.frequency_dependent = bool(N.frequency_dependent)
+        self.continuous = bool(getattr(N, "continuous", False))  # no jump of N anywhere (the element says so)
         self.n_points = 0
+        self.unresolved: list[tuple[float, float, float, float, int]] = []  # winding boxes left without a root
         self._memo: dict[tuple[float, float], tuple] = {}  # (a, v) -> (P, dP/da, dP/dv, G, N) of small batches
 
     def _n(self, A: np.ndarray, w: np.ndarray | None) -> np.ndarray:
@@ -109,7 +134,8 @@ class Residual:
         """P = G N and its derivatives dP/da, dP/dv at points (a, v) (1-D arrays, log coordinates).
 
         dG/dv is exact for rational G (:meth:`Plant.log_slope`), a central difference otherwise; N is
-        differentiated by central differences of step ``_FD_STEP`` (log units). Small batches (the points
+        differentiated by central differences of step ``_FD_STEP`` (log units), shorter next to the edges of
+        N's amplitude domain (:meth:`_fd_steps`). Small batches (the points
         of a refinement) are remembered, so the merge, the stability test and the result, which read the
         same refined points again, cost no evaluation (:meth:`factors`).
         """
@@ -133,24 +159,57 @@ class Residual:
             self._memo.update(zip(keys, zip(*(x.tolist() for x in out))))
         return out
 
+    def _fd_steps(self, a: np.ndarray, v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Central-difference steps (log units) for N along a and v: ``_FD_STEP``, shrunk to a quarter of the
+        distance to the edges of N's amplitude domain so no difference point leaves it.
+
+        At a domain edge N is continuous but not smooth (a dead band ends: N rises from 0 like a power of
+        the distance to the edge); a root next to the edge (|G| ~ 1e8 at a resonance needs |N| ~ 1e-8, i.e. a
+        relative distance ~ 1e-8) would otherwise get a difference with one point in the dead band, a wrong
+        Jacobian, and a refinement that never converges. Along v the edge moves (its slope is differenced
+        once on the domain function itself): the v-step keeps the moved edge a quarter-distance away too.
+        """
+        h = _FD_STEP
+        if self.frequency_dependent:
+            up, dn = np.exp(h), np.exp(-h)
+            lo3, hi3 = (np.asarray(x, float).reshape(3, -1) for x in
+                        self.N.amplitude_domain(np.concatenate([w, w * up, w * dn])))
+            lo, hi = lo3[0], hi3[0]
+            with np.errstate(divide="ignore", invalid="ignore"):  # an edge at 0 or inf does not move: NaN, 0
+                slope = np.fmax(np.abs(np.log(lo3[1]) - np.log(lo3[2])),
+                                np.abs(np.log(hi3[1]) - np.log(hi3[2]))) / (2 * h)
+            slope = np.where(np.isfinite(slope), slope, 0.0)
+        else:
+            lo, hi = (np.broadcast_to(np.asarray(x, float), a.shape) for x in self.N.amplitude_domain())
+            slope = np.zeros(a.shape)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            gap = np.minimum(a - np.log(lo), np.log(hi) - a)
+        gap = np.where(np.isnan(gap), np.inf, gap)
+        floor = 64 * _rounding(a)  # at the rounding level the edge cannot be kept out; the step stays resolvable
+        h_a = np.clip(0.25 * gap, floor, h)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            h_v = np.where(slope > 0, 0.25 * gap / slope, h)
+        return h_a, np.clip(h_v, 64 * _rounding(v), h)
+
     def _evaluate_slopes(self, a: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, ...]:
         k, h = a.size, _FD_STEP
         A, w = np.exp(a), np.exp(v)
-        up, dn = np.exp(h), np.exp(-h)
         if self.plant.exact:
             g = self.plant(w)
             g_v = g * self.plant.log_slope(w)
         else:
-            gg = self.plant(np.concatenate([w, w * up, w * dn]))
+            gg = self.plant(np.concatenate([w, w * np.exp(h), w * np.exp(-h)]))
             g, g_v = gg[:k], (gg[k:2 * k] - gg[2 * k:]) / (2 * h)
+        h_a, h_v = self._fd_steps(a, v, w)
         if self.frequency_dependent:
-            nn = self._n(np.concatenate([A, A * up, A * dn, A, A]), np.concatenate([w, w, w, w * up, w * dn]))
-            n_v = (nn[3 * k:4 * k] - nn[4 * k:]) / (2 * h)
+            nn = self._n(np.concatenate([A, A * np.exp(h_a), A * np.exp(-h_a), A, A]),
+                         np.concatenate([w, w, w, w * np.exp(h_v), w * np.exp(-h_v)]))
+            n_v = (nn[3 * k:4 * k] - nn[4 * k:]) / (2 * h_v)
         else:
-            nn = self._n(np.concatenate([A, A * up, A * dn]), None)
+            nn = self._n(np.concatenate([A, A * np.exp(h_a), A * np.exp(-h_a)]), None)
             n_v = 0.0
         self.n_points += nn.size
-        n, n_a = nn[:k], (nn[k:2 * k] - nn[2 * k:3 * k]) / (2 * h)
+        n, n_a = nn[:k], (nn[k:2 * k] - nn[2 * k:3 * k]) / (2 * h_a)
         return g * n, g * n_a, g_v * n + g * n_v, g, n
 
     def jacobian(self, a: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -189,7 +248,9 @@ def edge_phases(res: Residual, a0, v0, a1, v1, P0, P1) -> tuple[np.ndarray, list
     """Continuous change of arg R along straight segments (a0, v0) -> (a1, v1).
 
     Segments whose phase step exceeds pi/2 are bisected (vectorised, at most 50 levels), except across
-    a discontinuity of N (a segment shorter than ``_JUMP_LENGTH`` over which R still changes by more than
+    a discontinuity of N (never for an element that states it is continuous, ``N.continuous``: there a steep
+    rise of N from 0 at the edge of a dead band, under a |G| of 1e8 at a resonance, looks like a jump at
+    every length down to rounding, yet holds a root) (a segment shorter than ``_JUMP_LENGTH`` over which R still changes by more than
     ``_JUMP_SIZE`` (1 + |G N|), and one of whose halves still carries ``_JUMP_KEEP`` of that change: a
     continuous R, however steep, shares it between the halves and is bisected on), where the step along the
     chord is taken. Returns the phase changes,
@@ -208,7 +269,7 @@ def edge_phases(res: Residual, a0, v0, a1, v1, P0, P1) -> tuple[np.ndarray, list
             suspects.extend(zip(np.where(R0 == 0, a0, a1)[zero], np.where(R0 == 0, v0, v1)[zero]))
         split = np.abs(d) > _SPLIT_PHASE
         short = np.maximum(np.abs(a1 - a0), np.abs(v1 - v0)) < _JUMP_LENGTH
-        jump = split & short & (np.abs(R1 - R0) > _JUMP_SIZE * (1 + np.maximum(np.abs(R0 - 1), np.abs(R1 - 1))))
+        jump = split & short & (not res.continuous) & (np.abs(R1 - R0) > _JUMP_SIZE * (1 + np.maximum(np.abs(R0 - 1), np.abs(R1 - 1))))
         if jump.any():
             # a discontinuity keeps (nearly) its whole change in one half; a steep but continuous R (a resonance
             # of damping 1e-6, N's dead-band edge) shares it between the halves: that one is bisected further
@@ -327,13 +388,18 @@ def _rounding(x: np.ndarray) -> np.ndarray:
     return np.maximum(np.spacing(np.abs(x)), np.finfo(float).eps)
 
 
-def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def refine(res: Residual, a, v, box: Box, tol: float, certified: bool = False
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Levenberg-Marquardt on (Re R, Im R) from (a, v), each point clipped to its box.
 
     Every trial point is evaluated together with its finite-difference neighbours, so an accepted step
     costs one call. Returns the final (a, v) and a mask of points with |R| <= tol (1 + |G N|) or
     a Newton step at the rounding level of (a, v) (:func:`at_rounding_level`), and within
-    :func:`residual_bound` in either case.
+    :func:`residual_bound` in either case. With ``certified`` (each box is known to hold a root: its winding
+    is +-1), a point where the iteration ends within :func:`residual_bound` also counts: R is then at the
+    floor set by the rounding of (ln A, ln w), though the Newton step is not (a nearly singular Jacobian, e.g.
+    a root 1e-12 from the edge of a dead band under |G| = 3e10, where N itself carries a relative rounding
+    error of 1e-5 and dR/da, dR/dv are nearly parallel).
     Bounded by 100 iterations.
     """
     a, v = np.array(a, float), np.array(v, float)
@@ -390,7 +456,8 @@ def refine(res: Residual, a, v, box: Box, tol: float) -> tuple[np.ndarray, np.nd
         lam[rej] *= 100
         done = (rel <= polish) | at_rounding_level(P, ra, rv, a, v)
         failed |= (lam > 1e8) & ~done
-    return a, v, ((rel <= tol) | at_rounding_level(P, ra, rv, a, v)) & accepted(P, ra, rv, a, v, tol)
+    ok = accepted(P, ra, rv, a, v, tol)
+    return a, v, ok if certified else ok & ((rel <= tol) | at_rounding_level(P, ra, rv, a, v))
 
 
 def _span(box: Box) -> float:
@@ -408,14 +475,66 @@ def _touches(box: Box, points: list) -> np.ndarray:
     return inside.any(axis=1)
 
 
+_START_LATTICE = 9  # starts per side of a box whose centre did not refine (the best of 9 x 9 is taken)
+
+
+def _best_starts(res: Residual, box: Box) -> tuple[np.ndarray, np.ndarray]:
+    """Per box, the point of a ``_START_LATTICE`` x ``_START_LATTICE`` lattice (ends included) with the smallest
+    |1 + G N| / (1 + |G N|) where G N != 0: a start off a dead band (where R = 1 and its slopes vanish, so a
+    refinement from there cannot move), e.g. when the box centre of a root next to the band's edge lies in it."""
+    t = np.linspace(0.0, 1.0, _START_LATTICE)
+    ta, tv = (x.ravel() for x in np.meshgrid(t, t))
+    pa = box.a_lo[:, None] + ta[None, :] * (box.a_hi - box.a_lo)[:, None]
+    pv = box.v_lo[:, None] + tv[None, :] * (box.v_hi - box.v_lo)[:, None]
+    P = res.terms(pa, pv)
+    with np.errstate(invalid="ignore"):
+        rel = np.where(P != 0, np.abs(1 + P) / (1 + np.abs(P)), np.inf)
+    k = np.argmin(rel, axis=1)
+    rows = np.arange(len(box))
+    return pa[rows, k], pv[rows, k]
+
+
+_CHASE_SPLIT = 4  # a box of winding +-1 is split 4 x 4 per round of _chase ...
+_MAX_CHASE = 30  # ... for at most this many rounds (4^-30 of its sides, below any float spacing)
+
+
+def _chase(res: Residual, box: Box, tol: float) -> tuple[float, float, bool]:
+    """Root of one box known to wind once: refined (certified, inside the box) from the best of a lattice of
+    starts; failing that, the box is split ``_CHASE_SPLIT`` x ``_CHASE_SPLIT`` and the sub-box that winds is
+    followed (bounded by ``_MAX_CHASE`` rounds and by the float spacing of its sides). Next to a dead-band edge
+    under a huge |G|, R jumps from 1 to hundreds within 1e-9 and most starts lie on the flat side.
+    Returns (a, v, found)."""
+    a = v = np.nan
+    for _ in range(_MAX_CHASE):
+        ra, rv, ok = refine(res, *_best_starts(res, box), box, tol, certified=True)
+        a, v = float(ra[0]), float(rv[0])
+        if ok[0]:
+            return a, v, True
+        t = np.linspace(0.0, 1.0, _CHASE_SPLIT + 1)
+        ea = box.a_lo[0] + t * (box.a_hi[0] - box.a_lo[0])
+        ev = box.v_lo[0] + t * (box.v_hi[0] - box.v_lo[0])
+        if np.any(np.diff(ea) <= 2 * _rounding(ea[1:])) or np.any(np.diff(ev) <= 2 * _rounding(ev[1:])):
+            break  # the sides reach the float spacing: nothing left to split
+        ia, iv = (x.ravel() for x in np.meshgrid(np.arange(_CHASE_SPLIT), np.arange(_CHASE_SPLIT)))
+        kids = Box(ea[ia], ea[ia + 1], ev[iv], ev[iv + 1])
+        wind = box_windings(res, kids)[0]
+        hit = np.flatnonzero(np.abs(wind) == 1)
+        if hit.size != 1:
+            break  # the root sits on a sub-box edge, or the winding splits: not a single root to follow
+        box = kids.take(hit)
+    return a, v, False
+
+
 def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float, float] | None = None):
     """Quadrisect one box until its roots sit in boxes of winding +-1, then refine those (bounded).
 
     Returns the refined roots (a, v) and the jump crossings [(a, v, winding), ...]: boxes narrower than
-    ``JUMP_BOX`` that still wind, hold no refinable root and touch a discontinuity of N.
+    ``JUMP_BOX`` that still wind, hold no refinable root and touch a discontinuity of N (never for a
+    continuous N). A box that still winds when the depth bound is reached and whose refinement fails is
+    recorded in ``res.unresolved`` (a_lo, a_hi, v_lo, v_hi, winding): a root may lie there.
     """
     found_a, found_v, crossings = [], [], []
-    queue = box
+    queue, queue_wind = box, np.zeros(len(box), int)
     for _ in range(_MAX_ISOLATE_DEPTH):
         if len(queue) == 0:
             break
@@ -424,7 +543,8 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
         single = np.abs(wind) == 1
         if single.any():
             sb = kids.take(single)
-            a, v, ok = refine(res, (sb.a_lo + sb.a_hi) / 2, (sb.v_lo + sb.v_hi) / 2, sb.grown(0.5, window), tol)
+            a, v, ok = refine(res, (sb.a_lo + sb.a_hi) / 2, (sb.v_lo + sb.v_hi) / 2, sb.grown(0.5, window), tol,
+                              certified=True)
             ok &= sb.grown(1e-9, window).contains(a, v)
             found_a.extend(a[ok])
             found_v.extend(v[ok])
@@ -441,12 +561,13 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
             sa, sv = np.array(suspects).T
             check_continuum(res, sa, sv, window, tol)
         keep |= _touches(kids, suspects[:_MAX_LIVE_BOXES])
-        queue = kids.take(keep)
+        queue, queue_wind = kids.take(keep), wind[keep]
         if len(queue) > _MAX_LIVE_BOXES and _span(queue) < _MULTIPLE_ROOT_SPAN:
             # the live boxes crowd around one point smaller than a resolvable separation: a multiple (tangent)
             # root whose neighbourhood has zeros of Re R or Im R on many edges; refined below as one box
             queue = Box(*(np.array([f(x)]) for f, x in ((np.min, queue.a_lo), (np.max, queue.a_hi),
                                                           (np.min, queue.v_lo), (np.max, queue.v_hi))))
+            queue_wind = np.array([int(queue_wind.sum())])
             break
         if len(queue) > _MAX_LIVE_BOXES:
             check_continuum(res, (queue.a_lo + queue.a_hi) / 2, (queue.v_lo + queue.v_hi) / 2, window, tol)
@@ -458,8 +579,18 @@ def _isolate(res: Residual, box: Box, window: Box, tol: float, hint: tuple[float
         # bound reached: what is left is a multiple (e.g. tangent) root smaller than the box size
         a, v, ok = refine(res, (queue.a_lo + queue.a_hi) / 2, (queue.v_lo + queue.v_hi) / 2,
                           queue.grown(1.0, window), tol)
+        single = np.flatnonzero(~ok & (np.abs(queue_wind) == 1))
+        if single.size:
+            # a box known to hold one root: refined inside the box itself, the residual bound alone accepts (see
+            # refine); a nearly singular Jacobian (dR/da, dR/dv parallel to 1e-5 next to a dead-band edge)
+            # otherwise lets the iteration slide along its null direction out of the box
+            for k in single:
+                a[k], v[k], ok[k] = _chase(res, queue.take([k]), tol)
         found_a.extend(a[ok])
         found_v.extend(v[ok])
+        lost = ~ok & (queue_wind != 0)  # still winding, no root refined: say so (GridReport.uncertified)
+        res.unresolved.extend(zip(queue.a_lo[lost].tolist(), queue.a_hi[lost].tolist(), queue.v_lo[lost].tolist(),
+                                  queue.v_hi[lost].tolist(), queue_wind[lost].tolist()))
     return found_a, found_v, crossings
 
 
@@ -615,7 +746,8 @@ def _node_boxes(a: np.ndarray, v: np.ndarray, i: np.ndarray, j: np.ndarray, n: i
 def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: float, cells=None):
     """All roots of R in the window spanned by the grid (a, v) with loop products P = G N on it.
 
-    ``cells`` = (i, j): the only cells that can hold a root (see ``candidate_cells``); None for all.
+    ``cells`` = (i, j): the only cells that can hold a root (see ``candidate_cells``); None for all. P is an
+    array, or with ``cells`` an :class:`OuterProduct` (only read at the candidate cells and their neighbours).
     Returns arrays (a, v) of refined roots (|R| <= tol (1 + |GN|)), merged and sorted by frequency,
     and the jump crossings of N as rows (a, v, winding) sorted by frequency. Raises ValueError when
     the roots form a continuum (:func:`check_continuum`).
@@ -696,3 +828,20 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
         return np.empty(0), np.empty(0), _merge_crossings(crossings)
     check_continuum(res, np.asarray(roots_a), np.asarray(roots_v), window, tol, refined=True)
     return (*merge(res, np.asarray(roots_a), np.asarray(roots_v)), _merge_crossings(crossings))
+
+
+def unresolved_boxes(res: Residual, a: np.ndarray, v: np.ndarray) -> list[tuple[float, float, float, float]]:
+    """The boxes of ``res.unresolved`` (windings of R left without a refined root) that hold none of the
+    returned roots (a, v), as (A_lo, A_hi, w_lo, w_hi) in the element's amplitude unit and rad/s, merged
+    when they overlap."""
+    out: list[list[float]] = []
+    for a_lo, a_hi, v_lo, v_hi, _ in sorted(res.unresolved):
+        if np.any((a_lo <= a) & (a <= a_hi) & (v_lo <= v) & (v <= v_hi)):
+            continue
+        for b in out:
+            if a_lo <= b[1] and b[0] <= a_hi and v_lo <= b[3] and b[2] <= v_hi:
+                b[:] = [min(b[0], a_lo), max(b[1], a_hi), min(b[2], v_lo), max(b[3], v_hi)]
+                break
+        else:
+            out.append([a_lo, a_hi, v_lo, v_hi])
+    return [tuple(float(np.exp(x)) for x in b) for b in out]

@@ -12,6 +12,8 @@ checks is a miss, and the caller computes in memory. Each such fault gives one
 and kind of error in a process, so a build that saves repeatedly does not repeat it).
 
 Cache directory: ``$DFLOOP_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/dfloop`` or ``~/.cache/dfloop``.
+``DFLOOP_CACHE_DIR`` set but empty (or blank) is refused everywhere, here as in ``dfloop cache`` and ``dfloop
+run``: a ``ValueError`` naming it (an empty value would otherwise silently mean the default directory).
 """
 from __future__ import annotations
 
@@ -46,8 +48,17 @@ SOURCES = ("tables/table1d.py", "tables/table2d.py", "tables/store.py", "tables/
 
 
 def cache_dir() -> Path:
-    """The cache directory (created on demand by :func:`save_table`)."""
+    """The cache directory (created on demand by :func:`save_table`).
+
+    Raises
+    ------
+    DfloopError
+        (a ValueError) when ``DFLOOP_CACHE_DIR`` is set but empty or blank: set it to a directory, or unset it.
+    """
     env = os.environ.get("DFLOOP_CACHE_DIR")
+    if env is not None and not env.strip():
+        raise DfloopError(f"DFLOOP_CACHE_DIR is set but empty ({env!r}); set it to a directory, or unset it for the "
+                          "default (~/.cache/dfloop, or $XDG_CACHE_HOME/dfloop)")
     if env:
         return Path(env)
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
