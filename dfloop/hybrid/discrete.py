@@ -379,16 +379,18 @@ def discrete_orbits(G, N, *, max_period: int = 20, bound: float | None = None,
         (lattice search). When it is hit, the period is left incomplete and the result says so. The level search's
         work grows with the number of levels within the bound and with the length of G's memory; the lattice
         search's with the volume 1 / |det(I - H)| of the rounding band (large near the periods where the loop with
-        a unit gain would resonate): for 5.6/(s+1)^3 at dt = 0.2 s, 24, 196, 1504, 3458 and 12776 linear programs
-        at P = 12, 16, 18, 19, 20 (``benchmarks/bench_digital.py``).
+        a unit gain would resonate): for 5.6/(s+1)^3 at dt = 0.2 s with a quantizer of step 0.05, 476 linear
+        programs for all periods 1..16 and 17738 for periods 18..20 (``benchmarks/bench_digital.py``).
     periods : iterable of int, optional
         Search only these periods (each in [1, max_period]); default 1..max_period.
     method : {"auto", "lattice", "intervals"}
         "lattice": the quantizer's output sequences y = step n are the integer points n of the band
         |((I - H) n)_k| <= 1/2 (x = H y, |y - x| <= step/2), enumerated depth-first with the exact range of each
         next coordinate from two linear programs over the band with the earlier ones fixed (a relaxation: complete).
-        "intervals": the level-by-level branch and bound of the module notes. "auto": lattice for a
-        :class:`~dfloop.describing.static.Quantizer`, intervals otherwise.
+        "intervals": the level-by-level branch and bound of the module notes. "auto": for a
+        :class:`~dfloop.describing.static.Quantizer` without ``bound`` the lattice search; with a bound the level
+        search, and the lattice search for each period where the level search hits ``max_nodes``; other elements:
+        intervals.
 
     Returns
     -------
@@ -407,12 +409,17 @@ def discrete_orbits(G, N, *, max_period: int = 20, bound: float | None = None,
 
     if method not in ("auto", "lattice", "intervals"):
         raise ValueError(f"method must be 'auto', 'lattice' or 'intervals'; got {method!r}")
-    lattice = method == "lattice" or (method == "auto" and isinstance(N, Quantizer))
-    if lattice and not isinstance(N, Quantizer):
+    quantizer = isinstance(N, Quantizer)
+    if method == "lattice" and not quantizer:
         raise ValueError(f"method='lattice' is for the Quantizer (a band |f(x) - x| <= step/2); got "
                          f"{type(N).__name__}")
-    if lattice:
+    # auto: a quantizer without a bound goes to the lattice search; with a bound the level search runs first
+    # (fast on short memories) and a period where it hits max_nodes is searched again by the lattice search
+    lattice_only = quantizer and (method == "lattice" or (method == "auto" and bound is None))
+    fallback = quantizer and method == "auto" and bound is not None
+    if quantizer:
         step = N.step
+    if lattice_only:
         f = N.output
     else:
         parts = _levels(N, bound)
@@ -432,19 +439,23 @@ def discrete_orbits(G, N, *, max_period: int = 20, bound: float | None = None,
             continue
         k = np.arange(P)
         H = -g[(k[:, None] - 1 - k[None, :]) % P]
+        lattice = lattice_only
+        if not lattice:
+            seqs, nodes, hit = _search_period(H, lo, hi, v, P, max_nodes)
+            nodes_total += nodes
+            if hit and fallback:
+                lattice = True
+            elif hit:
+                skipped[P] = f"the search examined more than max_nodes={max_nodes} partial sequences; raise max_nodes"
         if lattice:
             if bound is None and np.linalg.cond(np.eye(P) - H) > 1e12:
                 skipped[P] = ("I - H is singular (the loop with a unit gain in place of the quantizer has an orbit of "
                               "this period: the rounding does not bound the orbits); give bound")
                 continue
             seqs, nodes, why = _lattice_search(H, step, bound, max_nodes)
+            nodes_total += nodes
             if why is not None:
                 skipped[P] = why
-        else:
-            seqs, nodes, hit = _search_period(H, lo, hi, v, P, max_nodes)
-            if hit:
-                skipped[P] = f"the search examined more than max_nodes={max_nodes} partial sequences; raise max_nodes"
-        nodes_total += nodes
         mu = np.linalg.eigvals(AP)
         mu = mu[np.argsort(-np.abs(mu))]
         for seq in seqs:
