@@ -61,3 +61,14 @@ def test_lattice_needs_no_bound_and_refuses_other_elements():
     bounded = discrete_orbits(ct.tf([1.0], [1.0, 0.0], 1.0), Q, max_period=2, bound=0.12)
     # with the bound: x_{k+1} = -Q(x_k)... every n with y = 0.05 n, x = -y of the other sample: (n, -n), |n| <= 2
     assert bounded.complete and sorted(o.y.max() for o in bounded if o.period == 2) == pytest.approx([0.05, 0.1])
+
+
+def test_auto_falls_back_to_the_lattice_where_the_level_search_gives_up():
+    """With a bound, 'auto' runs the level search first; at period 8 it exceeds 2000 nodes, the lattice search takes
+    over and the result is complete and equal to the lattice search's own."""
+    levels_only = discrete_orbits(G, Q, max_period=8, periods=[8], bound=0.3, max_nodes=2000, method="intervals")
+    assert not levels_only.complete
+    auto = discrete_orbits(G, Q, max_period=8, periods=[8], bound=0.3, max_nodes=2000)
+    lattice = discrete_orbits(G, Q, max_period=8, periods=[8], bound=0.3, method="lattice")
+    assert auto.complete and len(auto.oscillating()) == 4
+    assert [tuple(o.y) for o in auto] == [tuple(o.y) for o in lattice]
