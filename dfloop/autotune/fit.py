@@ -61,7 +61,9 @@ class ModelFit:
     features : RecordFeatures
         The model-free reading of the record, with the DF's estimate ``features.Ku``, ``features.Tu``.
     evaluations : int
-        Orbits solved by the fit.
+        Residual evaluations of the least-squares search (each solves the model's orbit).
+    record : RelayRecord
+        The fitted recording.
     """
 
     model: ProcessModel

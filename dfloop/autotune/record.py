@@ -4,7 +4,8 @@ Format (``docs/autotune.md``): UTF-8 text, ``#`` comment lines first, each ``# k
 ``relay_high``, ``relay_low`` (relay output levels, process input unit) and ``hysteresis`` (process output unit)
 describe the relay, other keys (``description``, ``units``, ...) are kept in ``meta``. Then a header line ``t,u,y``
 and one row per sample: time t (s, increasing), the relay output u (= the process input before its dead time) and
-the process output y (deviation from the setpoint, so the relay's input is x = -y).
+the process output y, both as deviations from the operating point (so the relay levels lie on either side of 0,
+high > 0 > low, and the relay's input is x = -y).
 
 :meth:`RelayRecord.features` reads the settled oscillation: the relay's switching instants (the sample interval in
 which u changes level; the midpoint, uncertain by +-dt/2), the period and the time at the high level by a
