@@ -7,7 +7,8 @@ filter loop with a quantizer, a saturated loop) the table gives the DF predictio
 output sequence, or shoots on the P-fold map) with its time, the DF's relative errors, the samples per period and
 the phase spread of the sampled DF that the confidence reports. A second table times the exhaustive enumeration
 (:func:`dfloop.hybrid.discrete.discrete_orbits`) of every orbit of period <= P_max, with the nodes it examined and
-whether it completed within its work bound.
+whether it completed within its work bound; the quantizer rows run both searches (``method``: "lattice", the
+default for a quantizer, and "intervals", the level-by-level search with a bound on |x|).
 
 Run: python benchmarks/bench_digital.py [--write]   (--write also writes benchmarks/results/bench_digital.md)
 """
@@ -35,6 +36,11 @@ ENUMERATIONS = [  # (name, G, N, max_period, bound)
     ("quantizer 1, (0.9z+0.3)/(z^2-0.2z+0.45)", ct.tf([0.9, 0.3], [1.0, -0.2, 0.45], 1.0), df.Quantizer(1.0), 10, 4.0),
     ("relay, z^-5 (pure delay)", ct.tf([1.0], [1, 0, 0, 0, 0, 0], 1.0), df.Relay(1.0, dead_zone=0.5), 10, None),
     ("relay dz 0.05, 1/(s+1)^3 ZOH dt=0.2", ct.sample_system(ZOH3, 0.2), df.Relay(1.0, dead_zone=0.05), 12, None),
+]
+LATTICE = [  # (name, G, step, periods, bound of the interval search): slow plants sampled fast
+    ("quantizer 0.05, 5.6/(s+1)^3 ZOH dt=0.6", 5.6 * ct.sample_system(ZOH3, 0.6), 0.05, range(1, 10), 0.3),
+    ("quantizer 0.05, 5.6/(s+1)^3 ZOH dt=0.2", 5.6 * ct.sample_system(ZOH3, 0.2), 0.05, range(1, 17), 0.15),
+    ("quantizer 0.05, 5.6/(s+1)^3 ZOH dt=0.2", 5.6 * ct.sample_system(ZOH3, 0.2), 0.05, [18, 19, 20], 0.15),
 ]
 
 
@@ -74,6 +80,15 @@ def main(argv: list[str]) -> str:
         lines.append(f"| {name} | {P_max} | {bound if bound is not None else 'all levels'} | {len(res)} | "
                      f"{len(res.oscillating())} | {res.nodes} | {'yes' if res.complete else 'no (' + res.message[:60] + '...)'} "
                      f"| {t:.3f} |")
+    lines += ["", "| quantizer loop | periods | method | orbits | oscillating | nodes or LPs | complete | time [s] |",
+              "|---|---|---|---|---|---|---|---|"]
+    for name, G, step, periods, bound in LATTICE:
+        for method, b in (("lattice", None), ("intervals", bound)):
+            res, t = _timed(lambda: discrete_orbits(G, df.Quantizer(step), max_period=max(periods), periods=periods,
+                                                    bound=b, method=method))
+            span = f"{min(periods)}..{max(periods)}"
+            lines.append(f"| {name} | {span} | {method}{'' if b is None else f' (bound {b:g})'} | {len(res)} | "
+                         f"{len(res.oscillating())} | {res.nodes} | {'yes' if res.complete else 'no'} | {t:.2f} |")
     text = "\n".join(lines) + "\n"
     print(text)
     if "--write" in argv:

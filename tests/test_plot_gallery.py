@@ -258,13 +258,25 @@ def test_scene_figure_study(kind):
         assert entries == [f"{e:g}" for e in np.linspace(0.1, 0.9, 9)]
 
 
+def test_relay_fit():
+    from dfloop.autotune.fit import fit_relay_record
+    from dfloop.autotune.models import ProcessModel
+    from dfloop.autotune.synthetic import synthetic_record
+
+    rec = synthetic_record(ProcessModel(2.0, (3.0,), 1.0), high=1.2, low=-0.8, hysteresis=0.05, cycles=5, noise=0.02)
+    cplt = fit_relay_record(rec).plot()
+    check_figure(cplt.figure, "relay fit")
+    assert [len(g) for g in cplt.lines] == [1, 1, 2]
+
+
 # every public plot function of dfloop.plot and where the gallery renders it (a new one must be added here)
 GALLERY = {"plot_nyquist": test_nyquist_pictures, "plot_residual_map": test_frequency_dependent_family_and_residual_map,
            "plot_loci": test_frequency_dependent_family_and_residual_map, "plot_exact_cycle": test_time_domain_pictures,
            "plot_verification": test_time_domain_pictures, "plot_time_response": test_time_domain_pictures,
            "plot_sweep": test_sweep_and_collision_map, "plot_collision_map": test_sweep_and_collision_map,
            "plot_element_study": test_scene_figure_study, "plot_chart": test_design_chart,
-           "plot_forced_response": test_forced_response, "plot_jump_region": test_jump_region_and_exact_forced_points}
+           "plot_forced_response": test_forced_response, "plot_jump_region": test_jump_region_and_exact_forced_points,
+           "plot_relay_fit": test_relay_fit}
 
 
 def test_the_gallery_covers_every_plot_function():

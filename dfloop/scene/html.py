@@ -161,7 +161,8 @@ _CAPTIONS = {"nyquist": "Nyquist plane: G(jω), the -1/N locus and the predicted
                        "arrows: jumps; circles: exact orbits at the forcing period, filled when stable; crosses: no "
                        "orbit at the forcing period).",
              "region": "Jump-resonance region: the multi-valued band of the forced response against the forcing "
-                       "amplitude."}
+                       "amplitude.",
+             "fit": "The recorded relay experiment against the fitted model's exact relay orbit."}
 
 
 def report_html(report) -> str:
@@ -206,6 +207,8 @@ def report_html(report) -> str:
     if getattr(report, "forced", None) is not None:
         parts += ["<h2>Forced response</h2>",
                   f"<pre>{_e(chr(10).join(repr(x) for x in report.forced if x is not None))}</pre>"]
+    if getattr(report, "autotune", None) is not None:
+        parts += ["<h2>Relay experiment and tuning</h2>", f"<pre>{_e(repr(report.autotune))}</pre>"]
     parts += ["<h2>Settings</h2>", _settings(report), "<h2>Timings</h2>", _timings(report)]
     if report.notes:
         parts += ["<h2>Notes</h2>", "<ul>" + "".join(f"<li>{_e(n)}</li>" for n in report.notes) + "</ul>"]

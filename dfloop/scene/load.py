@@ -184,6 +184,7 @@ class Scene:
     reference: float = 0.0
     load: float = 0.0
     forced: Any = None
+    autotune: Any = None
     source: Path | None = None
     data: dict = field(default_factory=dict, repr=False)
 
@@ -251,6 +252,9 @@ def load_scene(path: str | Path, *, progress: bool = False) -> Scene:
                     chart_loop(x, y)
     except SceneError as err:
         raise err.in_file(path) from None
+    if model.autotune is not None and type(element).__name__ != "Relay":
+        raise SceneError(path, Problem("autotune", f"the relay experiment needs the element to be a Relay; got "
+                                       f"{type(element).__name__}"))
     analysis = model.analysis
     if analysis.verify:
         try:
@@ -276,6 +280,7 @@ def load_scene(path: str | Path, *, progress: bool = False) -> Scene:
         reference=0.0 if model.loop is None else model.loop.reference,
         load=0.0 if model.loop is None else model.loop.load,
         forced=model.forced,
+        autotune=model.autotune,
         source=path,
         data=data,
     )

@@ -156,6 +156,7 @@ class SceneReport:
     chart: Any = None
     biased: Any = None
     forced: Any = None
+    autotune: Any = None
 
     def to_markdown(self) -> str:
         lines = [f"# {self.scene.title}", "", f"Scene `{self.scene.source}`; element `{self.scene.element!r}`.", ""]
@@ -180,6 +181,8 @@ class SceneReport:
                 lines += ["No nominal value inside the swept range (set `nominal` in `[sweep]` / `[chart]`).", ""]
         if self.figure is not None:
             lines += ["## Figure", "", "```", repr(self.figure), "```", ""]
+        if self.autotune is not None:
+            lines += ["## Relay experiment and tuning", "", *self.autotune.to_markdown_lines(), ""]
         lines += _constant_input_and_forced_markdown(self)
         lines += ["## Stages run", "", "| stage | time (s) |", "|---|---|"]
         lines += [f"| {name} | {seconds:.3f} |" for name, seconds in self.stages]
@@ -260,6 +263,7 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
     predict, plots = predict and not biased, () if biased else plots
     planned = (predict + biased + len(plots) + (scene.sweep is not None) + (scene.chart is not None)
                + (figure is not None) + (scene.forced is not None))
+    planned += scene.autotune is not None
 
     motions_before = _motions_simulated()
     with progress_bar(scene.name, planned, enabled=progress) as bar:
@@ -337,6 +341,13 @@ def run_scene(scene: Scene, out_dir: str | Path = "out", log: Callable[[str], No
             drawn = report.chart.plot()
             drawn.axes[0, 0].set_title(scene.title, fontsize="medium")
             report.files.append(_save(drawn.figure, out / f"{scene.name}_chart.png"))
+        if scene.autotune is not None:
+            from .autotune import run_autotune
+
+            report.autotune = stage("relay experiment and tuning", lambda: run_autotune(scene))
+            log(repr(report.autotune))
+            if report.autotune.fit is not None:
+                report.files.append(_save(report.autotune.fit.plot().figure, out / f"{scene.name}_relay_fit.png"))
         if figure is not None:
             report.figure = stage(f"figure ({figure.kind})", lambda: figure_data(scene))
             log(repr(report.figure))

@@ -21,7 +21,7 @@ from .errors import Problem, closest, dotted, validator_message
 
 __all__ = ["SceneFile", "SceneMeta", "TfPlant", "ZpkPlant", "SsPlant", "Analysis", "Sweep", "SweepRange", "Chart", "ChartAxis",
            "Figure", "Loop", "Forced",
-           "validate_scene", "validate_plant", "type_name", "PLANT_TYPES", "FIGURE_KINDS"]
+           "Autotune", "validate_scene", "validate_plant", "type_name", "PLANT_TYPES", "FIGURE_KINDS"]
 
 MAX_SWEEP_VALUES = 100_000
 MAX_FIGURE_POINTS = 5_000
@@ -283,6 +283,22 @@ class Forced(_Table):
                     "(frequency, forcing amplitude) plane (`dfloop.solve.forced.jump_region`).")
 
 
+class Autotune(_Table):
+    """The relay experiment of relay-feedback auto-tuning on the scene's plant, with the scene's element (a
+    `Relay`) as the relay: the DF and exact estimates of the ultimate point, PID tunings checked on the plant, and
+    optionally the FOPDT/SOPDT fit of a recorded experiment (docs/autotune.md)."""
+
+    rules: list[Literal["zn-p", "zn-pi", "zn-pid", "simc-pi", "simc-pid", "amigo-pi", "amigo-pid"]] = Field(
+        ["zn-pid", "amigo-pid"], min_length=1, description="Tuning rules; `zn-*` use the ultimate point, the others "
+                                                           "a process model (the fit, or the plant when it is one).")
+    bias: float = Field(0.0, description="Relay output offset (levels bias +- M, |bias| < M): the experiment then "
+                                         "also estimates the static gain (first- or second-order plants).")
+    record: str | None = Field(None, description="A recorded relay experiment (CSV `t,u,y`, path relative to the "
+                                                 "scene) to fit; its model then feeds the rules.")
+    model: Literal["FOPDT", "SOPDT"] = Field("FOPDT", description="Model structure fitted to `record`.")
+    t_end: float = Field(100.0, gt=0.0, description="Length (s) of the closed-loop step response of each check.")
+
+
 class SceneFile(_Table):
     """A whole scene file."""
 
@@ -301,6 +317,8 @@ class SceneFile(_Table):
     loop: Loop | None = Field(None, description="The loop's constant input (reference, load).")
     forced: Forced | None = Field(None, description="The forced response to r = R sin(w t), its jumps and the "
                                                     "jump-resonance region.")
+    autotune: Autotune | None = Field(None, description="The relay experiment and PID tuning (the element must be "
+                                                        "a `Relay`).")
 
 
 # ---------------------------------------------------------------------------------------------- type names
