@@ -45,8 +45,12 @@ dynamic (LinearThenStatic, MassBacklash)               a continuous-time ``nlsys
                                                        the static part's play (a proper block with D != 0 before
                                                        a play: in :func:`control_loop` only, which knows the
                                                        input's rate)
-DynamicBacklash                                        ``ValueError``: impacts (velocity jumps) are no ``nlsys``;
-                                                       :func:`dfloop.verify.simulate_loop` runs its loop exactly
+DynamicBacklash                                        with ``dt``: a discrete-time ``nlsys`` (force on M2 in,
+                                                       x1 out, state [x1, v1, gap, v2 - v1]) whose step is the
+                                                       exact motion over a sample with the force held; without:
+                                                       ``ValueError`` (impacts are velocity jumps, no
+                                                       continuous-time ``nlsys``); its closed loop runs exactly
+                                                       in :func:`dfloop.verify.simulate_loop`
 =====================================================  =========================================================
 
 Backlash and relays share one state model: the play operator c = clip(c, x - a, x + a) of half-width a (a = h/2
@@ -423,8 +427,9 @@ def _model(N):
 
 
 def _no_model(N) -> ValueError:
-    why = ("its impacts (velocity jumps) are no python-control nlsys; dfloop.verify.simulate_loop(G, N, "
-           "amplitude, frequency) runs its closed loop on the exact impact engine"
+    why = ("its impacts (velocity jumps) are no continuous-time python-control nlsys: dfloop.to_control(N, dt=...) "
+           "gives the element sampled (exact for a force held over each sample), and "
+           "dfloop.verify.simulate_loop(G, N, amplitude, frequency) runs its closed loop on the exact impact engine"
            if impact_model(N) is not None else
            "it has no state model here (a hysteretic NumericDF of an operator other than dfloop's play or relay "
            "keeps its state inside that operator; a LinearThenStatic needs a python-control tf/ss linear block)")
@@ -522,7 +527,7 @@ def _nonlinearity_class():
     return ControlNonlinearity
 
 
-def to_control(element: Any) -> Any:
+def to_control(element: Any, *, dt: float | None = None) -> Any:
     """A dfloop element as a python-control object, in one call.
 
     Amplitude-only elements give a ``control.DescribingFunctionNonlinearity`` whose call ``F(x)`` is the
@@ -534,9 +539,15 @@ def to_control(element: Any) -> Any:
     ``x``, output ``y``; its ``element`` attribute is the dfloop element). The table at the top of
     :mod:`dfloop.describing.interop` lists every case.
 
+    The dynamic backlash (impacts: velocity jumps) has no continuous-time form; with ``dt`` it gives a
+    discrete-time ``control.nlsys`` (input the force on M2 in N, output x1 in m, state [x1, v1, gap, v2 - v1]
+    starting at rest with the gap centred) whose step is the exact motion over one sample with the force held.
+
     Parameters
     ----------
     element : DescribingFunction or anything :func:`as_element` accepts
+    dt : float, optional
+        Sampling period (s) of the discrete-time ``nlsys`` of an element that has one (the dynamic backlash).
 
     Returns
     -------
@@ -545,7 +556,8 @@ def to_control(element: Any) -> Any:
     Raises
     ------
     ValueError
-        For an element without a python-control form (the dynamic backlash: impacts), saying what to use.
+        For an element without a python-control form, or the dynamic backlash without ``dt``, saying what to
+        use.
 
     Examples
     --------
@@ -557,6 +569,18 @@ def to_control(element: Any) -> Any:
     import control as ct
 
     N = as_element(element)
+    if callable(getattr(N, "sampled_model", None)):
+        if dt is None:
+            raise _no_model(N)
+        model = N.sampled_model(positive("dt", dt))
+        out = ct.nlsys(lambda t, s, u, p: model.step(s, float(np.ravel(u)[0])),
+                       lambda t, s, u, p: np.array([model.output(s)]), inputs=["x"], outputs=["y"],
+                       states=model.nstates, dt=dt, name=f"{type(N).__name__}")
+        out.element, out.model = N, model
+        return out
+    if dt is not None:
+        raise ValueError(f"dt: only an element with a sampled model (the dynamic backlash) takes dt here, got "
+                         f"dt = {dt!r} for {N!r} (a play's discrete nlsys: to_control(N).to_nlsys(dt))")
     if not N.frequency_dependent:
         try:
             return _nonlinearity_class()(N)
