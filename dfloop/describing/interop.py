@@ -604,6 +604,37 @@ def to_control(element: Any, *, dt: float | None = None) -> Any:
     return out
 
 
+def _sampled_loop(G, N, dt: float, name: str):
+    """The loop of a plant and an element with a sampled model as a discrete-time nlsys (see control_loop)."""
+    import control as ct
+
+    model = N.sampled_model(dt)
+    Gd = ct.c2d(ct.ss(G), dt, "zoh")
+    Ad, Bd, Cd = np.asarray(Gd.A, float), np.asarray(Gd.B, float)[:, 0], np.asarray(Gd.C, float)[0]
+    n = Ad.shape[0]
+
+    def update(t, z, u, p):
+        zp, s = z[:n], z[n:]
+        x = float(np.ravel(u)[0]) - float(Cd @ zp)
+        return np.concatenate([Ad @ zp + Bd * model.output(s), model.step(s, x)])
+
+    def output(t, z, u, p):
+        return np.array([float(np.ravel(u)[0]) - float(Cd @ z[:n]), model.output(z[n:])])
+
+    loop = ct.nlsys(update, output, inputs=["r"], outputs=["x", "y"], states=n + model.nstates, dt=dt, name=name)
+    A, B, _ = _ss_matrices(G, "G")
+
+    def initial_state(cycle):
+        """Plant on the harmonic-balance orbit of the cycle (c2d keeps the realisation), masses at rest."""
+        A0, w = _cycle_pair(cycle)
+        X = np.linalg.solve(1j * w * np.eye(n) - A, B) * complex(N(A0, w)) * A0
+        return np.concatenate([X.imag, model.initial()])
+
+    loop.initial_state = initial_state
+    loop.element, loop.model = N, model
+    return loop
+
+
 def _cycle_pair(cycle) -> tuple[float, float]:
     if hasattr(cycle, "amplitude") and hasattr(cycle, "frequency"):
         return positive("cycle amplitude", cycle.amplitude), positive("cycle frequency", cycle.frequency)
@@ -637,7 +668,7 @@ def control_initial_state(G: Any, N: Any, cycle: Any) -> np.ndarray:
     return np.concatenate([X.imag, model.initial(complex(A0), w)])
 
 
-def control_loop(G: Any, N: Any, *, name: str = "dfloop_loop") -> Any:
+def control_loop(G: Any, N: Any, *, dt: float | None = None, name: str = "dfloop_loop") -> Any:
     """The closed loop of the paper's Fig. 1 as a python-control ``nlsys`` for ``control.input_output_response``.
 
     Reference r (the input, 0 for the autonomous loop), element input x = r - c, element output y, plant output
@@ -650,8 +681,15 @@ def control_loop(G: Any, N: Any, *, name: str = "dfloop_loop") -> Any:
     G : control.TransferFunction or control.StateSpace
         SISO, continuous-time, strictly proper (D = 0).
     N : DescribingFunction or anything :func:`as_element` accepts
-        Any element with a state model: all but the dynamic backlash (impacts) and a hysteretic ``NumericDF`` of
-        an operator other than dfloop's ``PlayOperator`` / ``RelayOperator`` (its state is opaque).
+        Any element with a state model: all but a hysteretic ``NumericDF`` of an operator other than dfloop's
+        ``PlayOperator`` / ``RelayOperator`` (its state is opaque). The dynamic backlash (impacts are velocity
+        jumps) needs ``dt``.
+    dt : float, optional
+        Only for an element with a sampled model (the dynamic backlash): the loop as a discrete-time ``nlsys`` of
+        sampling period dt (s), the element's exact motion over each sample with its input force held, the plant
+        discretised with a zero-order hold on the element's output x1 (``control.c2d``). A sampled-data
+        approximation of the continuous loop, whose error falls with dt (first order: the holds), unlike the
+        other elements' loops; :func:`dfloop.verify.simulate_loop` runs the continuous loop exactly.
 
     Returns
     -------
@@ -672,6 +710,11 @@ def control_loop(G: Any, N: Any, *, name: str = "dfloop_loop") -> Any:
 
     N = as_element(N)
     A, B, C = _ss_matrices(G, "G")
+    if callable(getattr(N, "sampled_model", None)) and dt is not None:
+        return _sampled_loop(G, N, positive("dt", dt), name)
+    if dt is not None:
+        raise ValueError(f"dt: only an element with a sampled model (the dynamic backlash) makes a sampled loop; "
+                         f"got dt = {dt!r} for {N!r}, whose loop is continuous-time")
     model = _model(N)
     if model is None:
         raise _no_model(N)
