@@ -23,6 +23,7 @@ from control.descfcn import friction_backlash_nonlinearity, \
 from dfloop.describing import StaticElement
 from dfloop.describing.interop import as_element, control_loop, to_control
 from dfloop.harmonics import steady_state
+from dfloop.impact.dynamic_backlash import DynamicBacklash
 
 
 def _dfloop(nonlinearity):
@@ -333,8 +334,10 @@ def test_mass_backlash_is_a_continuous_nlsys_with_its_describing_function():
 def test_dynamic_backlash_says_what_to_use_instead():
     from dfloop.impact.dynamic_backlash import DynamicBacklash
 
-    with pytest.raises(ValueError, match="simulate_loop"):
+    with pytest.raises(ValueError, match="dt=.*simulate_loop"):
         to_control(DynamicBacklash(1.0, 1.0, 0.1, 0.5))
+    with pytest.raises(ValueError, match="dt"):
+        to_control(df.Backlash(h=1.0), dt=0.1)
 
     class Stop:   # a user's hysteretic operator: its state is opaque to dfloop
         def __init__(self):
@@ -443,3 +446,42 @@ def test_closed_loop_of_linear_then_static_with_feedthrough_settles_on_the_exact
     assert abs(cycle.frequency / ex.frequency - 1) > 1e-3   # the DF prediction alone would not pass
     with pytest.raises(ValueError, match="control_loop"):
         to_control(N)
+
+
+def _held_response(m1, m2, h, eps, dt, force):
+    sys_d = to_control(DynamicBacklash(m1, m2, h, eps), dt=dt)
+    assert sys_d.isdtime() and sys_d.nstates == 4
+    T = np.arange(force.size) * dt
+    return ct.input_output_response(sys_d, T, force, sys_d.model.initial())
+
+
+def test_sampled_dynamic_backlash_keeps_momentum_under_any_held_force():
+    """Impacts conserve momentum: m1 v1 + m2 v2 at every sample equals the impulse of the held force so far,
+    whatever the impacts, chatter and sticking in between (random force levels, eps 0 to 1)."""
+    rng = np.random.default_rng(7)
+    for eps in (0.0, 0.5, 1.0):
+        m1, m2, h, dt = 1.3, 0.7, 0.05, 0.02
+        force = rng.uniform(-40.0, 40.0, 300)
+        r = _held_response(m1, m2, h, eps, dt, force)
+        x1, v1, gap, u = r.states
+        impulse = np.concatenate([[0.0], np.cumsum(force[:-1]) * dt])
+        assert np.max(np.abs(m1 * v1 + m2 * (v1 + u) - impulse)) < 1e-9 * np.max(np.abs(impulse))
+        assert np.all((gap >= 0.0) & (gap <= h))
+        np.testing.assert_array_equal(r.outputs, x1)
+
+
+def test_sampled_dynamic_backlash_under_constant_force_follows_the_closed_form():
+    """A constant force F on M2 from rest (gap h/2): before the first impact M2 alone accelerates (gap = h/2 +
+    F t^2/(2 m2), x1 = 0); after the chatter has settled the pair moves as one body pressed on wall B, its centre
+    of mass at m2 h/(2M) + F t^2/(2M)."""
+    m1, m2, h, eps, F, dt = 1.0, 2.0, 0.1, 0.5, 5.0, 0.01
+    r = _held_response(m1, m2, h, eps, dt, np.full(600, F))
+    t = r.time
+    x1, v1, gap, u = r.states
+    before = t < np.sqrt(h * m2 / F)
+    np.testing.assert_allclose(gap[before], h / 2 + F * t[before] ** 2 / (2 * m2), rtol=0, atol=1e-14)
+    assert np.all(x1[before] == 0.0)
+    M = m1 + m2
+    late = t > 4.0
+    assert np.all(gap[late] == h) and np.all(u[late] == 0.0)
+    np.testing.assert_allclose(x1[late], m2 * h / (2 * M) + F * t[late] ** 2 / (2 * M) - m2 * h / M, rtol=1e-12)

@@ -24,6 +24,7 @@ import numpy as np
 
 from ..describing.static import Relay
 from ..exact import ExactCycle, exact_cycle
+from ..solve.delay import DelayedSystem
 from ..solve.predict import predict_limit_cycles
 from ..solve.result import LimitCycle
 from .cycle import RelayCycle, relay_cycle
@@ -93,8 +94,12 @@ class RelayExperiment:
 
 
 def _ultimate_point(G) -> tuple[float, float]:
+    """(Ku, Tu) of G: the gain margin and the period at the first crossing of the negative real axis (arg G =
+    -180 deg). A plant with a pure delay (:func:`dfloop.delayed`) is evaluated exactly, G(jw) e^{-jwT}."""
     import control as ct
 
+    if isinstance(G, DelayedSystem):
+        return _delayed_ultimate_point(G)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)   # python-control's "falling back to frd" notice
         gm, _, _, w180, _, _ = ct.stability_margins(G)
@@ -102,6 +107,38 @@ def _ultimate_point(G) -> tuple[float, float]:
         raise ValueError(f"G has no finite ultimate point (arg G never reaches -180 deg: gain margin {gm}, phase "
                          f"crossover {w180}); a relay experiment needs one")
     return float(gm), 2.0 * math.pi / float(w180)
+
+
+_CROSSING_SAMPLES = 400     # samples per decade at least (more where the delay turns the phase faster)
+
+
+def _delayed_ultimate_point(G: DelayedSystem) -> tuple[float, float]:
+    """The ultimate point of G(s) e^{-sT}: the lowest w where G(jw) e^{-jwT} crosses the negative real axis,
+    bracketed on a log grid whose phase steps stay below 0.1 rad and refined by brentq on Im."""
+    from scipy.optimize import brentq
+
+    scales = [1.0 / G.delay] if G.delay > 0 else []
+    poles = np.abs(np.concatenate([np.atleast_1d(ct_poles) for ct_poles in (G.system.poles(), G.system.zeros())]))
+    scales += [float(p) for p in poles if p > 0]
+    if not scales:
+        raise ValueError(f"G = {G!r} has no time scale (no delay, poles or zeros): no ultimate point")
+    lo, hi = 1e-3 * min(scales), 1e3 * max(scales)
+    a = lo
+    while a < hi:            # decade by decade, from the lowest frequency up: the first crossing is the one
+        b = min(10.0 * a, hi)
+        n = max(_CROSSING_SAMPLES, int(math.ceil(math.log(b / a) * b * G.delay / 0.1)))   # delay phase < 0.1 rad
+        w = np.append(a, np.exp(np.linspace(math.log(a), math.log(b), n + 1))[1:])
+        g = G.frequency_response_at(w)
+        k = np.flatnonzero((np.sign(g.imag[:-1]) != np.sign(g.imag[1:])) & (g.real[:-1] + g.real[1:] < 0))
+        if k.size:
+            break
+        a = b
+    else:
+        raise ValueError(f"G = {G!r} never crosses the negative real axis for w in [{lo:.3g}, {hi:.3g}] rad/s: no "
+                         "ultimate point; a relay experiment needs one")
+    w180 = brentq(lambda x: float(G.frequency_response_at(np.array([x]))[0].imag), w[k[0]], w[k[0] + 1],
+                  xtol=1e-14 * w[k[0]], rtol=1e-15)
+    return float(-1.0 / G.frequency_response_at(np.array([w180]))[0].real), 2.0 * math.pi / w180
 
 
 def process_model(G, delay: float = 0.0) -> ProcessModel:

@@ -259,8 +259,8 @@ def negative_inverse(N: DescribingFunction, A, omega=None) -> np.ndarray:
         raise DfloopError(f"N must be a dfloop DescribingFunction (see dfloop.as_element), got {type(N).__name__}")
     n = N(A, omega)
     out = np.full(n.shape, complex(np.inf, 0.0))
-    nz = n != 0
+    nan = np.isnan(n)                 # a gap (A = NaN, or outside the element's domain) stays a gap
+    nz = (n != 0) & ~nan
     out[nz] = -1.0 / n[nz]
-    nan = np.isnan(n)
     out[nan] = complex(np.nan, np.nan)
     return out

@@ -45,8 +45,12 @@ dynamic (LinearThenStatic, MassBacklash)               a continuous-time ``nlsys
                                                        the static part's play (a proper block with D != 0 before
                                                        a play: in :func:`control_loop` only, which knows the
                                                        input's rate)
-DynamicBacklash                                        ``ValueError``: impacts (velocity jumps) are no ``nlsys``;
-                                                       :func:`dfloop.verify.simulate_loop` runs its loop exactly
+DynamicBacklash                                        with ``dt``: a discrete-time ``nlsys`` (force on M2 in,
+                                                       x1 out, state [x1, v1, gap, v2 - v1]) whose step is the
+                                                       exact motion over a sample with the force held; without:
+                                                       ``ValueError`` (impacts are velocity jumps, no
+                                                       continuous-time ``nlsys``); its closed loop runs exactly
+                                                       in :func:`dfloop.verify.simulate_loop`
 =====================================================  =========================================================
 
 Backlash and relays share one state model: the play operator c = clip(c, x - a, x + a) of half-width a (a = h/2
@@ -423,8 +427,9 @@ def _model(N):
 
 
 def _no_model(N) -> ValueError:
-    why = ("its impacts (velocity jumps) are no python-control nlsys; dfloop.verify.simulate_loop(G, N, "
-           "amplitude, frequency) runs its closed loop on the exact impact engine"
+    why = ("its impacts (velocity jumps) are no continuous-time python-control nlsys: dfloop.to_control(N, dt=...) "
+           "gives the element sampled (exact for a force held over each sample), and "
+           "dfloop.verify.simulate_loop(G, N, amplitude, frequency) runs its closed loop on the exact impact engine"
            if impact_model(N) is not None else
            "it has no state model here (a hysteretic NumericDF of an operator other than dfloop's play or relay "
            "keeps its state inside that operator; a LinearThenStatic needs a python-control tf/ss linear block)")
@@ -522,7 +527,7 @@ def _nonlinearity_class():
     return ControlNonlinearity
 
 
-def to_control(element: Any) -> Any:
+def to_control(element: Any, *, dt: float | None = None) -> Any:
     """A dfloop element as a python-control object, in one call.
 
     Amplitude-only elements give a ``control.DescribingFunctionNonlinearity`` whose call ``F(x)`` is the
@@ -534,9 +539,15 @@ def to_control(element: Any) -> Any:
     ``x``, output ``y``; its ``element`` attribute is the dfloop element). The table at the top of
     :mod:`dfloop.describing.interop` lists every case.
 
+    The dynamic backlash (impacts: velocity jumps) has no continuous-time form; with ``dt`` it gives a
+    discrete-time ``control.nlsys`` (input the force on M2 in N, output x1 in m, state [x1, v1, gap, v2 - v1]
+    starting at rest with the gap centred) whose step is the exact motion over one sample with the force held.
+
     Parameters
     ----------
     element : DescribingFunction or anything :func:`as_element` accepts
+    dt : float, optional
+        Sampling period (s) of the discrete-time ``nlsys`` of an element that has one (the dynamic backlash).
 
     Returns
     -------
@@ -545,7 +556,8 @@ def to_control(element: Any) -> Any:
     Raises
     ------
     ValueError
-        For an element without a python-control form (the dynamic backlash: impacts), saying what to use.
+        For an element without a python-control form, or the dynamic backlash without ``dt``, saying what to
+        use.
 
     Examples
     --------
@@ -557,6 +569,18 @@ def to_control(element: Any) -> Any:
     import control as ct
 
     N = as_element(element)
+    if callable(getattr(N, "sampled_model", None)):
+        if dt is None:
+            raise _no_model(N)
+        model = N.sampled_model(positive("dt", dt))
+        out = ct.nlsys(lambda t, s, u, p: model.step(s, float(np.ravel(u)[0])),
+                       lambda t, s, u, p: np.array([model.output(s)]), inputs=["x"], outputs=["y"],
+                       states=model.nstates, dt=dt, name=f"{type(N).__name__}")
+        out.element, out.model = N, model
+        return out
+    if dt is not None:
+        raise ValueError(f"dt: only an element with a sampled model (the dynamic backlash) takes dt here, got "
+                         f"dt = {dt!r} for {N!r} (a play's discrete nlsys: to_control(N).to_nlsys(dt))")
     if not N.frequency_dependent:
         try:
             return _nonlinearity_class()(N)
@@ -578,6 +602,37 @@ def to_control(element: Any) -> Any:
                    states=model.nstates, name=f"{type(N).__name__}")
     out.element = N
     return out
+
+
+def _sampled_loop(G, N, dt: float, name: str):
+    """The loop of a plant and an element with a sampled model as a discrete-time nlsys (see control_loop)."""
+    import control as ct
+
+    model = N.sampled_model(dt)
+    Gd = ct.c2d(ct.ss(G), dt, "zoh")
+    Ad, Bd, Cd = np.asarray(Gd.A, float), np.asarray(Gd.B, float)[:, 0], np.asarray(Gd.C, float)[0]
+    n = Ad.shape[0]
+
+    def update(t, z, u, p):
+        zp, s = z[:n], z[n:]
+        x = float(np.ravel(u)[0]) - float(Cd @ zp)
+        return np.concatenate([Ad @ zp + Bd * model.output(s), model.step(s, x)])
+
+    def output(t, z, u, p):
+        return np.array([float(np.ravel(u)[0]) - float(Cd @ z[:n]), model.output(z[n:])])
+
+    loop = ct.nlsys(update, output, inputs=["r"], outputs=["x", "y"], states=n + model.nstates, dt=dt, name=name)
+    A, B, _ = _ss_matrices(G, "G")
+
+    def initial_state(cycle):
+        """Plant on the harmonic-balance orbit of the cycle (c2d keeps the realisation), masses at rest."""
+        A0, w = _cycle_pair(cycle)
+        X = np.linalg.solve(1j * w * np.eye(n) - A, B) * complex(N(A0, w)) * A0
+        return np.concatenate([X.imag, model.initial()])
+
+    loop.initial_state = initial_state
+    loop.element, loop.model = N, model
+    return loop
 
 
 def _cycle_pair(cycle) -> tuple[float, float]:
@@ -613,7 +668,7 @@ def control_initial_state(G: Any, N: Any, cycle: Any) -> np.ndarray:
     return np.concatenate([X.imag, model.initial(complex(A0), w)])
 
 
-def control_loop(G: Any, N: Any, *, name: str = "dfloop_loop") -> Any:
+def control_loop(G: Any, N: Any, *, dt: float | None = None, name: str = "dfloop_loop") -> Any:
     """The closed loop of the paper's Fig. 1 as a python-control ``nlsys`` for ``control.input_output_response``.
 
     Reference r (the input, 0 for the autonomous loop), element input x = r - c, element output y, plant output
@@ -626,8 +681,15 @@ def control_loop(G: Any, N: Any, *, name: str = "dfloop_loop") -> Any:
     G : control.TransferFunction or control.StateSpace
         SISO, continuous-time, strictly proper (D = 0).
     N : DescribingFunction or anything :func:`as_element` accepts
-        Any element with a state model: all but the dynamic backlash (impacts) and a hysteretic ``NumericDF`` of
-        an operator other than dfloop's ``PlayOperator`` / ``RelayOperator`` (its state is opaque).
+        Any element with a state model: all but a hysteretic ``NumericDF`` of an operator other than dfloop's
+        ``PlayOperator`` / ``RelayOperator`` (its state is opaque). The dynamic backlash (impacts are velocity
+        jumps) needs ``dt``.
+    dt : float, optional
+        Only for an element with a sampled model (the dynamic backlash): the loop as a discrete-time ``nlsys`` of
+        sampling period dt (s), the element's exact motion over each sample with its input force held, the plant
+        discretised with a zero-order hold on the element's output x1 (``control.c2d``). A sampled-data
+        approximation of the continuous loop, whose error falls with dt (first order: the holds), unlike the
+        other elements' loops; :func:`dfloop.verify.simulate_loop` runs the continuous loop exactly.
 
     Returns
     -------
@@ -648,6 +710,11 @@ def control_loop(G: Any, N: Any, *, name: str = "dfloop_loop") -> Any:
 
     N = as_element(N)
     A, B, C = _ss_matrices(G, "G")
+    if callable(getattr(N, "sampled_model", None)) and dt is not None:
+        return _sampled_loop(G, N, positive("dt", dt), name)
+    if dt is not None:
+        raise ValueError(f"dt: only an element with a sampled model (the dynamic backlash) makes a sampled loop; "
+                         f"got dt = {dt!r} for {N!r}, whose loop is continuous-time")
     model = _model(N)
     if model is None:
         raise _no_model(N)

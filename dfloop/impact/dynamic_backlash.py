@@ -449,6 +449,14 @@ class DynamicBacklash(DescribingFunction):
         return Impact(type(self).__name__, self.m1, self.m2, self.h, self.restitution, tuple(self.effects),
                       DEFAULT_CHATTER_TOL)
 
+    def sampled_model(self, dt: float):
+        """The masses as a sampled system (force held over each sample of ``dt`` s, exact motion between
+        samples): how :func:`dfloop.to_control` hands this element to python-control
+        (:class:`dfloop.impact.sampled_model.SampledImpactModel`)."""
+        from .sampled_model import SampledImpactModel
+        return SampledImpactModel(self.m1, self.m2, self.h, self.restitution, tuple(self.effects),
+                                  DEFAULT_CHATTER_TOL, dt)
+
     def negative_inverse(self, F, omega) -> np.ndarray:
         """-1/N(F, w) (N/m) computed from the table as -M2 w^2 / D; complex infinity where N = 0."""
         n = self(F, omega)

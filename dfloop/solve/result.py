@@ -346,11 +346,12 @@ class LimitCycles(list):
 
         write_csv(path, [c.to_dict() for c in self])
 
-    def to_control(self):
+    def to_control(self, dt: float | None = None):
         """The closed loop these cycles come from as a python-control ``nlsys`` (:func:`dfloop.control_loop`).
 
         Simulate it with ``control.input_output_response(loop, T, 0.0, loop.initial_state(cycles[i]))``: the
-        start lies on the harmonic-balance orbit of cycle i. The plant must be a python-control tf/ss.
+        start lies on the harmonic-balance orbit of cycle i. The plant must be a python-control tf/ss. ``dt``
+        (s): the sampled loop of a dynamic backlash (see :func:`dfloop.control_loop`).
         """
         from ..describing.interop import control_loop
 
@@ -358,7 +359,7 @@ class LimitCycles(list):
         if G is None or N is None:
             raise ValueError("these cycles do not record the plant and element they came from: use "
                              "dfloop.control_loop(G, N)")
-        return control_loop(G, N)
+        return control_loop(G, N, dt=dt)
 
     @property
     def plant_response(self):

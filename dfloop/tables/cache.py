@@ -44,7 +44,7 @@ _REPORTED: set[tuple] = set()  # write/read failures already reported (one warni
 SOURCES = ("tables/table1d.py", "tables/table2d.py", "tables/store.py", "tables/cache.py",
            "impact/dynamic_backlash.py", "impact/sampling.py", "impact/kernel.py", "impact/model.py",
            "impact/_core.py", "impact/_flight.py", "impact/effects.py", "impact/_effects_core.py", "impact/_engine.py",
-           "impact/extract.py", "impact/limits.py")
+           "impact/extract.py", "impact/limits.py", "impact/sampled_model.py")
 
 
 def cache_dir() -> Path:
