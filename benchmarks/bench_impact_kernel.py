@@ -1,7 +1,7 @@
 """Impact kernel benchmark: exact JIT kernel vs a typical solve_ivp implementation, compile/cache times,
 table build times, and accuracy-versus-time knobs of the DF extraction.
 
-Run: python benchmarks/bench_impact_kernel.py   (writes benchmarks/results/bench_impact_kernel.md)
+Run: python benchmarks/bench_impact_kernel.py [--write]   (--write: benchmarks/results/bench_impact_kernel.md)
 """
 from __future__ import annotations
 
@@ -219,8 +219,9 @@ def main() -> None:
     lines += accuracy_knobs()
     text = "\n".join(lines) + "\n"
     print(text)
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    OUT.write_text(text)
+    if "--write" in sys.argv[1:]:
+        OUT.parent.mkdir(parents=True, exist_ok=True)
+        OUT.write_text(text)
 
 
 if __name__ == "__main__":

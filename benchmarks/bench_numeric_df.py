@@ -5,11 +5,12 @@ supplied (static elements), without location (adaptive halving only), and plain 
 period with 2^k samples (the DFT baseline). Columns: max relative error over the amplitudes, time per
 amplitude, and its ratio to the closed form's time per amplitude measured in the same run.
 
-Run: python benchmarks/bench_numeric_df.py   (writes benchmarks/results/bench_numeric_df.md)
+Run: python benchmarks/bench_numeric_df.py [--write]   (--write: benchmarks/results/bench_numeric_df.md)
 """
 from __future__ import annotations
 
 import pathlib
+import sys
 import platform
 import time
 
@@ -96,6 +97,7 @@ def main() -> str:
 if __name__ == "__main__":
     table = main()
     print(table)
-    out = pathlib.Path(__file__).parent / "results" / "bench_numeric_df.md"
-    out.parent.mkdir(exist_ok=True)
-    out.write_text(table + "\n")
+    if "--write" in sys.argv[1:]:
+        out = pathlib.Path(__file__).parent / "results" / "bench_numeric_df.md"
+        out.parent.mkdir(exist_ok=True)
+        out.write_text(table + "\n")
