@@ -115,3 +115,22 @@ def test_amigo_and_simc_pid_by_hand_and_amigo_robustness():
         assert complex(t.controller(s)) == pytest.approx(kc * (1 + 1 / (ti * s)) * (1 + td * s), rel=1e-6)
     with pytest.raises(ValueError, match="model"):
         tune("amigo-pi", model=(1.0, -1.0, 1.0))
+
+
+def test_biased_experiment_predicts_the_biased_df_cycle():
+    """With an output offset b the DF prediction is the dual-input DF's biased cycle. For an ideal relay around a
+    FOPDT it satisfies the closed forms of the balance: the relay input's mean B solves B + K (m + b) = 0 with the
+    relay's mean output m = (2M/pi) asin(B/A); the oscillation sits at the phase crossover w180 of
+    K e^{-jwL}/(jwT + 1); and (4M/(pi A)) sqrt(1 - (B/A)^2) |G(j w180)| = 1."""
+    import math
+
+    K, T, L, M, b = 2.0, 4.0, 1.0, 1.0, 0.2
+    res = relay_experiment(ct.tf([K], [T, 1.0]), df.Relay(M), delay=L, bias=b)
+    c = res.prediction
+    B, A, w = c.bias, c.amplitude, c.frequency
+    assert c.stability == "stable" and B != 0.0
+    assert B + K * (2 * M / math.pi * math.asin(B / A) + b) == pytest.approx(0.0, abs=1e-9)
+    assert math.atan(w * T) + w * L == pytest.approx(math.pi, rel=1e-9)
+    gain = K / math.sqrt(1 + (w * T) ** 2)
+    assert 4 * M / (math.pi * A) * math.sqrt(1 - (B / A) ** 2) * gain == pytest.approx(1.0, rel=1e-9)
+    assert res.Ku_df == pytest.approx(4 * M / (math.pi * A), rel=1e-12)

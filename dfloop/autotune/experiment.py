@@ -24,6 +24,7 @@ import numpy as np
 
 from ..describing.static import Relay
 from ..exact import ExactCycle, exact_cycle
+from ..solve.bias import BiasedCycle, predict_biased_cycles
 from ..solve.delay import DelayedSystem
 from ..solve.predict import predict_limit_cycles
 from ..solve.result import LimitCycle
@@ -39,8 +40,10 @@ class RelayExperiment:
 
     Attributes
     ----------
-    prediction : LimitCycle
-        The DF's stable oscillation of the symmetric relay (amplitude of the fundamental of the relay input, rad/s).
+    prediction : LimitCycle or BiasedCycle
+        The DF's stable oscillation (amplitude of the fundamental of the relay input, rad/s): of the symmetric
+        relay, or with a bias the dual-input DF's biased cycle (:func:`dfloop.solve.bias.predict_biased_cycles`,
+        the offset as a load at the relay's output; its ``bias`` is the mean of the relay input).
     exact : ExactCycle or None
         The true orbit from :func:`dfloop.exact_cycle` (delay-free plants; None otherwise or when ``exact=False``).
     cycle : RelayCycle or None
@@ -63,7 +66,7 @@ class RelayExperiment:
         Relative errors (estimate - true) / true of ``Ku_df``, ``Tu_df``, ``Ku_experiment``, ``Tu_experiment``.
     """
 
-    prediction: LimitCycle
+    prediction: LimitCycle | BiasedCycle
     exact: ExactCycle | None
     amplitude_exact: float | None
     Ku_df: float
@@ -141,6 +144,19 @@ def _delayed_ultimate_point(G: DelayedSystem) -> tuple[float, float]:
     return float(-1.0 / G.frequency_response_at(np.array([w180]))[0].real), 2.0 * math.pi / w180
 
 
+def _biased_prediction(plant, relay: Relay, bias: float, symmetric: LimitCycle, omega, static_gain: float):
+    """The stable biased DF cycle of the relay with output levels bias +/- M (largest amplitude), searched within a
+    factor 5 of the symmetric cycle's amplitude."""
+    A = symmetric.amplitude
+    found = predict_biased_cycles(plant, relay, load=bias, amplitude=(A / 5.0, 5.0 * A), omega=omega,
+                                  dc_gain=static_gain)
+    stable = [c for c in found if c.stability == "stable"]
+    if not stable:
+        raise ValueError(f"the dual-input DF predicts no stable biased oscillation with bias = {bias:g} "
+                         f"({len(found)} biased cycle(s) within a factor 5 of the symmetric amplitude {A:.6g})")
+    return max(stable, key=lambda c: c.amplitude)
+
+
 def process_model(G, delay: float = 0.0) -> ProcessModel:
     """The :class:`ProcessModel` K e^{-Ls} / prod (T_i s + 1) of a continuous first- or second-order tf/ss G
     without zeros and with real stable poles (ValueError otherwise)."""
@@ -179,7 +195,7 @@ def relay_experiment(G, relay: Relay | None = None, *, exact: bool = True, omega
         G(jw) e^{-jwL}.
     bias : float
         Relay output offset b (levels b + M and b - M, |b| < M): the asymmetric experiment that estimates the static
-        gain (process models only). The DF prediction is that of the symmetric relay.
+        gain (process models only). The DF prediction is then the dual-input DF's biased cycle.
 
     Returns
     -------
@@ -221,6 +237,8 @@ def relay_experiment(G, relay: Relay | None = None, *, exact: bool = True, omega
         raise ValueError(f"the DF predicts no stable oscillation of G with {relay!r} ({len(cycles)} cycle(s) in the "
                          "window): no relay experiment")
     c = max(stable, key=lambda c: c.amplitude)
+    if bias != 0:     # the experiment the DF predicts is the biased one: the offset is a load on the relay output
+        c = _biased_prediction(plant, relay, bias, c, omega, model.K)
     Ku_df, Tu_df = 4.0 * relay.M / (math.pi * c.amplitude), 2.0 * math.pi / c.frequency
     errors = {"Ku_df": (Ku_df - Ku) / Ku, "Tu_df": (Tu_df - Tu) / Tu}
     ex, cyc, a_ex, Ku_ex, Tu_ex, gain = None, None, None, None, None, None
