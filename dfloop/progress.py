@@ -26,6 +26,7 @@ from typing import TextIO
 __all__ = ["progress_bar", "ProgressSink", "NullProgress", "announce", "announce_compile", "compile_pending"]
 
 _ANNOUNCED: set = set()  # the compile announcements made in this process
+_READY: set[str] = set()   # what was found compiled or cached in this process (checked once)
 
 
 class NullProgress:
@@ -201,7 +202,10 @@ def announce_compile(what: str, seconds: float, *dispatchers, enabled: bool | No
     The line reads ``dfloop: <what>: compiling once for this installation, about <seconds> s (later runs load the
     compiled code; `dfloop warmup` does it ahead)``.
     """
-    if what in _ANNOUNCED or not compile_pending(*dispatchers):
+    if what in _ANNOUNCED or what in _READY:
+        return False
+    if not compile_pending(*dispatchers):
+        _READY.add(what)       # compiled or cached stays so for the process: never read numba's index again
         return False
     _ANNOUNCED.add(what)
     announce(f"dfloop: {what}: compiling once for this installation, about {seconds:.0f} s (later runs load the "

@@ -32,16 +32,31 @@ class _Dispatcher:
 
 def test_announces_once_and_only_when_something_compiles(monkeypatch):
     monkeypatch.setattr(progress, "_ANNOUNCED", set())
+    monkeypatch.setattr(progress, "_READY", set())
     monkeypatch.delenv("DFLOOP_PROGRESS", raising=False)
     out = io.StringIO()
     ready = [_Dispatcher(["f8(f8)"], False), _Dispatcher([], True)]
-    assert not progress.announce_compile("thing", 7, *ready, stream=out)
+    assert not progress.announce_compile("ready thing", 7, *ready, stream=out)
     assert out.getvalue() == ""
     cold = ready + [_Dispatcher([], False)]
     assert progress.announce_compile("thing", 7, *cold, stream=out)
     assert not progress.announce_compile("thing", 7, *cold, stream=out)  # once per process
     assert out.getvalue() == ("dfloop: thing: compiling once for this installation, about 7 s (later runs load the "
                               "compiled code; `dfloop warmup` does it ahead)\n")
+
+
+def test_a_ready_answer_is_remembered_and_numbas_index_not_read_again(monkeypatch):
+    """Reading numba's cache index costs ~0.4 ms (a file and a pickle): once found ready, never again."""
+    monkeypatch.setattr(progress, "_ANNOUNCED", set())
+    monkeypatch.setattr(progress, "_READY", set())
+    cached = _Dispatcher([], True)
+    reads = []
+    index = cached._cache._cache_file
+    original = index._load_index
+    monkeypatch.setattr(index, "_load_index", lambda: reads.append(1) or original(), raising=False)
+    for _ in range(5):
+        assert not progress.announce_compile("cached thing", 7, cached, stream=io.StringIO())
+    assert len(reads) == 1
 
 
 def _first_predict(cache: str) -> str:
