@@ -374,7 +374,7 @@ def biased_confidence(G, element, bias: float, amplitude: float, frequency: floa
         unavailable (with the reason) for an element without a time-domain response.
     """
     from .._checks import in_closed_interval, scale as positive_scale
-    from .confidence import Confidence, unavailable
+    from .confidence import Confidence, plant_harmonics, unavailable
 
     dual = element if isinstance(element, DualInputDF) else DualInputDF(element)
     B, A, w = finite("bias", bias), positive_scale("amplitude", amplitude), positive_scale("frequency", frequency)
@@ -386,11 +386,7 @@ def biased_confidence(G, element, bias: float, amplitude: float, frequency: floa
         return unavailable(f"{dual!r} has no time-domain response")
     plant = as_plant(G)
     g0 = static_gain(G) if dc_gain is None else float(dc_gain)
-    k = np.arange(1, K + 1)
-    lo, hi = plant.domain
-    usable = (k * w >= lo) & (k * w <= hi)
-    Gk = np.zeros(K, complex)
-    Gk[usable] = plant(k[usable] * w)
+    Gk, usable = plant_harmonics(plant, w, K)
     theta = 2 * np.pi * np.arange(S) / S
     x1 = B + A * np.sin(theta)
     y1 = np.asarray(response(x1), float)

@@ -22,7 +22,7 @@ import numpy as np
 from .._checks import scale, show
 from ..describing.interop import as_element
 
-__all__ = ["Confidence", "cycle_confidence"]
+__all__ = ["Confidence", "cycle_confidence", "plant_harmonics"]
 
 _SAMPLES = 2048       # samples of one period
 _HARMONICS = 15       # harmonics carried through G
@@ -118,6 +118,18 @@ def _fundamentals(y: np.ndarray, K: int) -> np.ndarray:
     return 2j * np.fft.rfft(y)[1:K + 1] / y.size
 
 
+def plant_harmonics(plant, w: float, K: int) -> tuple[np.ndarray, np.ndarray]:
+    """(G(j k w) for k = 1..K, mask of the k w inside the plant's frequency domain) for a resolved plant
+    (:func:`dfloop.solve.plant.as_plant`); harmonics outside the domain (an frd's measured band) are 0, left out
+    of the harmonic balance."""
+    k = np.arange(1, K + 1)
+    lo, hi = plant.domain
+    usable = (k * w >= lo) & (k * w <= hi)
+    Gk = np.zeros(K, complex)
+    Gk[usable] = plant(k[usable] * w)
+    return Gk, usable
+
+
 def unavailable(note: str) -> Confidence:
     """A Confidence without numbers, saying why."""
     return Confidence(None, None, None, None, False, note)
@@ -168,11 +180,7 @@ def cycle_confidence(G, N, amplitude: float, frequency: float | None = None, *, 
     if response is None:
         return unavailable(f"{type(N).__name__} has no time-domain operator")
     plant = as_plant(G)
-    k = np.arange(1, K + 1)
-    lo, hi = plant.domain
-    usable = (k * w >= lo) & (k * w <= hi)
-    Gk = np.zeros(K, complex)
-    Gk[usable] = plant(k[usable] * w)
+    Gk, usable = plant_harmonics(plant, w, K)
     theta = 2 * np.pi * np.arange(S) / S
     x1 = A * np.sin(theta)
     Y = _fundamentals(response(x1), K)
