@@ -160,19 +160,15 @@ def test_relay_experiment_on_any_plant_with_a_pure_delay():
 
     from scipy.optimize import brentq
 
-    from dfloop.autotune.experiment import _ultimate_point
-
     K, T, L = 2.0, 3.0, 0.7
     w180 = brentq(lambda w: math.atan(w * T) + w * L - math.pi, 1e-6, math.pi / L)
-    Ku, Tu = _ultimate_point(df.delayed(ct.tf([K], [T, 1]), L))
-    assert Ku == pytest.approx(math.sqrt(1 + (w180 * T) ** 2) / K, rel=1e-12)
-    assert Tu == pytest.approx(2 * math.pi / w180, rel=1e-12)
+    first = relay_experiment(df.delayed(ct.tf([K], [T, 1]), L), df.Relay(1.0), exact=False)
+    assert first.Ku == pytest.approx(math.sqrt(1 + (w180 * T) ** 2) / K, rel=1e-12)
+    assert first.Tu == pytest.approx(2 * math.pi / w180, rel=1e-12)
     G = df.delayed(ct.tf([2], [1, 3, 3, 1]), 0.5)     # its third-order lag is no FOPDT/SOPDT process model
     gm, _, _, wc, _, _ = ct.stability_margins(G.pade(12))
-    Ku, Tu = _ultimate_point(G)
-    assert Ku == pytest.approx(gm, rel=1e-9) and Tu == pytest.approx(2 * math.pi / wc, rel=1e-9)
     relay = df.Relay(1.0, hysteresis=0.05)
     r = relay_experiment(G, relay)
-    assert r.Ku == Ku and r.Tu == Tu
+    assert r.Ku == pytest.approx(gm, rel=1e-9) and r.Tu == pytest.approx(2 * math.pi / wc, rel=1e-9)
     assert r.exact is not None and r.exact.success and "delay" in r.exact.method
     assert r.Ku_df == pytest.approx(4 * relay.M / (math.pi * r.prediction.amplitude), rel=1e-12)

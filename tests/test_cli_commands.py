@@ -195,3 +195,20 @@ def test_cli_loading_gives_table_builds_a_progress_bar_unless_the_scene_sets_one
         "restitution = 0.5", "restitution = 0.5\nprogress = false"))
     assert load_scene(own, progress=True).element.store.progress is False
     assert load_scene("backlash_servo", progress=True).element.h == 1.0  # no progress parameter: nothing added
+
+
+def test_warmup_leaves_every_compiled_kernel_ready(capsys):
+    """`dfloop warmup` runs each compiling entry point once and says so; afterwards a prediction announces no
+    compile (its kernels are compiled in this process or cached on disk)."""
+    import control as ct
+
+    import dfloop as df
+
+    assert main(["warmup"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert [line.split(":")[0] for line in out] == ["solver kernels (predict_limit_cycles)",
+                                                   "exact engines (exact_cycle)", "simulation (verify_cycle)",
+                                                   "impact kernels (DynamicBacklash tables)"]
+    assert all(line.endswith(" s") and "ready in" in line for line in out)
+    assert len(df.predict_limit_cycles(ct.tf([5], [1, 1, 0]), df.Saturation(1.0))) >= 0
+    assert "compiling" not in capsys.readouterr().err
