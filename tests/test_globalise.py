@@ -141,3 +141,23 @@ def test_dead_zone_motion_resting_off_zero_is_rest_with_where_never_not_periodic
 
     sol = solve_ivp(rhs, (0.0, RUN_PERIODS * 2 * np.pi / pred[1]), s0, method="DOP853", rtol=1e-11, atol=1e-12)
     assert first["x_end"] == pytest.approx(-Cr @ sol.y[:, -1], abs=1e-6)
+
+
+def test_starts_that_cannot_be_followed_rule_nothing_out():
+    """A backlash around an order-12 plant (integrator, Pade-8 delay, two lags): the DF's unstable cycle. Motions
+    started on and outside it cannot be followed on the exact flow (they slide on a switching surface as they
+    grow), the one inside comes to rest. The large-amplitude loop (backlash -> unit gain) has a closed-loop pole
+    in the right half plane (python-control), so outer motions diverge: "motions decay to rest" would be false.
+    The answer must say that nothing is ruled out, and the verdict is "not checked", never "artefact"."""
+    from dfloop.solve.verdict import exact_kind
+
+    num, den = ct.pade(1.0, 8)
+    G = ct.tf([4.0], [1, 1, 0]) * ct.tf(num, den) * ct.tf([1], [0.1, 1]) * ct.tf([1], [0.05, 1])
+    assert np.max(ct.poles(ct.feedback(G, 1)).real) > 0.1
+    N = df.Backlash(h=0.5)
+    (c,) = df.predict_limit_cycles(G, N)
+    e = df.exact_cycle(G, N, c)
+    kinds = [m["outcome"] for m in e.extra["motions"]]
+    assert not e.success and "no simulation" in kinds
+    assert e.extra["outcome"] == "incomplete" and "none ruled out" in e.message
+    assert exact_kind(e) == "not checked"

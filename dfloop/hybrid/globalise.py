@@ -16,8 +16,10 @@ An orbit found within ``max_deviation`` of the prediction is returned (its messa
 "no periodic orbit" answer carries the evidence: ``extra["motions"]`` (one dict per start) and
 ``extra["outcome"]``, one of ``"another cycle"`` (the motions settle on an exact orbit far from the
 prediction; its numbers are in the message), ``"rest"``, ``"divergence"``, ``"not periodic"``, ``"boundary"``
-(some motions decay to rest, others diverge: an unstable orbit may lie between them, so no orbit is ruled out), or
-``"shooting failed"`` (a periodic motion was seen but no shooting from it converged).
+(some motions decay to rest, others diverge: an unstable orbit may lie between them, so no orbit is ruled out),
+``"incomplete"`` (some starts could not be followed on the exact flow, e.g. a motion that slides on a switching
+surface: the others alone rule nothing out), or ``"shooting failed"`` (a periodic motion was seen but no shooting
+from it converged).
 """
 from __future__ import annotations
 
@@ -245,6 +247,13 @@ def _globalise(G, N, predicted, first, shoot, max_deviation, constant):
                    f"around it {kinds.count('rest')} decay to rest and {kinds.count('divergence')} diverge, so the "
                    "prediction lies near the boundary between the two, where an unstable orbit may lie (shooting "
                    "did not converge to one)")
+        elif outcome in ("rest", "divergence", "not periodic") and "no simulation" in kinds:
+            # a start that cannot be followed gives no evidence: the others alone cannot rule an orbit out
+            outcome = "incomplete"
+            seen = ", ".join(f"{kinds.count(k)} {k}" for k in ("rest", "divergence", "not periodic") if k in kinds)
+            msg = (f"no periodic orbit found near the prediction, but none ruled out: {kinds.count('no simulation')} "
+                   f"of the {len(kinds)} motions started on and around it could not be followed on the exact flow "
+                   f"(the others: {seen})")
     extra = {**first.extra, "outcome": outcome, "motions": motions, "attempts": tried}
     return dataclasses.replace(first, message=f"{msg}. Evidence: {evidence}. First attempt: {first.message}",
                                extra=extra)
