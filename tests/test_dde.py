@@ -22,7 +22,7 @@ PRED = (3.3392759240180117, 2.57610328612914)
 @pytest.fixture(scope="module")
 def orbits():
     loop = loop_model(delayed(G0, T), N, *PRED)        # the dispatcher: a DDELoop for a delayed static element
-    return {n: dde_orbit(loop, *PRED, nodes=n) for n in (32, 64, 128, 256)}
+    return {n: dde_orbit(loop, *PRED, nodes=n, max_nodes=2 * n) for n in (32, 64, 128, 256)}
 
 
 def test_saturation_delay_orbit_converges_at_fourth_order(orbits):
@@ -61,7 +61,9 @@ def test_delay_equation_multipliers_and_exact_cycle_dispatch(orbits):
     assert abs(fine[1] - coarse[1]) < 1e-4 * abs(fine[1]) and abs(fine[1]) < 1   # converged, inside: stable
     e = df.exact_cycle(delayed(G0, T), N, PRED)
     assert e.success and e.stable and "delay equation" in e.method
-    assert e.amplitude == pytest.approx(orbits[128]["amplitude"], rel=1e-12)   # the default: 128 and 256 nodes
+    # the default: 128, 256, 512 nodes (refined until the change is below 1e-8), multipliers at 128 and 256
+    assert e.amplitude == pytest.approx(orbits[256]["amplitude"], rel=1e-12)
+    assert e.extra["nodes"] == 512 and e.extra["target_met"] and max(e.extra["error_estimate"]) < 1e-8
     assert e.largest_multiplier == pytest.approx(abs(fine[1]), rel=1e-9)
     np.testing.assert_allclose(np.max(np.abs(e.x)) / e.amplitude, 1.0, atol=0.1)   # a near-sinusoidal wave
 
@@ -116,6 +118,6 @@ def test_multipliers_with_a_delay_longer_than_the_period():
     G, N = delayed(ct.tf([4.0], [1.0, 1.0]), 3.0), df.Saturation(1.0)
     c = sorted(df.predict_limit_cycles(G, N), key=lambda c: c.frequency)[1]
     loop = loop_model(G, N, c.amplitude, c.frequency)
-    mu = [dde_orbit(loop, c.amplitude, c.frequency, nodes=n)["multipliers"] for n in (64, 128)]
+    mu = [dde_orbit(loop, c.amplitude, c.frequency, nodes=n, max_nodes=2 * n)["multipliers"] for n in (64, 128)]
     assert abs(mu[1][0] - mu[0][0]) < 1e-4 * abs(mu[1][0]) and abs(mu[1][0]) > 1.2
     assert abs(mu[1][0].imag) > 1.0 and np.min(np.abs(mu[1] - 1)) < 1e-4     # the pair, and the trivial one

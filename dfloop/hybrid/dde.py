@@ -157,17 +157,24 @@ class DelayDDE:
         return np.concatenate(ks), np.concatenate(Es), np.concatenate(idxs), np.concatenate(ws)
 
     def _crossing(self, x, k, b):
-        """Time into step k where the interpolated delayed x crosses b (bisection to rounding level)."""
-        N = x.size
+        """Time into step k where the interpolated delayed x crosses b (bisection to rounding level, on the
+        Lagrange cubic written out in floats)."""
+        N, h, T = x.size, self.h, self.delay
 
         def g(r):
-            i, w = self.stencil(np.array([k * self.h + r - self.delay]), N)
-            return float(x[i[0]] @ w[0]) - b
+            pos = (k * h + r - T) / h
+            o = math.floor(pos)
+            th = pos - o
+            w = (-th * (th - 1) * (th - 2) / 6, (th + 1) * (th - 1) * (th - 2) / 2,
+                 -(th + 1) * th * (th - 2) / 2, (th + 1) * th * (th - 1) / 6)
+            return sum(wi * float(x[(o - 1 + i) % N]) for i, wi in enumerate(w)) - b
 
-        lo, hi = 0.0, self.h
+        lo, hi = 0.0, h
         glo = g(lo)
         for _ in range(60):
             mid = 0.5 * (lo + hi)
+            if mid in (lo, hi):
+                break
             if (g(mid) > 0) == (glo > 0):
                 lo = mid
             else:
@@ -175,83 +182,96 @@ class DelayDDE:
         return 0.5 * (lo + hi)
 
 
-def _residual(dde: DelayDDE, S: np.ndarray):
-    """Periodic equations R_k = s_{k+1} - Phi s_k - sum_p E_p f(xi_p) (indices mod N), and the points."""
-    x = -(S @ dde.C)
+def _equations(A, B, C, f, delay, kinks, s0: np.ndarray, x: np.ndarray, P: float):
+    """The periodic equations in (node values x, plant state s_0, P): x_k + C s_k (s_k from s_0 by the steps'
+    recursion s_{k+1} = Phi s_k + sum_p E_p f(xi_p)), s_N - s_0, and the phase. Returns (R, S (N+1, n), dde,
+    (points, xi))."""
+    N = x.size
+    dde = DelayDDE(A, B, C, f, delay, P / N, kinks)
     pts = dde.points(x)
     k, E, idx, w = pts
     xi = np.einsum("pj,pj->p", x[idx], w)
-    forcing = np.zeros_like(S)
-    np.add.at(forcing, k, E * dde.f(xi)[:, None])
-    R = np.roll(S, -1, axis=0) - S @ dde.Phi.T - forcing
-    return R, (pts, xi)
+    F = np.zeros((N, dde.n))
+    np.add.at(F, k, E * dde.f(xi)[:, None])
+    S = np.empty((N + 1, dde.n))
+    S[0] = s0
+    for j in range(N):
+        S[j + 1] = dde.Phi @ S[j] + F[j]
+    R = np.concatenate([x + S[:-1] @ dde.C, S[-1] - s0, [_phase(x)]])
+    return R, S, dde, (pts, xi)
 
 
-def _jacobian_s(dde: DelayDDE, S: np.ndarray, data) -> np.ndarray:
-    """d R / d S (N n x N n), exact for the discrete equations at fixed quadrature points."""
+def _jacobian(dde: DelayDDE, x: np.ndarray, data) -> np.ndarray:
+    """d R / d (x, s_0) ((N + n + 1) x (N + n)), exact for the discrete equations at fixed quadrature points:
+    the tangent of the steps' recursion, ds_k/dx and ds_k/ds_0, carried along the period."""
     (k, E, idx, w), xi = data
-    N, n = S.shape
-    J = np.zeros((N, n, N, n))
-    kk = np.arange(N)
-    J[kk, :, (kk + 1) % N, :] += np.eye(n)
-    J[kk, :, kk, :] -= dde.Phi
+    N, n, C = x.size, dde.n, dde.C
     fp = dde.slope(xi)
-    for i in range(4):
-        # d R_k / d x_j = -E_p f'(xi_p) w_pi; x_j = -C s_j
-        blk = np.einsum("p,pa,b->pab", fp * w[:, i], E, dde.C)
-        np.add.at(J, (k, slice(None), idx[:, i], slice(None)), blk)
-    return J.reshape(N * n, N * n)
+    order = np.argsort(k, kind="stable")
+    bounds = np.searchsorted(k[order], np.arange(N + 1))
+    J = np.zeros((N + n + 1, N + n))
+    D = np.zeros((n, N))                 # ds_k / dx
+    Pk = np.eye(n)                       # ds_k / ds_0
+    for j in range(N):
+        J[j, :N] = C @ D
+        J[j, j] += 1.0
+        J[j, N:] = C @ Pk
+        D = dde.Phi @ D
+        for p in order[bounds[j]:bounds[j + 1]]:
+            D[:, idx[p]] += np.outer(E[p] * fp[p], w[p])
+        Pk = dde.Phi @ Pk
+    J[N:N + n, :N] = D
+    J[N:N + n, N:] = Pk - np.eye(n)
+    J[N + n, :N] = np.cos(2 * np.pi * np.arange(N) / N) * 2.0 / N
+    return J
 
 
-def _phase(S: np.ndarray, C) -> float:
+def _phase(x: np.ndarray) -> float:
     """Cosine part of x's fundamental over the period (0: x's fundamental is a sine at t = 0)."""
-    N = S.shape[0]
-    x = -(S @ C)
+    N = x.size
     return float(np.cos(2 * np.pi * np.arange(N) / N) @ x) * 2.0 / N
 
 
-def periodic_orbit(A, B, C, f, delay, S0: np.ndarray, P0: float, *, kinks=(), tol: float = 1e-12,
+def periodic_orbit(A, B, C, f, delay, s0: np.ndarray, x0: np.ndarray, P0: float, *, kinks=(), tol: float = 1e-12,
                    max_iterations: int = 40):
-    """Newton on the discrete periodic equations: (S, P, residual, iterations) or raises RuntimeError."""
-    S, P = np.array(S0, float), float(P0)
-    N, n = S.shape
+    """Newton on the discrete periodic equations in (x at the N nodes, s_0, P) (N + n + 1 unknowns: the plant
+    order enters only through the recursion's tangent). Returns (S (N, n) the node states, P, residual,
+    iterations) or raises RuntimeError."""
+    x, s0, P = np.array(x0, float), np.array(s0, float), float(P0)
+    N, n = x.size, s0.size
     res_prev = math.inf
     for it in range(1, max_iterations + 1):
-        dde = DelayDDE(A, B, C, f, delay, P / N, kinks)
-        R, data = _residual(dde, S)
-        F = np.append(R.ravel(), _phase(S, C))
-        scale = max(float(np.abs(S).max()), 1e-300)
-        res = float(np.abs(F).max()) / scale
+        R, S, dde, data = _equations(A, B, C, f, delay, kinks, s0, x, P)
+        scale = max(float(np.abs(x).max()), 1e-300)
+        res = float(np.abs(R).max()) / scale
         if res <= tol or (res <= 1e-9 and res > 0.5 * res_prev):
-            return S, P, res, it
+            return S[:-1], P, res, it
         res_prev = res
-        J = np.zeros((N * n + 1, N * n + 1))
-        J[:N * n, :N * n] = _jacobian_s(dde, S, data)
-        c = np.cos(2 * np.pi * np.arange(N) / N) * 2.0 / N
-        J[-1, :N * n] = np.kron(c, -np.asarray(C, float))
+        J = np.zeros((N + n + 1, N + n + 1))
+        J[:, :N + n] = _jacobian(dde, x, data)
         dP = 1e-7 * P
-        Rp = _residual(DelayDDE(A, B, C, f, delay, (P + dP) / N, kinks), S)[0]
-        Rm = _residual(DelayDDE(A, B, C, f, delay, (P - dP) / N, kinks), S)[0]
-        J[:N * n, -1] = ((Rp - Rm) / (2 * dP)).ravel()
+        Rp = _equations(A, B, C, f, delay, kinks, s0, x, P + dP)[0]
+        Rm = _equations(A, B, C, f, delay, kinks, s0, x, P - dP)[0]
+        J[:, -1] = (Rp - Rm) / (2 * dP)
         try:
-            d = np.linalg.solve(J, -F)
+            d = np.linalg.solve(J, -R)
         except np.linalg.LinAlgError:
             raise RuntimeError(f"singular Jacobian at iteration {it} (a marginal orbit)") from None
         step = 1.0
         for _ in range(12):
-            S_try, P_try = S + step * d[:-1].reshape(N, n), P + step * d[-1]
+            x_try, s_try, P_try = x + step * d[:N], s0 + step * d[N:N + n], P + step * d[-1]
             if P_try > 0:
-                R_try = _residual(DelayDDE(A, B, C, f, delay, P_try / N, kinks), S_try)[0]
-                F_try = np.append(R_try.ravel(), _phase(S_try, C))
-                if float(np.abs(F_try).max()) < float(np.abs(F).max()) * (1 - 1e-4 * step):
+                R_try = _equations(A, B, C, f, delay, kinks, s_try, x_try, P_try)[0]
+                if float(np.abs(R_try).max()) < float(np.abs(R).max()) * (1 - 1e-4 * step):
                     break
             step *= 0.5
         else:
             if res <= 1e-9:
-                return S, P, res, it
+                return S[:-1], P, res, it
             raise RuntimeError(f"Newton iteration {it}: no step reduces the residual {res:.2e}")
-        S, P = S_try, P_try
-    raise RuntimeError(f"Newton did not converge in max_iterations = {max_iterations} (residual {res:.2e})")
+        x, s0, P = x_try, s_try, P_try
+    raise RuntimeError(f"Newton did not converge in max_iterations = {max_iterations} (residual {res:.2e}); "
+                       "raise max_iterations")
 
 
 def multipliers(A, B, C, f, delay, S: np.ndarray, P: float, kinks=(), count: int = 6) -> np.ndarray:
@@ -259,7 +279,9 @@ def multipliers(A, B, C, f, delay, S: np.ndarray, P: float, kinks=(), count: int
     time-stepping form of the same scheme (state: s_k and the node values of x the interpolation can reach)."""
     N, n = S.shape
     dde = DelayDDE(A, B, C, f, delay, P / N, kinks)
-    (k, E, idx, w), xi = _residual(dde, S)[1]
+    x = -(S @ dde.C)
+    k, E, idx, w = dde.points(x)
+    xi = np.einsum("pj,pj->p", x[idx], w)
     fp = dde.slope(xi)
     # node offsets relative to the step (<= 0): congruent to idx - k modulo N, within the 5-node window around
     # -T / h (a delay longer than half the period, or than the period, wraps the periodic indices)
@@ -295,13 +317,23 @@ def _start(A, B, C, f, delay, A0, w0, N):
     return (X[None, :] * np.exp(1j * w0 * (t[:, None] - delay))).imag
 
 
-def dde_orbit(loop: DDELoop, A0: float, w0: float, *, nodes: int = 128, tol: float = 1e-12, harmonics: int = 15,
-              samples: int = 512) -> dict:
+TARGET = 1e-8          # the change of A and w between the last two resolutions must fall below this (relative)
+MAX_NODES = 4096       # the finest resolution dde_orbit tries (nodes per period)
+
+
+def dde_orbit(loop: DDELoop, A0: float, w0: float, *, nodes: int = 128, target: float = TARGET,
+              max_nodes: int = MAX_NODES, tol: float = 1e-12, harmonics: int = 15, samples: int = 512) -> dict:
     """The periodic orbit of a delayed loop with a static element, by the discretised DDE (module notes).
 
-    Solves at ``nodes`` and at 2 ``nodes`` points per period; the orbit is the finer one, ``extra`` holds the
-    change of A and w between the two (the discretisation's error estimate, 4th order: the finer error is about
-    1/15 of it) and the multipliers at both resolutions. Returns a dict of :class:`dfloop.exact.ExactCycle`
+    Solves at ``nodes``, 2 ``nodes``, 4 ``nodes``, ... points per period (at least 3 P / T + 1, so the step
+    stays below a third of the delay), each from the previous orbit, until the change of A and of w between the
+    last two resolutions is below ``target`` (relative) or the next would exceed ``max_nodes``. The orbit is the
+    finest one; ``extra["error_estimate"]`` is the last change, a bound on its error as long as the error at
+    least halves per doubling (the scheme is 4th order, measured in ``benchmarks/bench_dde_order.py``: the
+    error is then about 1/15 of the change). When the target is not met within ``max_nodes`` the orbit is still
+    returned, with ``extra["target_met"]`` False and the message saying so. The multipliers are those of the
+    discretised history at the first two resolutions (``multipliers`` the finer, ``extra["multipliers_coarse"]``
+    the coarser: their change is the convergence test). Returns a dict of :class:`dfloop.exact.ExactCycle`
     fields (``success`` False with the reason when Newton fails).
     """
     A, B, C, f, kinks, T = loop.A, loop.B, loop.C, loop.f, loop.kinks, loop.delay
@@ -310,23 +342,32 @@ def dde_orbit(loop: DDELoop, A0: float, w0: float, *, nodes: int = 128, tol: flo
         raise ValueError(f"G: the delay {T:g} s is below 3/4096 of the period {P0:g} s; the delay equation solver "
                          "needs at least 3 grid steps per delay (use the plant without the delay)")
     nodes = max(int(nodes), int(math.ceil(3 * P0 / T)) + 1)       # h <= T / 3: the history is in the past
-    method = (f"delay equation discretised ({nodes} and {2 * nodes} nodes per period: exact plant flow, "
-              "Gauss-Legendre input, cubic history interpolation; 4th order, error estimate in extra)")
-    out = {}
-    S, P = _start(A, B, C, f, T, A0, w0, nodes), 2 * math.pi / w0
-    for Nn in (nodes, 2 * nodes):
-        if S.shape[0] != Nn:     # refine the coarse orbit: interpolate it (periodic, spectral) to the finer grid
-            F = np.fft.rfft(S, axis=0)
-            S = np.fft.irfft(F, n=Nn, axis=0) * (Nn / S.shape[0])
+    max_nodes = max(int(max_nodes), 2 * nodes)
+    S = _start(A, B, C, f, T, A0, w0, nodes)
+    x, s0, P = -(S @ C), S[0], P0
+    levels = []                     # (nodes, A, w, S, P, residual, iterations, X)
+    mus = []
+    Nn = nodes
+    while True:
         try:
-            S, P, res, it = periodic_orbit(A, B, C, f, T, S, P, kinks=kinks, tol=tol)
+            S, P, res, it = periodic_orbit(A, B, C, f, T, s0, x, P, kinks=kinks, tol=tol)
         except RuntimeError as exc:
-            return dict(success=False, message=f"{Nn} nodes: {exc}", method=method)
+            return dict(success=False, message=f"{Nn} nodes: {exc}", method=_method(levels, Nn))
         x = -(S @ C)
         X = 2j * np.fft.rfft(x)[1:harmonics + 1] / Nn
-        mu = multipliers(A, B, C, f, T, S, P, kinks)
-        out[Nn] = (abs(X[0]), 2 * math.pi / P, mu, S, P, res, it, X)
-    (A1, w1, mu1, *_), (A2, w2, mu2, S, P, res, it, X) = out[nodes], out[2 * nodes]
+        levels.append((Nn, abs(X[0]), 2 * math.pi / P, S, P, res, it, X))
+        if len(mus) < 2:
+            mus.append(multipliers(A, B, C, f, T, S, P, kinks))
+        if len(levels) >= 2:
+            err = (abs(levels[-1][1] / levels[-2][1] - 1), abs(levels[-1][2] / levels[-2][2] - 1))
+            if max(err) <= target or 2 * Nn > max_nodes:
+                break
+        x = np.fft.irfft(np.fft.rfft(x), n=2 * Nn) * 2.0      # the orbit on the finer grid (spectral)
+        s0 = S[0]
+        Nn *= 2
+    Nn, A2, w2, S, P, res, it, X = levels[-1]
+    mu1, mu2 = mus
+    met = max(err) <= target
     # the trivial multiplier is the one closest to 1; the verdict uses the others
     nontrivial = np.delete(mu2, int(np.argmin(np.abs(mu2 - 1.0))))
     stable = bool(np.all(np.abs(nontrivial) < 1.0))
@@ -340,13 +381,24 @@ def dde_orbit(loop: DDELoop, A0: float, w0: float, *, nodes: int = 128, tol: flo
     x_s = np.fft.irfft(spec, n=samples) * (samples / S.shape[0])
     k = np.arange(1, X.size + 1)
     X = X * np.exp(-1j * k * phase)
-    return dict(success=True, message=f"converged in {it} Newton iteration(s), residual {res:.1e}; change from "
-                f"{nodes} to {2 * nodes} nodes: A {abs(A2 / A1 - 1):.1e}, w {abs(w2 / w1 - 1):.1e}",
-                method=method, amplitude=float(abs(X[0])), frequency=2 * math.pi / P, period=P, t=t_new,
-                x=x_s, y=f(x_s),
+    msg = (f"converged in {it} Newton iteration(s), residual {res:.1e}; change from {levels[-2][0]} to {Nn} "
+           f"nodes: A {err[0]:.1e}, w {err[1]:.1e}")
+    if not met:
+        msg += (f" - above the target {target:g}: the finest resolution allowed is max_nodes = {max_nodes}; "
+                "raise max_nodes for a smaller error")
+    return dict(success=True, message=msg, method=_method(levels, Nn), amplitude=float(abs(X[0])),
+                frequency=2 * math.pi / P, period=P, t=t_new, x=x_s, y=f(x_s),
                 switching_times=np.empty(0), harmonics=X, multipliers=mu2, stable=stable, residual=res,
-                iterations=it, extra={"error_estimate": (abs(A2 / A1 - 1), abs(w2 / w1 - 1)),
-                                      "multipliers_coarse": mu1, "nodes": 2 * nodes})
+                iterations=it, extra={"error_estimate": err, "target": target, "target_met": met,
+                                      "multipliers_coarse": mu1, "nodes": Nn,
+                                      "multiplier_nodes": (levels[0][0], levels[1][0])})
+
+
+def _method(levels, Nn) -> str:
+    used = [lv[0] for lv in levels] or [Nn]
+    return (f"delay equation discretised ({', '.join(map(str, used))} nodes per period: exact plant flow, "
+            "Gauss-Legendre input split at the kinks, cubic history interpolation; 4th order, refined until "
+            "the change of A and w is below the target; error estimate in extra)")
 
 
 def dde_simulation(loop: DDELoop, amplitude: float, frequency: float, periods: float, steps_per_period: int,
