@@ -76,7 +76,7 @@ def measure(t, x, periods=10):
 def orbits():
     loop = loop_model(delayed(G0, T), N, *PRED)
     assert isinstance(loop, MemoryDDELoop)
-    return {n: memory_orbit(loop, *PRED, nodes=n) for n in (128,)}
+    return {n: memory_orbit(loop, *PRED, nodes=n, max_nodes=2 * n) for n in (128,)}
 
 
 # an unstable cycle with a long delay (T = 1 s, a sixth of the period): the step can vary over a wide range
@@ -88,7 +88,7 @@ def unstable():
     G = delayed(G1, T1)
     c = df.predict_limit_cycles(G, N)[0]
     loop = loop_model(G, N, c.amplitude, c.frequency)
-    return c, {n: memory_orbit(loop, c.amplitude, c.frequency, nodes=n) for n in (32, 64, 128, 256, 512)}
+    return c, {n: memory_orbit(loop, c.amplitude, c.frequency, nodes=n, max_nodes=2 * n) for n in (32, 64, 128, 256, 512)}
 
 
 def test_backlash_delay_orbit_equals_an_independent_run_and_the_df_is_close(orbits):

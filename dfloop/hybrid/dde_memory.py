@@ -482,25 +482,34 @@ def _refine(loop, st: _State, xs: np.ndarray, N: int, L2: int) -> _State:
     return _State(st.s, hist, st.mode, st.e)
 
 
-def memory_orbit(loop: MemoryDDELoop, A0: float, w0: float, *, nodes: int = 128, tol: float = 1e-11,
-                 max_iterations: int = 40, harmonics: int = 15, samples: int = 512, count: int = 8) -> dict:
+TARGET = 1e-8          # the change of A and w between the last two resolutions must fall below this (relative)
+MAX_NODES = 4096       # the finest resolution memory_orbit tries (steps per period)
+
+
+def memory_orbit(loop: MemoryDDELoop, A0: float, w0: float, *, nodes: int = 128, target: float = TARGET,
+                 max_nodes: int = MAX_NODES, tol: float = 1e-11, max_iterations: int = 40, harmonics: int = 15,
+                 samples: int = 512, count: int = 8) -> dict:
     """The periodic orbit of a delayed loop around an element with memory (module notes), near (A0, w0).
 
-    Solves at ``nodes`` and 2 ``nodes`` steps per period (at least 4.5 P / T, so the step stays below a third of
-    the delay); the orbit is the finer one and ``extra["error_estimate"]`` the change of (A, w) between the two
-    (4th order: the finer one's error is about 1/15 of it). ``count`` multipliers are kept (largest first).
-    Returns a dict of :class:`dfloop.exact.ExactCycle` fields (``success`` False with the reason on failure).
+    Solves at ``nodes``, 2 ``nodes``, 4 ``nodes``, ... steps per period (at least 4.5 P / T, so the step stays
+    below a third of the delay), each from the previous orbit, until the change of A and of w between the last
+    two resolutions is below ``target`` (relative) or the next would exceed ``max_nodes``. The orbit is the
+    finest one and ``extra["error_estimate"]`` the last change: a bound on its error as long as the error at
+    least halves per doubling (4th order: about 1/15 of it). When the target is not met within ``max_nodes`` the
+    orbit is still returned, with ``extra["target_met"]`` False and the message saying so. The multipliers
+    (``count`` kept, largest first) are those of the first two resolutions (``multipliers`` the finer,
+    ``extra["multipliers_coarse"]`` the coarser). Returns a dict of :class:`dfloop.exact.ExactCycle` fields
+    (``success`` False with the reason on failure).
     """
     T = loop.delay
     P0 = 2 * math.pi / w0
     N = max(int(nodes), int(math.ceil(4.5 * P0 / T)) + 1)
-    method = (f"delay equation with the element's state in the history ({N} and {2 * N} steps per period: exact "
-              "plant flow, element switches located exactly on the cubic history, Gauss-Legendre input; 4th "
-              "order, error estimate in extra)")
-    out = {}
+    max_nodes = max(int(max_nodes), 2 * N)
+    levels = []
     st, P = None, P0
     xs = None
-    for level, Nn in enumerate((N, 2 * N)):
+    Nn = N
+    while True:
         L = _history_size(loop, Nn, P0)
         try:
             if st is None:
@@ -509,13 +518,20 @@ def memory_orbit(loop: MemoryDDELoop, A0: float, w0: float, *, nodes: int = 128,
                 st = _refine(loop, st, xs, Nn // 2, L)
             st, P, res, it, M, (xs, ys, evs, _) = _periodic(loop, st, P, Nn, L, tol, max_iterations)
         except DelayMemoryError as exc:
-            return dict(success=False, message=f"{Nn} steps per period: {exc}", method=method)
-        mu = _eigenvalues(M, count)
+            return dict(success=False, message=f"{Nn} steps per period: {exc}", method=_method(levels, Nn))
+        mu = _eigenvalues(M, count) if len(levels) < 2 else None      # the multipliers' two resolutions
         X = 2j * np.fft.rfft(xs)[1:harmonics + 1] / Nn
-        out[Nn] = (abs(X[0]), 2 * math.pi / P, mu, res, it, X, evs, st)
-    (A1, w1, mu1, *_), (A2, w2, mu2, res, it, X, evs, st) = out[N], out[2 * N]
+        levels.append((Nn, abs(X[0]), 2 * math.pi / P, mu, res, it, X, evs, st))
+        if len(levels) >= 2:
+            err = (abs(levels[-1][1] / levels[-2][1] - 1), abs(levels[-1][2] / levels[-2][2] - 1))
+            if max(err) <= target or 2 * Nn > max_nodes:
+                break
+        Nn *= 2
+    Nn, A2, w2, _, res, it, X, evs, st = levels[-1]
+    mu1, mu2 = levels[0][3], levels[1][3]
+    met = max(err) <= target
     if not A2 > 0:
-        return dict(success=False, message="the motion settles to rest: no oscillation", method=method)
+        return dict(success=False, message="the motion settles to rest: no oscillation", method=_method(levels, Nn))
     nontrivial = np.delete(mu2, int(np.argmin(np.abs(mu2 - 1.0))))
     stable = bool(np.all(np.abs(nontrivial) < 1.0))
     phase = float(np.angle(X[0]))
@@ -530,13 +546,25 @@ def memory_orbit(loop: MemoryDDELoop, A0: float, w0: float, *, nodes: int = 128,
     X = X * np.exp(-1j * k * phase)
     X[0] = abs(X[0])
     switches = np.sort(np.mod(np.array([ev[0] for ev in evs], float) + shift, P))
-    err = (abs(A2 / A1 - 1), abs(w2 / w1 - 1))
-    return dict(success=True, message=f"converged in {it} Newton iteration(s), residual {res:.1e}; change from {N} "
-                f"to {2 * N} steps per period: A {err[0]:.1e}, w {err[1]:.1e}", method=method,
+    msg = (f"converged in {it} Newton iteration(s), residual {res:.1e}; change from {levels[-2][0]} to {Nn} steps "
+           f"per period: A {err[0]:.1e}, w {err[1]:.1e}")
+    if not met:
+        msg += (f" - above the target {target:g}: the finest resolution allowed is max_nodes = {max_nodes}; "
+                "raise max_nodes for a smaller error")
+    return dict(success=True, message=msg, method=_method(levels, Nn),
                 amplitude=float(X[0].real), frequency=2 * math.pi / P, period=P, t=np.arange(samples) * (P / samples),
                 x=x_s, y=y_s, switching_times=switches, harmonics=X, multipliers=mu2, stable=stable, residual=res,
-                iterations=it, extra={"error_estimate": err, "multipliers_coarse": mu1, "nodes": 2 * N,
+                iterations=it, extra={"error_estimate": err, "target": target, "target_met": met,
+                                      "multipliers_coarse": mu1, "nodes": Nn,
+                                      "multiplier_nodes": (levels[0][0], levels[1][0]),
                                       "mode0": st.mode, "e0": st.e, "delay": T})
+
+
+def _method(levels, Nn) -> str:
+    used = [lv[0] for lv in levels] or [Nn]
+    return (f"delay equation with the element's state in the history ({', '.join(map(str, used))} steps per "
+            "period: exact plant flow, element switches located exactly on the cubic history, Gauss-Legendre "
+            "input; 4th order, refined until the change of A and w is below the target; error estimate in extra)")
 
 
 def _eigenvalues(M: np.ndarray, count: int) -> np.ndarray:
