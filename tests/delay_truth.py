@@ -7,7 +7,8 @@ at the solver's accuracy). Every instant where the input is not smooth is an int
 
 - the element's switches (x crossing a kink of f; a backlash engaging, x - e = +-c/2, or releasing, x' = 0) are
   events of the integration located on the dense output; the input has its kink T later;
-- a piece never spans more than T, so every switch found inside it lies beyond its end once delayed.
+- a piece never spans more than T (its input is then all in the past), so every switch found inside it lies
+  beyond its end once delayed.
 
 The run starts on the predicted sinusoid: x(t) = A0 sin(w0 t) for t <= 0 (the element driven by it), the plant in
 the periodic state the fundamental of the delayed element output drives it to. Settled: the last ``confirm``
@@ -173,7 +174,7 @@ class DelayTruth:
             stop = min(t + self.T, self.breaks[0] if self.breaks else math.inf, t_end)
             mode = self.sw[-1][0] if self.sw else 0
             guards = self._guards(mode, self.sw[-1][1] if self.sw else 0.0)
-            for j, g in enumerate(guards):
+            for j, g in enumerate(guards):       # a backlash's switch changes its guards: terminal
                 g.terminal = self.el[0] == "backlash"
                 if self.el[0] == "backlash":      # engage + upward, engage - downward, release: x' turns back
                     g.direction = (1.0 if j == 0 else -1.0) if mode == 0 else -1.0
