@@ -1,51 +1,58 @@
 """exact_cycle on delayed loops with every kind of piecewise-linear element, plants of order 2-12 (issue 16).
 
 Sample: ``LOOPS`` loops, seeded. Plant: real poles and damped pairs (natural frequencies 0.2-5 rad/s, an
-integrator in one loop of four) times, in one loop of two, a Pade chain of order 2-6 (a second delay made
-rational), so the order is 2-12; a pure delay uniform in (0, 5] dominant time constants; the element one of
-saturation, dead zone, backlash (an element with memory), relay with hysteresis and dead zone, in turn; gain so
-that the DF predicts a cycle.
+integrator in one loop of four, and in every backlash loop) times, in one loop of two, a Pade chain of order 2-6
+(a second delay made rational); a pure delay uniform in (0, 5] dominant time constants; the element one of
+saturation, dead zone, backlash (an element with memory), relay with hysteresis and dead zone, in turn. The gain
+is set from the crossings of the negative real axis by G e^{-sT} so that the DF predicts a cycle that can attract:
+saturation and relay 2-6 times the critical gain; backlash 0.7-0.95 of it (a stable linear loop around an
+integrator); dead zone around (s + z)^2 / s^3 times 1-3 lags (z 0.05-0.2 of the slowest pole), inside the range
+of gains where that conditionally stable loop is stable (a dead zone's cycle around an ordinary plant repels).
 
 For each loop: ``predict_limit_cycles`` (timed), then for each prediction (at most ``PER_LOOP``, slowest first)
-``exact_cycle`` (timed, the public call) and a long run from the prediction (``simulate_loop``: the exact delay
-flow for the relay, the method of steps of the delay equation for the others, ``RUN_PERIODS`` periods at
-``STEPS`` steps per period), measured over its last 10 periods. A settled run (periodicity < 1e-6, amplitude above
-1e-6 of the start: not at rest) is *found*
-when an exact_cycle result of the loop equals it to ``MATCH`` in A and w (the run's own measure - linear
-interpolation of crossings at ``STEPS`` samples per period - and the delay equation's discretisation limit the
-agreement to about 1e-6; the relay's exact flow would give 1e-8, see bench_delay_exact.py); a *miss* is a settled
-run no exact result matches.
+``exact_cycle`` (timed, the public call) and an independent long run from the prediction: for relays the exact
+event-located flow (the return map iterated until the state changes by < 1e-13, ``bench_delay_exact.settle``),
+for the others tests/delay_truth.py (DOP853 at rtol 1e-12 with an exact delay buffer of dense outputs, the
+element's switches located as events), until successive periods agree to ``SETTLE`` in A and w (at most
+``RUN_PERIODS`` periods and ``RUN_STEPS`` solver steps; runs that reach rest or diverge stop). A settled run is *found* when an exact_cycle result
+of the loop equals it to ``MATCH`` = 1e-8 in A and w; a *miss* is a settled run no exact result matches.
 
 Run: python benchmarks/bench_delay_elements.py [--write]   (--write writes benchmarks/results/bench_delay_elements.md)
 """
 from __future__ import annotations
 
 import math
+import os
 import pathlib
 import sys
 import time
 import warnings
 
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")      # small matrices: threads only add hand-off cost
+sys.path.insert(0, str(pathlib.Path(__file__).parents[1] / "tests"))
+
 import control as ct
 import numpy as np
 
 import dfloop as df
-from dfloop.harmonics import steady_state
+from bench_delay_exact import settle
+from delay_truth import DelayTruth, backlash_element, static_element
 from dfloop.solve.delay import delayed
-from dfloop.verify import simulate_loop
 
-LOOPS = int(__import__("os").environ.get("BENCH_LOOPS", 32))
+LOOPS = int(os.environ.get("BENCH_LOOPS", 32))
 PER_LOOP = 2
-RUN_PERIODS = 150
-STEPS = 512
-MATCH = 2e-5
+RUN_PERIODS = 300          # bounds of a reference run: periods of the predicted frequency, solver steps
+RUN_STEPS = 30_000
+SETTLE = 1e-10             # a reference run has settled when successive periods agree to this (A and w)
+MATCH = 1e-8
 SEED = 16
 ELEMENTS = ("saturation", "dead zone", "backlash", "relay")
 
 
 def random_loop(rng, k: int):
-    n = int(rng.integers(2, 7))
-    poles = [0.0] if rng.random() < 0.25 else []
+    kind = ELEMENTS[k % len(ELEMENTS)]
+    n = int(rng.integers(2, 7)) if kind != "dead zone" else int(rng.integers(1, 4))
+    poles = [0.0] if (rng.random() < 0.25 or kind == "backlash") and kind != "dead zone" else []
     while len(poles) < n:
         wn = 10 ** rng.uniform(np.log10(0.2), np.log10(5.0))
         if len(poles) <= n - 2 and rng.random() < 0.4:
@@ -57,23 +64,57 @@ def random_loop(rng, k: int):
     den = np.real(np.poly(poles))
     G = ct.tf([1.0], den)
     slow = float(np.min(np.abs(poles[np.abs(poles) > 0]))) if np.any(np.abs(poles) > 0) else 1.0
+    G = G * float(np.prod(np.abs(poles[np.abs(poles) > 0])))            # unit gain of the lags
     pade = 0
     if rng.random() < 0.5:
         pade = int(rng.integers(2, 7))
         G = G * ct.tf(*ct.pade(float(rng.uniform(0.05, 0.5)) / slow, pade))
     T = float(rng.uniform(0.05, 5.0)) / slow
-    kind = ELEMENTS[k % len(ELEMENTS)]
+    if kind == "dead zone":     # conditionally stable: (s + z)^2 / s^3, the linear loop stable between two gains
+        z = float(rng.uniform(0.2, 0.5)) * slow
+        G = G * ct.tf([1.0, 2 * z, z * z], [1.0, 0.0, 0.0, 0.0])
+        n_extra = 3
+    else:
+        n_extra = 0
     N = {"saturation": df.Saturation(1.0), "dead zone": df.DeadZone(0.3), "backlash": df.Backlash(h=0.5),
          "relay": df.Relay(1.0, hysteresis=float(rng.uniform(0, 0.1)), dead_zone=float(rng.uniform(0, 0.1)))}[kind]
-    # gain: the loop gain at the phase crossover of G e^{-sT} times a margin above the element's threshold
-    w = np.logspace(-3, 2, 4000) * slow
+    # gain from the crossings of the negative real axis by G e^{-sT}: saturation, relay: 2-6 times the critical gain (the linear loop
+    # unstable); backlash: 0.7-0.95 of it (stable linear loop: the play's cycle attracts); dead zone: inside the
+    # conditionally stable range (unstable at low gain, stable at the gain: the dead zone's cycle attracts)
+    w = np.logspace(-4, 2, 6000) * slow
     resp = np.array([complex(G(1j * x)) * np.exp(-1j * x * T) for x in w])
-    phase = np.unwrap(np.angle(resp))
-    idx = np.flatnonzero(np.diff(np.sign(phase + np.pi)))
+    idx = np.flatnonzero((np.diff(np.sign(resp.imag)) != 0) & (resp.real[:-1] < 0))   # negative real axis
     mag = abs(resp[idx[0]]) if idx.size else abs(resp[0])
-    K = float(rng.uniform(2.0, 6.0)) / mag
-    desc = f"n={len(poles) + pade} ({'pade ' + str(pade) if pade else 'no pade'}), T={T * slow:.2f} tau, {kind}"
+    if kind == "backlash":
+        K = float(rng.uniform(0.7, 0.95)) / mag
+    elif kind == "dead zone" and idx.size >= 2 and abs(resp[idx[0]]) > abs(resp[idx[1]]):
+        lo, hi = 1.0 / abs(resp[idx[0]]), 1.0 / abs(resp[idx[1]])
+        K = float(lo * (hi / lo) ** rng.uniform(0.3, 0.7))
+    else:
+        K = float(rng.uniform(2.0, 6.0)) / mag
+    desc = f"n={len(poles) + pade + n_extra} ({'pade ' + str(pade) if pade else 'no pade'}), T={T * slow:.2f} tau, {kind}"
     return delayed(K * G, T), N, desc
+
+
+def reference(G, N, c):
+    """The orbit a long run from the prediction c settles on: (A, w), or None with the reason."""
+    if isinstance(N, df.Relay):           # the exact event-located flow, its return map iterated to 1e-13
+        out, why = settle(G, N, c.amplitude, c.frequency)
+        return (out[0], out[1]) if out else None, why or "settled"
+    ss = ct.ss(G.system)
+    if isinstance(N, df.Backlash):
+        el = backlash_element(N.h)
+    else:
+        bp = np.asarray(N.breakpoints(64 * c.amplitude), float)
+        el = static_element(lambda x: np.asarray(N.output(np.asarray(x, float)), float),
+                            np.unique(np.concatenate([-bp, bp])))
+    run = DelayTruth(ss.A, ss.B, ss.C, G.delay, el).run(c.amplitude, c.frequency, settle=SETTLE,
+                                                         max_periods=RUN_PERIODS, max_steps=RUN_STEPS)
+    if run.settled:
+        return (run.amplitude, run.frequency), "settled"
+    if run.change == math.inf:
+        return None, "rest or divergence"
+    return None, f"not settled in {RUN_PERIODS} periods or {RUN_STEPS} steps (change {run.change:.1e})"
 
 
 def run_loop(G, N):
@@ -81,54 +122,80 @@ def run_loop(G, N):
     cycles = df.predict_limit_cycles(G, N)
     t_pred = time.perf_counter() - t0
     picks = sorted(cycles, key=lambda c: c.frequency)[:PER_LOOP]
-    exacts, t_exact, settled = [], [], []
+    exacts, t_exact, settled, unsettled, errs = [], [], [], 0, []
     for c in picks:
         t0 = time.perf_counter()
         e = df.exact_cycle(G, N, c)
         t_exact.append(time.perf_counter() - t0)
         exacts.append(e)
-        try:
-            sim = simulate_loop(G, N, c.amplitude, c.frequency, periods=RUN_PERIODS, steps_per_period=STEPS)
-        except (RuntimeError, ValueError):
-            continue
-        if sim.diverged:
-            continue
-        st = steady_state(sim.t, sim.x, 10)
-        if st.oscillating and st.periodicity < 1e-6 and st.amplitude > 1e-6 * c.amplitude:   # not rest
-            settled.append((st.amplitude, st.frequency))
+        ref, why = reference(G, N, c)
+        if ref is not None:
+            settled.append(ref)
+        elif why.startswith("not settled"):
+            unsettled += 1
     found = [e for e in exacts if e.success]
-    misses = [s for s in settled if not any(abs(e.amplitude / s[0] - 1) < MATCH and abs(e.frequency / s[1] - 1) < MATCH
-                                            for e in found)]
+    misses = []
+    for A, w in settled:
+        d = [max(abs(e.amplitude / A - 1), abs(e.frequency / w - 1)) for e in found]
+        if d and min(d) < MATCH:
+            errs.append(min(d))
+        else:
+            misses.append((A, w))
+    ests = [max(e.extra["error_estimate"]) for e in found if "error_estimate" in e.extra]
     return dict(predicted=len(cycles), checked=len(picks), found=len(found), settled=len(settled), misses=misses,
-                t_pred=t_pred, ratio=float(np.mean(t_exact) / t_pred) if t_exact else math.nan)
+                unsettled=unsettled, errs=errs, ests=ests, t_pred=t_pred,
+                ratio=float(np.mean(t_exact) / t_pred) if t_exact else math.nan)
 
 
 def main() -> str:
     warnings.simplefilter("ignore")
     rng = np.random.default_rng(SEED)
-    rows = ["| # | loop | predicted | exact found / checked | runs settled | misses | predict (ms) | exact / predict |",
-            "|---|---|---|---|---|---|---|---|"]
-    total = dict(checked=0, found=0, settled=0, misses=0)
-    ratios = []
+    rows = ["| # | loop | predicted | exact found / checked | runs settled (not within bound) | max diff A, w | "
+            "misses | max error estimate | predict (ms) | exact / predict |",
+            "|---|---|---|---|---|---|---|---|---|---|"]
+    total = dict(checked=0, found=0, settled=0, misses=0, unsettled=0)
+    per_kind = {k: [0, 0] for k in ELEMENTS}               # settled runs, misses
+    ratios, errs, ests = [], [], []
     t_all = time.perf_counter()
     for k in range(LOOPS):
         G, N, desc = random_loop(rng, k)
         r = run_loop(G, N)
-        for key in ("checked", "found", "settled"):
+        for key in ("checked", "found", "settled", "unsettled"):
             total[key] += r[key]
         total["misses"] += len(r["misses"])
+        kind = ELEMENTS[k % len(ELEMENTS)]
+        per_kind[kind][0] += r["settled"]
+        per_kind[kind][1] += len(r["misses"])
         ratios.append(r["ratio"])
+        errs += r["errs"]
+        ests += r["ests"]
         miss = "; ".join(f"A={a:.6g}, w={w:.6g}" for a, w in r["misses"]) or "0"
-        rows.append(f"| {k} | {desc} | {r['predicted']} | {r['found']}/{r['checked']} | {r['settled']} | {miss} | "
-                    f"{1e3 * r['t_pred']:.0f} | {r['ratio']:.2f} |")
+        rows.append(f"| {k} | {desc} | {r['predicted']} | {r['found']}/{r['checked']} | {r['settled']} "
+                    f"({r['unsettled']}) | {max(r['errs']):.1e} |" if r["errs"] else
+                    f"| {k} | {desc} | {r['predicted']} | {r['found']}/{r['checked']} | {r['settled']} "
+                    f"({r['unsettled']}) | - |")
+        rows[-1] += (f" {miss} | {max(r['ests']):.1e} |" if r["ests"] else f" {miss} | - |") + \
+            f" {1e3 * r['t_pred']:.0f} | {r['ratio']:.2f} |"
         print(rows[-1], flush=True)
     ratios = np.array([x for x in ratios if math.isfinite(x)])
+    kinds = ", ".join(f"{k} {v[0]} ({v[1]} missed)" for k, v in per_kind.items())
     head = [f"Sample: {LOOPS} random delayed loops (seed {SEED}; order 2-12 with Pade chains, delay (0, 5] dominant "
-            f"time constants; saturation, dead zone, backlash, relay in turn), at most {PER_LOOP} predictions each.",
+            f"time constants; saturation, dead zone, backlash, relay in turn), at most {PER_LOOP} predictions each. "
+            "Gains: saturation and relay 2-6 times the critical gain; backlash 0.7-0.95 of it around a plant with "
+            "an integrator; dead zone in the conditionally stable range of (s + z)^2 / s^3 times the lags (so that "
+            "their cycles can attract).",
+            "",
+            "Reference runs from each prediction, independent of exact_cycle: relays on the exact event-located "
+            "flow (the return map iterated until the state changes by < 1e-13, bench_delay_exact.py); the others "
+            f"by tests/delay_truth.py (DOP853, rtol 1e-12, exact delay buffer of dense outputs, element switches as "
+            f"events) until successive periods agree to {SETTLE:g}, at most {RUN_PERIODS} periods and {RUN_STEPS} steps.",
             "",
             f"- predictions checked: {total['checked']}; exact orbits found near them: {total['found']}",
-            f"- long runs from the predictions that settled (periodicity < 1e-6): {total['settled']}; found by "
-            f"exact_cycle to {MATCH:g} in A and w: {total['settled'] - total['misses']}; **misses: {total['misses']}**",
+            f"- reference runs that settled on an oscillation: {total['settled']} ({kinds}); not settled within the "
+            f"bound: {total['unsettled']}; the others went to rest or diverged",
+            f"- found by exact_cycle to {MATCH:g} in A and w: {total['settled'] - total['misses']}; "
+            f"**misses: {total['misses']}**; largest difference {max(errs) if errs else math.nan:.1e}",
+            f"- exact_cycle's error estimates (delay equation loops): largest {max(ests) if ests else math.nan:.1e}",
             f"- time of one exact_cycle / time of predict_limit_cycles: median {np.median(ratios):.2f}, max "
             f"{np.max(ratios):.2f}",
             f"- whole sample: {time.perf_counter() - t_all:.1f} s", ""]

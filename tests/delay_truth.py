@@ -135,8 +135,9 @@ class DelayTruth:
                 a = tj + 1e-12 * P
 
     # ---- the run -----------------------------------------------------------------------------------------
-    def run(self, A0, w0, *, max_periods=400, settle=1e-11, confirm=3):
-        """Run from the prediction (A0, w0) until settled or ``max_periods`` (of w0) have passed."""
+    def run(self, A0, w0, *, max_periods=400, settle=1e-11, confirm=3, max_steps=10 ** 7):
+        """Run from the prediction (A0, w0) until settled, at rest (amplitude < 1e-9 A0) or diverging (> 1e4 A0),
+        or until ``max_periods`` (of w0) or ``max_steps`` solver steps have passed."""
         self.A0, self.w0 = float(A0), float(w0)
         P0 = 2 * math.pi / w0
         self.breaks = [self.T]                    # the start's x(0) differs from the sinusoid's
@@ -168,7 +169,8 @@ class DelayTruth:
         up.direction = 1.0
         t_end = max_periods * P0
         result = None
-        while t < t_end:
+        steps = 0
+        while t < t_end and steps < max_steps:
             nb = bisect.bisect_right(self.breaks, t * (1 + 1e-15) + 1e-300)
             del self.breaks[:nb]
             stop = min(t + self.T, self.breaks[0] if self.breaks else math.inf, t_end)
@@ -181,13 +183,14 @@ class DelayTruth:
             sol = solve_ivp(rhs, (t, stop), s, method="DOP853", rtol=self.rtol, atol=atol, dense_output=True,
                             events=[up] + guards)
             end = float(sol.t[-1])
+            steps += sol.t.size - 1
             self.starts.append(t)
             self.pieces.append(sol.sol)
             for tu in sol.t_events[0]:
                 if not ups or tu > ups[-1] + 1e-9 * P0:
                     ups.append(float(tu))
                     result = self._check(ups, settle, confirm)
-                    if result is not None and result.settled:
+                    if result is not None and (result.settled or result.change == math.inf):
                         return result
             hits = sorted((float(te), j) for j, tev in enumerate(sol.t_events[1:]) for te in tev)
             if self.el[0] == "static":
@@ -207,6 +210,8 @@ class DelayTruth:
             return None
         per = np.diff(ups[-(confirm + 2):])
         amps = [self.fundamental(ups[-i - 2], ups[-i - 1]) for i in range(confirm + 1)]
+        if not 1e-9 * self.A0 < amps[0] < 1e4 * self.A0:     # at rest or diverging: stop (not settled)
+            return Settled(amps[0], 2 * math.pi / per[-1], math.inf, len(ups) - 1, ups[-1], False)
         change = max(float(np.max(np.abs(np.diff(per)))) / per[-1],
                      max(abs(a / amps[0] - 1) for a in amps[1:]))
         return Settled(amps[0], 2 * math.pi / per[-1], change, len(ups) - 1, ups[-1], change < settle)
