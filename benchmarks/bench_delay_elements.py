@@ -112,8 +112,8 @@ def reference(G, N, c):
                                                          max_periods=RUN_PERIODS, max_steps=RUN_STEPS)
     if run.settled:
         return (run.amplitude, run.frequency), "settled"
-    if run.change == math.inf:
-        return None, "rest or divergence"
+    if run.reason != "bound":
+        return None, run.reason
     return None, f"not settled in {RUN_PERIODS} periods or {RUN_STEPS} steps (change {run.change:.1e})"
 
 

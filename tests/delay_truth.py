@@ -42,16 +42,22 @@ def backlash_element(clearance: float):
     return ("backlash", float(clearance))
 
 
+class _Budget(Exception):
+    """The run's budget of right-hand-side evaluations is spent."""
+
+
 @dataclass
 class Settled:
-    """A settled run: amplitude of x's fundamental, frequency (rad/s), the last changes between periods, and
-    the simulated time (s)."""
+    """The end of a run: amplitude of x's fundamental over the last period, frequency (rad/s), the largest change
+    between the last periods, periods and time (s) simulated, and why it stopped (``reason``: "settled", "rest",
+    "divergence" or "bound")."""
     amplitude: float
     frequency: float
     change: float
     periods: int
     time: float
     settled: bool
+    reason: str = "bound"
 
 
 class DelayTruth:
@@ -137,7 +143,7 @@ class DelayTruth:
     # ---- the run -----------------------------------------------------------------------------------------
     def run(self, A0, w0, *, max_periods=400, settle=1e-11, confirm=3, max_steps=10 ** 7):
         """Run from the prediction (A0, w0) until settled, at rest (amplitude < 1e-9 A0) or diverging (> 1e4 A0),
-        or until ``max_periods`` (of w0) or ``max_steps`` solver steps have passed."""
+        or until ``max_periods`` (of w0) or ``max_steps`` solver steps (13 ``max_steps`` evaluations) have passed."""
         self.A0, self.w0 = float(A0), float(w0)
         P0 = 2 * math.pi / w0
         self.breaks = [self.T]                    # the start's x(0) differs from the sinusoid's
@@ -164,7 +170,14 @@ class DelayTruth:
         atol = self.rtol * 1e-2 * max(float(np.max(np.abs(s))), 1e-300)
         self.starts, self.pieces = [], []
         ups = []                                   # upward zero crossings of x
-        rhs = lambda t, s: self.A @ s + self.B * self.u(t)
+        evals = [0]
+
+        def rhs(t, s):
+            evals[0] += 1
+            if evals[0] > 13 * max_steps:       # DOP853: 12 evaluations a step (bounds a piece that stalls)
+                raise _Budget
+            return self.A @ s + self.B * self.u(t)
+
         up = lambda t, s: float(-self.C @ s)
         up.direction = 1.0
         t_end = max_periods * P0
@@ -180,8 +193,11 @@ class DelayTruth:
                 g.terminal = self.el[0] == "backlash"
                 if self.el[0] == "backlash":      # engage + upward, engage - downward, release: x' turns back
                     g.direction = (1.0 if j == 0 else -1.0) if mode == 0 else -1.0
-            sol = solve_ivp(rhs, (t, stop), s, method="DOP853", rtol=self.rtol, atol=atol, dense_output=True,
-                            events=[up] + guards)
+            try:
+                sol = solve_ivp(rhs, (t, stop), s, method="DOP853", rtol=self.rtol, atol=atol, dense_output=True,
+                                events=[up] + guards)
+            except _Budget:
+                break
             end = float(sol.t[-1])
             steps += sol.t.size - 1
             self.starts.append(t)
@@ -201,7 +217,7 @@ class DelayTruth:
                 self._switch(te, self.x_at(te), j)
             s = sol.y[:, -1]
             if not np.all(np.isfinite(s)) or np.max(np.abs(s)) > 1e8:
-                break
+                return Settled(math.nan, math.nan, math.inf, len(ups), t, False, "divergence")
             t = end
         return result or Settled(math.nan, math.nan, math.inf, len(ups), t, False)
 
@@ -211,10 +227,12 @@ class DelayTruth:
         per = np.diff(ups[-(confirm + 2):])
         amps = [self.fundamental(ups[-i - 2], ups[-i - 1]) for i in range(confirm + 1)]
         if not 1e-9 * self.A0 < amps[0] < 1e4 * self.A0:     # at rest or diverging: stop (not settled)
-            return Settled(amps[0], 2 * math.pi / per[-1], math.inf, len(ups) - 1, ups[-1], False)
+            return Settled(amps[0], 2 * math.pi / per[-1], math.inf, len(ups) - 1, ups[-1], False,
+                           "rest" if amps[0] <= 1e-9 * self.A0 else "divergence")
         change = max(float(np.max(np.abs(np.diff(per)))) / per[-1],
                      max(abs(a / amps[0] - 1) for a in amps[1:]))
-        return Settled(amps[0], 2 * math.pi / per[-1], change, len(ups) - 1, ups[-1], change < settle)
+        return Settled(amps[0], 2 * math.pi / per[-1], change, len(ups) - 1, ups[-1], change < settle,
+                       "settled" if change < settle else "bound")
 
     def fundamental(self, a, b):
         """|2/P int_a^b x e^{-iwt} dt| over one period [a, b]: 8-point Gauss-Legendre on every solver step."""
