@@ -318,7 +318,7 @@ def _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations
     loop = loop_model(G, N, A0 + abs(bias), w0, what="exact_cycle", r0=r0, load=load)
     if loop.delay > 0:   # a pure delay: Newton on the return map of the exact delay flow (dfloop.hybrid.delay)
         return ExactCycle(**delay_orbit(loop, A0, w0, tol=tol, max_iterations=max_iterations, harmonics=harmonics,
-                                        samples=samples, max_events=max_events, max_deviation=max_deviation))
+                                        samples=samples, max_events=max_events, max_deviation=max_deviation, bias=bias))
     if not loop.exact:
         raise ValueError(f"N: {type(N).__name__} is known only through a sampled operator ({loop.method}): "
                          "exact_cycle needs an exact time model (piecewise affine, smooth or impact; implement "
