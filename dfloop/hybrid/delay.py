@@ -34,6 +34,7 @@ from ..describing.time_model import OUT_OF_RANGE, PiecewiseAffine
 from .dde import DDELoop, dde_orbit, dde_simulation
 from .constant import unshift
 from .dde_memory import DelayMemoryError, MemoryDDELoop, memory_orbit, memory_simulation
+from .delay_impact import DelayImpactError, DelayImpactLoop, impact_orbit, impact_simulation
 from .delay_sampled import DelaySampledLoop, sampled_delay_simulation
 from .run import LoopSimulation
 
@@ -538,7 +539,10 @@ def delay_orbit(loop: DelayLoop | DDELoop | MemoryDDELoop, A0: float, w0: float,
                          "exact_cycle needs an exact time model (piecewise affine, smooth or impact; implement "
                          "time_model(), see dfloop.describing.time_model)")
     r0, load = getattr(loop, "r0", 0.0), getattr(loop, "load", 0.0)
-    if isinstance(loop, DDELoop):   # a static element with sloped pieces or a smooth one: the delay equation
+    if isinstance(loop, DelayImpactLoop):   # masses and impacts: the method of steps on the impact engine
+        out = impact_orbit(loop, A0, w0, tol=max(tol, 1e-10), max_iterations=max_iterations, harmonics=harmonics,
+                           samples=samples)
+    elif isinstance(loop, DDELoop):   # a static element with sloped pieces or a smooth one: the delay equation
         out = dde_orbit(loop, A0, w0, harmonics=harmonics, samples=samples)
     elif isinstance(loop, MemoryDDELoop):   # an element with memory (backlash): its state in the history
         out = memory_orbit(loop, A0, w0, tol=max(tol, 1e-12), max_iterations=max_iterations, harmonics=harmonics,
@@ -704,7 +708,12 @@ def delay_simulation(loop: DelayLoop | DDELoop | MemoryDDELoop | DelaySampledLoo
     times the amplitude.
     """
     r0, load = getattr(loop, "r0", 0.0), getattr(loop, "load", 0.0)
-    if isinstance(loop, DDELoop):
+    if isinstance(loop, DelayImpactLoop):
+        try:
+            sim = impact_simulation(loop, amplitude, frequency, periods, steps_per_period, diverge)
+        except DelayImpactError as exc:
+            raise DelayError(str(exc)) from None
+    elif isinstance(loop, DDELoop):
         sim = dde_simulation(loop, amplitude, frequency, periods, steps_per_period, diverge)
     elif isinstance(loop, DelaySampledLoop):
         sim = sampled_delay_simulation(loop, amplitude, frequency, periods, diverge)

@@ -10,6 +10,7 @@ from .dde import DDELoop, static_map
 from .dde_memory import MemoryDDELoop
 from .constant import shifted_model
 from .delay import DelayLoop, piecewise_constant, split_delay
+from .delay_impact import DelayImpactLoop
 from .delay_sampled import DelaySampledLoop
 from .impact import ImpactLoop
 from .loop import HybridLoop, plant_matrices, plant_system
@@ -35,7 +36,8 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
         elements (saturation, dead zone, cubic stiffness, ...), a :class:`~dfloop.hybrid.dde_memory.MemoryDDELoop`
         (the same with the element's state in the history) for piecewise-affine elements with memory (backlash),
         a :class:`~dfloop.hybrid.delay_sampled.DelaySampledLoop` (fixed step, the delay line exact) for an element
-        known only through an operator; impact elements with a delay raise ``ValueError`` naming N.
+        known only through an operator, a :class:`~dfloop.hybrid.delay_impact.DelayImpactLoop` (the delay equation
+        with impacts, a method of steps on the impact engine) for an impact element.
     N : DescribingFunction
         The element; its ``time_model(amplitude)`` says how it behaves in time.
     amplitude, frequency : float
@@ -53,9 +55,9 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
     Raises
     ------
     ValueError
-        N has no time model (naming N), or G is not a suitable plant (naming G), or G has a delay and N
-        is an impact element (naming N), or a constant input on an impact or (without delay) a sampled element
-        (naming r0).
+        N has no time model (naming N), or G is not a suitable plant (naming G), or G has a delay and N's time
+        model is none of the above (naming N), or a constant input on an impact or (without delay) a sampled
+        element (naming r0).
     """
     if not callable(getattr(N, "time_model", None)):
         raise ValueError(f"N must be a DescribingFunction (with time_model()), got {type(N).__name__}")
@@ -72,7 +74,7 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
                          f"smooth elements (and any but impact elements behind a pure delay), not for "
                          f"{type(N).__name__} ({type(tm).__name__})")
     if delay > 0.0:
-        return _delay_model(G, N, tm, delay, time_scale, steps_per_period, what, **constant)
+        return _delay_model(G, N, tm, delay, time_scale, steps_per_period, what, amplitude=amplitude, **constant)
     if isinstance(tm, Impact):
         A, B, C, D = plant_system(G, what=what)
         model = ImpactLoop(A, B, C, D, tm, amplitude, frequency)
@@ -91,9 +93,22 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
     return model
 
 
-def _delay_model(G, N, tm, delay, time_scale, steps_per_period, what, r0, load):
+def _describing(N):
+    """N(F, w) of an element (its amplitude-only value for an element that is not frequency dependent)."""
+    if getattr(N, "frequency_dependent", False):
+        return lambda F, w: complex(N(F, w))
+    return lambda F, w: complex(N(F))
+
+
+def _delay_model(G, N, tm, delay, time_scale, steps_per_period, what, r0, load, amplitude):
     """The loop model of a plant with a pure delay T > 0; a constant input rides on the shifted element
     (:mod:`dfloop.hybrid.constant`), and the model keeps r0 and load to read its results back."""
+    if isinstance(tm, Impact) and r0 == 0.0 and load == 0.0:   # masses driven through the delayed plant
+        A, B, C, D = plant_system(G, what=what)
+        model = DelayImpactLoop(A, B, C, D, tm, delay, amplitude, 2.0 * math.pi / time_scale)
+        model.describing = _describing(N)
+        model.r0, model.load = 0.0, 0.0
+        return model
     A, B, C = plant_matrices(G, what=what)
     tm = shifted_model(tm, r0, load)
     if piecewise_constant(tm):     # relays, quantizer: the exact delay flow
@@ -107,13 +122,10 @@ def _delay_model(G, N, tm, delay, time_scale, steps_per_period, what, r0, load):
         elif isinstance(tm, PiecewiseAffine) and tm.n_states == 1:   # memory (backlash): its state in the history
             model = MemoryDDELoop(A, B, C, tm, delay)
         else:
-            raise ValueError(f"N: {type(N).__name__} with a pure delay in G is not supported here: the exact delay "
-                             "flow needs an element whose output is constant between switches (Relay with hysteresis "
-                             "and dead zone, Quantizer), static elements with sloped pieces and piecewise-affine "
-                             "elements with a state (backlash) run as a delay differential equation, elements with "
-                             "only an operator on a fixed step with an exact delay line, but impact elements "
-                             f"({type(tm).__name__} time model) with a delay are not available (use "
-                             "delayed(G, T).pade(n) for an approximation)")
+            raise ValueError(f"N: {type(N).__name__} with a pure delay in G is not supported here: its "
+                             f"{type(tm).__name__} time model is none that the delay engines take (piecewise constant, "
+                             "static, piecewise affine with one state, smooth, impact, or an operator); use "
+                             "delayed(G, T).pade(n) for an approximation")
     model.r0, model.load = r0, load
     return model
 
