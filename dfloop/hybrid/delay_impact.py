@@ -281,7 +281,8 @@ def impact_orbit(loop: DelayImpactLoop, F0: float, w0: float, *, nodes: int = 12
     T = loop.delay
     P0 = 2.0 * math.pi / w0
     N = max(int(nodes), int(math.ceil(3.0 * P0 / T)) + 1)     # h <= T / 2 while the period grows by half
-    method = (f"delay equation with impacts ({N} and {2 * N} steps per period: the exact impact engine over each "
+    method = (f"delay equation with impacts ({N}, {(3 * N) // 2} and {2 * N} steps per period: the exact impact "
+              "engine over each "
               "step, the delayed x1 a cubic through the history's nodes; 2nd order, error estimate in extra)")
     try:
         zm, H = loop.start(F0, w0, N)
