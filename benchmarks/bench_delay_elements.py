@@ -42,7 +42,7 @@ from dfloop.solve.delay import delayed
 LOOPS = int(os.environ.get("BENCH_LOOPS", 32))
 PER_LOOP = 2
 RUN_PERIODS = 300          # bounds of a reference run: periods of the predicted frequency, solver steps
-RUN_STEPS = 30_000
+RUN_STEPS = 60_000
 SETTLE = 1e-10             # a reference run has settled when successive periods agree to this (A and w)
 MATCH = 1e-8
 SEED = 16
@@ -208,5 +208,6 @@ if __name__ == "__main__":
     print(text)
     if "--write" in sys.argv:
         out = pathlib.Path(__file__).parent / "results" / "bench_delay_elements.md"
+        env = f"BENCH_LOOPS={LOOPS} " if LOOPS != 32 else ""
         out.write_text("# Delayed loops with every piecewise-linear element: randomized sample\n\nCommand: "
-                       "`python benchmarks/bench_delay_elements.py --write`\n\n" + text)
+                       f"`{env}python benchmarks/bench_delay_elements.py --write`\n\n" + text)
