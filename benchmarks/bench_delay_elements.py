@@ -5,7 +5,7 @@ integrator in one loop of four, and in every backlash loop) times, in one loop o
 (a second delay made rational); a pure delay uniform in (0, 5] dominant time constants; the element one of
 saturation, dead zone, backlash (an element with memory), relay with hysteresis and dead zone, in turn. The gain
 is set from the crossings of the negative real axis by G e^{-sT} so that the DF predicts a cycle that can attract:
-saturation and relay 2-6 times the critical gain; backlash 0.7-0.95 of it (a stable linear loop around an
+saturation and relay 2-6 times the critical gain; backlash 0.85-0.98 of it (a stable linear loop around an
 integrator); dead zone around (s + z)^2 / s^3 times 1-3 lags (z 0.05-0.2 of the slowest pole), inside the range
 of gains where that conditionally stable loop is stable (a dead zone's cycle around an ordinary plant repels).
 
@@ -66,7 +66,7 @@ def random_loop(rng, k: int):
     slow = float(np.min(np.abs(poles[np.abs(poles) > 0]))) if np.any(np.abs(poles) > 0) else 1.0
     G = G * float(np.prod(np.abs(poles[np.abs(poles) > 0])))            # unit gain of the lags
     pade = 0
-    if rng.random() < 0.5:
+    if rng.random() < 0.5 and kind != "dead zone":
         pade = int(rng.integers(2, 7))
         G = G * ct.tf(*ct.pade(float(rng.uniform(0.05, 0.5)) / slow, pade))
     T = float(rng.uniform(0.05, 5.0)) / slow
@@ -79,14 +79,14 @@ def random_loop(rng, k: int):
     N = {"saturation": df.Saturation(1.0), "dead zone": df.DeadZone(0.3), "backlash": df.Backlash(h=0.5),
          "relay": df.Relay(1.0, hysteresis=float(rng.uniform(0, 0.1)), dead_zone=float(rng.uniform(0, 0.1)))}[kind]
     # gain from the crossings of the negative real axis by G e^{-sT}: saturation, relay: 2-6 times the critical gain (the linear loop
-    # unstable); backlash: 0.7-0.95 of it (stable linear loop: the play's cycle attracts); dead zone: inside the
+    # unstable); backlash: 0.85-0.98 of it (stable linear loop: the play's cycle attracts); dead zone: inside the
     # conditionally stable range (unstable at low gain, stable at the gain: the dead zone's cycle attracts)
     w = np.logspace(-4, 2, 6000) * slow
     resp = np.array([complex(G(1j * x)) * np.exp(-1j * x * T) for x in w])
     idx = np.flatnonzero((np.diff(np.sign(resp.imag)) != 0) & (resp.real[:-1] < 0))   # negative real axis
     mag = abs(resp[idx[0]]) if idx.size else abs(resp[0])
     if kind == "backlash":
-        K = float(rng.uniform(0.7, 0.95)) / mag
+        K = float(rng.uniform(0.85, 0.98)) / mag
     elif kind == "dead zone" and idx.size >= 2 and abs(resp[idx[0]]) > abs(resp[idx[1]]):
         lo, hi = 1.0 / abs(resp[idx[0]]), 1.0 / abs(resp[idx[1]])
         K = float(lo * (hi / lo) ** rng.uniform(0.3, 0.7))
@@ -182,7 +182,7 @@ def main() -> str:
     kinds = ", ".join(f"{k} {v[0]} ({v[1]} missed)" for k, v in per_kind.items())
     head = [f"Sample: {LOOPS} random delayed loops (seed {SEED}; order 2-12 with Pade chains, delay (0, 5] dominant "
             f"time constants; saturation, dead zone, backlash, relay in turn), at most {PER_LOOP} predictions each. "
-            "Gains: saturation and relay 2-6 times the critical gain; backlash 0.7-0.95 of it around a plant with "
+            "Gains: saturation and relay 2-6 times the critical gain; backlash 0.85-0.98 of it around a plant with "
             "an integrator; dead zone in the conditionally stable range of (s + z)^2 / s^3 times the lags (so that "
             "their cycles can attract).",
             "",
