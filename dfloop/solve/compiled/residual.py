@@ -22,6 +22,7 @@ from ...progress import announce_compile
 from ..plant import Plant
 from ..roots import Residual
 from .kinds import KINDS
+from .parts import element_part, plant_part
 
 
 class _Kernels:
@@ -36,7 +37,8 @@ class _Kernels:
 
 K = _Kernels()
 
-__all__ = ["CompiledResidual", "compiled_loop", "residual_for", "enabled", "prepare", "warmup", "COMPILE_SECONDS"]
+__all__ = ["CompiledResidual", "compiled_loop", "element_form", "residual_for", "enabled", "prepare", "warmup",
+           "COMPILE_SECONDS"]
 
 COMPILE_SECONDS = 6
 """About how long compiling the kernels takes once per installation (s; benchmarks/bench_startup.py)."""
@@ -45,7 +47,10 @@ _MEMO_BATCH, _MEMO_SIZE = 64, 8192  # refined batches remembered (as Residual.sl
 
 
 def _kernels() -> tuple:
-    return K.refine, K.evaluate_slopes, K.products, K.plant_values, K.element_values
+    from . import driver
+
+    return (K.refine, K.evaluate_slopes, K.products, K.plant_values, K.element_values, driver._drive_one,
+            driver._drive_many)
 
 
 def enabled() -> bool:
@@ -112,8 +117,15 @@ def compiled_loop(plant: Plant, N):
 
 def _form(plant: Plant, N):
     """The element's compiled form (kind, parameters) when G and N both have one (checked without numba)."""
-    if getattr(N, "frequency_dependent", True) or plant.roots is None or plant.frequency_map is not None \
-            or plant.dt is not None:
+    if plant.roots is None or plant.frequency_map is not None or plant.dt is not None:
+        return None
+    return element_form(N)
+
+
+def element_form(N):
+    """The compiled form (kind name, parameters) of an amplitude-only element, or None: no compiled form, a
+    frequency-dependent element, or a user's subclass that evaluates N its own way."""
+    if getattr(N, "frequency_dependent", True):
         return None
     form = getattr(N, "compiled_form", None)
     if form is None or not _own_form(type(N)):
@@ -203,6 +215,42 @@ class CompiledResidual(Residual):
                 self._memo.clear()
             self._memo.update(zip(zip(ra.tolist(), rv.tolist()), zip(*(x.tolist() for x in vals))))
         return ra, rv, ok
+
+
+def driver_parts(G, N):
+    """(plant part, element part) of the loop for the compiled driver (:mod:`.driver`), or None where it does not
+    apply: the compiled path switched off, an element without a compiled form (or one the driver does not mirror),
+    a plant that is not a rational continuous tf/ss (with or without a pure delay). Loads no numba."""
+    if not enabled():
+        return None
+    form = element_form(N)
+    if form is None:
+        return None
+    npart = element_part(N, form)
+    if npart is None:
+        return None
+    gpart = plant_part(G)
+    if gpart is None:  # a state-space form: its polynomials as the Python path reads them (checked there)
+        from .. import plant as plant_module
+
+        try:
+            plant = plant_module.as_plant(G)
+        except (ValueError, TypeError):
+            return None
+        coef = _coefficients(plant) if _form(plant, N) is not None else None
+        if coef is None:
+            return None
+        gpart = coef
+    return gpart, npart
+
+
+def run_driver(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol):
+    """The compiled driver on one loop (windows NaN: the defaults), announcing a first compile:
+    (status, floats, ints, roots) (:func:`.driver.solve_one`)."""
+    from .driver import solve_one
+
+    _announce_compile()
+    return solve_one(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol)
 
 
 def residual_for(plant: Plant, N) -> Residual:
