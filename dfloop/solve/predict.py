@@ -13,7 +13,7 @@ from ..describing.base import DescribingFunction
 from ..describing.interop import as_element
 from ..describing.static import StaticElement
 from ._kernels import candidate_cells
-from .compiled import driver_parts, enabled as compiled_enabled, residual_for, run_driver
+from .compiled import driver_parts, enabled as compiled_enabled, residual_for, run_batch, run_driver
 from .grid import FD_MIN_WIDTH, STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
 from .plant import as_plant
 from .result import GridReport, JumpCrossing, LimitCycle, LimitCycles
@@ -21,7 +21,7 @@ from .roots import (JUMP_BOX, OuterProduct, Residual, accepted, dominant_steps, 
                     unresolved_boxes)
 from .stability import MARGINAL_TOL, classify
 
-__all__ = ["predict_limit_cycles"]
+__all__ = ["predict_limit_cycles", "predict_chunk"]
 
 _MAX_REFINE_ROUNDS = 30
 _MAX_GRID = 1_000_000  # points per axis of the initial grid
@@ -383,9 +383,9 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
 _LABELS = ("stable", "unstable", "marginal")  # the driver's label codes
 
 
-def _compiled_driver(G, N, omega, amplitude, na: int, nw: int, tol: float, marginal_tol: float):
-    """The result of the compiled driver (solve/compiled/driver.py) where it applies and finishes; None otherwise
-    (then the Python driver runs: the same algorithm, every branch)."""
+def _driver_inputs(G, N, omega, amplitude):
+    """(parts, windows (w_lo, w_hi, A_lo, A_hi), amplitude source) of the loop for the compiled driver
+    (solve/compiled/driver.py; NaN windows: the defaults), or None where it does not apply."""
     if not compiled_enabled():
         return None
     parts = driver_parts(G, N)
@@ -405,10 +405,71 @@ def _compiled_driver(G, N, omega, amplitude, na: int, nw: int, tol: float, margi
             A_hi, a_src = dom[1] * (1 - 1e-9), "given, clipped to N's amplitude domain"
         if A_lo >= A_hi:
             return None  # the Python path says why
-    raw = run_driver(*parts, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol)
+    return parts, (w_lo, w_hi, A_lo, A_hi), a_src
+
+
+def _compiled_driver(G, N, omega, amplitude, na: int, nw: int, tol: float, marginal_tol: float):
+    """The result of the compiled driver where it applies and finishes; None otherwise (then the Python driver
+    runs: the same algorithm, every branch)."""
+    inputs = _driver_inputs(G, N, omega, amplitude)
+    if inputs is None:
+        return None
+    parts, windows, a_src = inputs
+    raw = run_driver(*parts, *windows, na, nw, tol, marginal_tol)
     if raw[0] != 0:
         return None
     return _driver_result(G, N, raw[1], raw[2], raw[3], omega is not None, a_src)
+
+
+def predict_chunk(loops, *, omega=None, amplitude=None, grid=(64, 256), tol: float = 1e-10,
+                  marginal_tol: float = MARGINAL_TOL, exact: bool = False, errors=None) -> list:
+    """:func:`predict_limit_cycles` for each loop (G, N) of ``loops``, with the same options: the loops the
+    compiled driver applies to run in one call of it, in parallel over the cores (:func:`.compiled.run_batch`),
+    the others, and those it leaves to the Python driver, one by one. The results are the ones of
+    ``predict_limit_cycles(G, N, ...)`` for each loop (the same code computes them).
+
+    ``errors(index, exc)``, when given, is called for a loop that raises (and its result is None); by default
+    the exception propagates.
+    """
+    loops = list(loops)
+    out: list = [None] * len(loops)
+    fast, where = [], []
+    opts = dict(omega=omega, amplitude=amplitude, grid=grid, tol=tol, marginal_tol=marginal_tol, exact=exact)
+    if not exact and isinstance(exact, (bool, np.bool_)) and compiled_enabled():
+        tol_c, mtol_c = finite("tol", tol), finite("marginal_tol", marginal_tol)
+        if 0 < tol_c < 1e-3 and 0 <= mtol_c < 1:
+            try:
+                na, nw = _grid_size(grid, False)
+            except ValueError:
+                na = None
+            for k, (G, N) in enumerate(loops):
+                if na is None:
+                    break
+                try:
+                    N = as_element(N)
+                    inputs = _driver_inputs(G, N, omega, amplitude)
+                except ValueError:
+                    inputs = None
+                if inputs is not None:
+                    fast.append((k, G, N, inputs))
+    if fast:
+        raw = run_batch([f[3][0] for f in fast], [f[3][1] for f in fast], na, nw, tol_c, mtol_c)
+        status, fl, it, rows, count = raw
+        for q, (k, G, N, inputs) in enumerate(fast):
+            if status[q] == 0:
+                out[k] = _driver_result(G, N, fl[q], it[q], rows[q, :count[q]], omega is not None, inputs[2])
+                where.append(k)
+    done = set(where)
+    for k, (G, N) in enumerate(loops):
+        if k in done:
+            continue
+        try:
+            out[k] = predict_limit_cycles(G, N, **opts)
+        except Exception as exc:  # noqa: BLE001 - handed to the caller's handler, or re-raised
+            if errors is None:
+                raise
+            errors(k, exc)
+    return out
 
 
 def _driver_result(G, N, fl, it, rows, w_given: bool, a_src) -> LimitCycles:

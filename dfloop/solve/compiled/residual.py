@@ -37,8 +37,8 @@ class _Kernels:
 
 K = _Kernels()
 
-__all__ = ["CompiledResidual", "compiled_loop", "element_form", "residual_for", "enabled", "prepare", "warmup",
-           "COMPILE_SECONDS"]
+__all__ = ["CompiledResidual", "compiled_loop", "driver_parts", "element_form", "residual_for", "enabled", "prepare",
+           "run_batch", "run_driver", "warmup", "COMPILE_SECONDS"]
 
 COMPILE_SECONDS = 6
 """About how long compiling the kernels takes once per installation (s; benchmarks/bench_startup.py)."""
@@ -253,6 +253,15 @@ def run_driver(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol):
     return solve_one(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol)
 
 
+def run_batch(parts, windows, na, nw, tol, marginal_tol):
+    """The compiled driver over many loops in one parallel call (:func:`.driver.solve_many`), announcing a first
+    compile: arrays (status, floats, ints, roots, root counts), one row per loop."""
+    from .driver import solve_many
+
+    _announce_compile()
+    return solve_many(parts, windows, na, nw, tol, marginal_tol)
+
+
 def residual_for(plant: Plant, N) -> Residual:
     """The residual of the loop: compiled where :func:`compiled_loop` applies, the Python one otherwise."""
     loop = compiled_loop(plant, N)
@@ -280,4 +289,9 @@ def warmup() -> float:
         from ..roots import Box
 
         res.refine(a, v, Box(-1.0, 1.0, 0.0, 1.0), 1e-10, True)
+    parts = driver_parts(ct.tf([5.0], [1.0, 1.0, 0.0]), N)
+    if parts is not None:  # the driver, for one loop and for a batch
+        nan = float("nan")
+        run_driver(*parts, nan, nan, nan, nan, 8, 16, 1e-10, 1e-4)
+        run_batch([parts], [(nan, nan, nan, nan)], 8, 16, 1e-10, 1e-4)
     return time.perf_counter() - t0
