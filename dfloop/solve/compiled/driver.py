@@ -4,7 +4,7 @@ Where it applies: a rational continuous G (coefficients ``num``, ``den``, option
 amplitude-only element with a compiled form (:mod:`.kinds`). It runs the Python driver's algorithm with the same
 floating-point expressions in the same order (numpy's reduction order, complex division, ``linspace``):
 
-1. the poles and zeros (``np.roots``), the default frequency window two decades beyond them;
+1. the default frequency window two decades beyond the poles and zeros (numpy's, as the Plant has them);
 2. G's grid, refined from the exact bound on its variation (:meth:`~dfloop.solve.plant.Plant.log_variation`);
 3. the default amplitude window (``predict._default_amplitude_window`` with ``_limit_reach``), N's breakpoints as
    nodes and N's grid (``grid.resolve_sampled`` with ``monotone=True``);
@@ -803,7 +803,7 @@ def _windings(num, den, delay, kind, p, continuous, a, v, n, g, cells):
 
 
 @njit(**_OPTS)
-def _drive(num, den, delay, kind, p, continuous, ln_lo, ln_hi, dom_lo, dom_hi, tail_c, head_c, head_d, bp,
+def _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom_lo, dom_hi, tail_c, head_c, head_d, bp,
            w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit, bytes_per_point):
     """One loop end to end. Returns (status, floats, ints, roots): floats = (A_lo, A_hi, w_lo, w_hi, top, bottom,
     max step along w, max step along A, smallest and largest |pole/zero|), ints = (amplitude window case, grid
@@ -813,7 +813,6 @@ def _drive(num, den, delay, kind, p, continuous, ln_lo, ln_hi, dom_lo, dom_hi, t
     fl = np.full(10, np.nan)
     it = np.zeros(9, np.int64)
     empty = np.empty((0, 10), np.complex128)
-    zeros, poles = np.roots(num.astype(np.complex128)), np.roots(den.astype(np.complex128))
     if zeros.size + poles.size > _MAX_PAIRWISE:
         return 11, fl, it, empty
     for i in range(poles.size):
@@ -1134,15 +1133,16 @@ def _drive(num, den, delay, kind, p, continuous, ln_lo, ln_hi, dom_lo, dom_hi, t
 
 
 @njit(**_OPTS)
-def _drive_one(num, den, delay, kind, p, continuous, ln_lo, ln_hi, dom_lo, dom_hi, tail_c, head_c, head_d, bp,
-               w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit, bytes_per_point):
-    return _drive(num, den, delay, kind, p, continuous, ln_lo, ln_hi, dom_lo, dom_hi, tail_c, head_c, head_d, bp,
+def _drive_one(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom_lo, dom_hi, tail_c, head_c,
+               head_d, bp, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit, bytes_per_point):
+    return _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom_lo, dom_hi, tail_c, head_c, head_d, bp,
                   w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit, bytes_per_point)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", parallel=True)
-def _drive_many(num, n_num, den, n_den, delay, kind, p, continuous, ln_lo, ln_hi, dom_lo, dom_hi, tail_c, head_c,
-                head_d, bp, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit, bytes_per_point):
+def _drive_many(num, n_num, den, n_den, zeros, n_zeros, poles, n_poles, delay, kind, p, continuous, ln_lo, ln_hi,
+                dom_lo, dom_hi, tail_c, head_c, head_d, bp, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit,
+                bytes_per_point):
     """_drive over the loops of a batch (rows of the arguments; num, den padded), in parallel."""
     L = delay.size
     status = np.zeros(L, np.int64)
@@ -1151,7 +1151,8 @@ def _drive_many(num, n_num, den, n_den, delay, kind, p, continuous, ln_lo, ln_hi
     roots = np.empty((L, MAX_ROOTS, 10), np.complex128)
     count = np.zeros(L, np.int64)
     for k in prange(L):
-        s, f, i, r = _drive(num[k, :n_num[k]].copy(), den[k, :n_den[k]].copy(), delay[k], kind[k], p[k].copy(),
+        s, f, i, r = _drive(num[k, :n_num[k]].copy(), den[k, :n_den[k]].copy(), zeros[k, :n_zeros[k]].copy(),
+                            poles[k, :n_poles[k]].copy(), delay[k], kind[k], p[k].copy(),
                             continuous[k], ln_lo[k], ln_hi[k], dom_lo[k], dom_hi[k], tail_c[k], head_c[k],
                             head_d[k], bp[k], w_lo[k], w_hi[k], A_lo[k], A_hi[k], na, nw, tol, marginal_tol,
                             mem_limit, bytes_per_point)
@@ -1175,8 +1176,8 @@ def solve_one(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol):
     from ..._checks import memory_limit
     from ..grid import BYTES_PER_POINT
 
-    num, den, delay = gpart
-    return _drive_one(num, den, delay, *npart, float(w_lo), float(w_hi), float(A_lo), float(A_hi), int(na), int(nw),
+    num, den, zeros, poles, delay = gpart
+    return _drive_one(num, den, zeros, poles, delay, *npart, float(w_lo), float(w_hi), float(A_lo), float(A_hi), int(na), int(nw),
                       float(tol), float(marginal_tol), float(memory_limit()), float(BYTES_PER_POINT[False]))
 
 
@@ -1187,23 +1188,25 @@ def solve_many(parts, windows, na, nw, tol, marginal_tol):
     from ..grid import BYTES_PER_POINT
 
     L = len(parts)
-    m_num = max(len(g[0]) for g, _ in parts)
-    m_den = max(len(g[1]) for g, _ in parts)
-    num, den = np.zeros((L, m_num)), np.zeros((L, m_den))
-    n_num, n_den = np.empty(L, np.int64), np.empty(L, np.int64)
+    padded = []
+    for q in range(4):  # num, den, zeros, poles: rows padded to the longest, with their lengths
+        width = max(1, max(len(g[q]) for g, _ in parts))
+        arr = np.zeros((L, width), complex if q >= 2 else float)
+        lengths = np.empty(L, np.int64)
+        for k, (g, _) in enumerate(parts):
+            arr[k, :len(g[q])], lengths[k] = g[q], len(g[q])
+        padded += [arr, lengths]
     p = np.zeros((L, 4))
     cols = [np.empty(L) for _ in range(9)]
     kind = np.empty(L, np.int64)
     cont = np.empty(L, np.bool_)
-    for k, ((gn, gd, T), npart) in enumerate(parts):
-        num[k, :gn.size], n_num[k] = gn, gn.size
-        den[k, :gd.size], n_den[k] = gd, gd.size
+    for k, (g, npart) in enumerate(parts):
         kind[k], cont[k] = npart[0], npart[2]
         p[k, :npart[1].size] = npart[1]
-        cols[0][k] = T
+        cols[0][k] = g[4]
         for q in range(8):
             cols[1 + q][k] = npart[3 + q]
     win = np.asarray(windows, float).reshape(L, 4)
-    return _drive_many(num, n_num, den, n_den, cols[0], kind, p, cont, *cols[1:9], win[:, 0].copy(),
+    return _drive_many(*padded, cols[0], kind, p, cont, *cols[1:9], win[:, 0].copy(),
                        win[:, 1].copy(), win[:, 2].copy(), win[:, 3].copy(), int(na), int(nw), float(tol),
                        float(marginal_tol), float(memory_limit()), float(BYTES_PER_POINT[False]))

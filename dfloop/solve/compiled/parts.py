@@ -17,7 +17,7 @@ __all__ = ["plant_part", "element_part"]
 
 
 def plant_part(G):
-    """(num, den, delay) of G for the driver: a continuous SISO python-control tf (or ss, through the compiled
+    """(num, den, zeros, poles, delay) of G for the driver: a continuous SISO python-control tf (or ss, through the compiled
     residual's extraction), optionally inside a :class:`~dfloop.solve.delay.DelayedSystem`; None for anything
     else or anything the Python path would reject (it then says why)."""
     ct = sys.modules.get("control")
@@ -36,7 +36,8 @@ def plant_part(G):
     num, den = (x[np.argmax(x != 0):] if np.any(x) else x[:0] for x in (num, den))
     if num.size == 0 or den.size == 0 or num.size > den.size:
         return None
-    return np.ascontiguousarray(num), np.ascontiguousarray(den), delay
+    zeros, poles = (np.ascontiguousarray(np.roots(x), complex) for x in (num, den))  # as Plant has them
+    return np.ascontiguousarray(num), np.ascontiguousarray(den), zeros, poles, delay
 
 
 def element_part(N, form):

@@ -240,7 +240,7 @@ def driver_parts(G, N):
         coef = _coefficients(plant) if _form(plant, N) is not None else None
         if coef is None:
             return None
-        gpart = coef
+        gpart = (coef[0], coef[1], *(np.ascontiguousarray(r, complex) for r in plant.roots), coef[2])
     return gpart, npart
 
 
