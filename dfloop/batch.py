@@ -102,7 +102,8 @@ def _batch(chunk_fn: Callable, items: Iterable, executor, chunksize, progress, l
     return _run_chunks(chunk_fn, items, executor, chunksize, progress, label, timeout, local)
 
 
-def _run_chunks(chunk_fn: Callable, items: list, executor, chunksize, progress, label: str, timeout, local: int) -> list:
+def _run_chunks(chunk_fn: Callable, items: list, executor, chunksize, progress, label: str, timeout,
+                local: int) -> list:
     """``chunk_fn(start, items[start:start + c])`` over the chunks of ``items``, on ``executor`` (chunks of
     ``chunksize``, default about 64 tasks) or in this process (chunks of ``local`` items), results in item order."""
     n = len(items)

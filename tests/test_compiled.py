@@ -1,7 +1,8 @@
 """The compiled pipeline (dfloop.solve.compiled) against the Python reference path (DFLOOP_COMPILED=0).
 
 The compiled path runs the whole prediction in the compiled driver (solve/compiled/driver.py) where it applies and
-finishes, and otherwise the Python driver with G, N, their slopes and the refinement in numba kernels. The truth here is the Python path itself: on the textbook loops and on 160 random loops (plants of order
+finishes, and otherwise the Python driver with G, N, their slopes and the refinement in numba kernels. The truth
+here is the Python path itself: on the textbook loops and on 160 random loops (plants of order
 1-7 with dampings down to 1e-6, unstable poles, integrators, pure delays; every element kind with a compiled
 form) both must find the same number of cycles, at the same amplitudes and frequencies to 1e-12 (relative; or
 within the roots' own position uncertainty where rounding leaves more), with the same labels, on the same grid,
@@ -207,4 +208,6 @@ def test_driver_constants_are_the_python_drivers():
     from dfloop.solve import plant
 
     assert C["DECADES"] == plant._DECADES_BEYOND_FEATURES
-    assert predict._REACH_GRID.tolist() == __import__("dfloop.solve.compiled.driver", fromlist=["_REACH"])._REACH.tolist()
+    from dfloop.solve.compiled import driver
+
+    assert np.array_equal(predict._REACH_GRID, driver._REACH)

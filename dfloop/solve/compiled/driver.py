@@ -33,7 +33,6 @@ import numpy as np
 from numba import njit, prange
 
 from .kernels import accepted, cabs, cdiv, element, plant, refine, slopes_at
-from .kinds import BACKLASH, CUBIC, DEADZONE, SATURATION
 
 __all__ = ["solve_one", "solve_many", "FALLBACK", "MAX_ROOTS", "CONSTANTS", "STABLE", "UNSTABLE", "MARGINAL"]
 
@@ -475,15 +474,14 @@ def _limit_reach(num, den, delay, kind, p, v, g, eps_v, to_inf, c, d):
     idx, thr = _reach_index(c, d, 0.5 * r, to_inf)
     if idx < 0 and to_inf:
         return np.nan  # no amplitude of the grid is reached: none for any smaller r either
+    an0 = cabs(n0)
     for i in range(nv - 1):
+        # value(w) = (|1/G(w) + N_lim| - |N_lim| slack) / (1 + slack), and |1/G(w) - 1/G_i| <= |1/G_i| (e^eps - 1)
         e = math.exp(eps_v[i]) * (1 + 1e-12)
-        P = g[i] * n0
-        aP = cabs(P)
-        room_lb = cabs(1 + P) - aP * (e - 1) - aP * e * slack
-        if math.isfinite(e) and room_lb > 0:
-            lb = room_lb / (cabs(g[i]) * e * (1 + slack)) * (1 - 1e-9)
-            if thr < 0.5 * lb:
-                continue  # no refined frequency of this interval can change the index
+        h = cdiv(1.0 + 0j, g[i])
+        lb = (cabs(h + n0) - cabs(h) * (e - 1) - an0 * slack) / (1 + slack) * (1 - 1e-9) - 1e-300
+        if math.isfinite(e) and math.isfinite(lb) and lb > 0 and thr < 0.5 * lb:
+            continue  # no refined frequency of this interval can change the index (nor has no room)
         for q in range(1, k):
             val, ok = _fine_value(num, den, delay, n0, v[i] + (v[i + 1] - v[i]) * (q * step_t), slack)
             if not ok:
@@ -788,7 +786,6 @@ def _windings(num, den, delay, kind, p, continuous, a, v, n, g, cells):
                 k += 1
     wind_cells = np.empty(nc, np.int64)
     n_wind = 0
-    n_single = 0
     for c in range(nc):
         w = np.rint((((d[c] + d[nc + c]) + d[2 * nc + c]) + d[3 * nc + c]) / _TWO_PI)
         if w != 0:
@@ -1108,10 +1105,13 @@ def _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom
     order = np.nonzero(keep)[0]
     for x in range(1, order.size):
         y = x
-        while y > 0 and (rnd[order[y - 1]] > rnd[order[y]] or (rnd[order[y - 1]] == rnd[order[y]]
-                                                               and math.exp(ma[order[y - 1]]) > math.exp(ma[order[y]]))):
+        before, here = order[y - 1], order[y]
+        while y > 0 and (rnd[before] > rnd[here] or (rnd[before] == rnd[here]
+                                                     and math.exp(ma[before]) > math.exp(ma[here]))):
             order[y - 1], order[y] = order[y], order[y - 1]
             y -= 1
+            if y > 0:
+                before, here = order[y - 1], order[y]
     for q in range(order.size):
         k = order[q]
         A, w = math.exp(ma[k]), math.exp(mv[k])
@@ -1135,14 +1135,14 @@ def _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom
 @njit(**_OPTS)
 def _drive_one(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom_lo, dom_hi, tail_c, head_c,
                head_d, bp, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit, bytes_per_point):
-    return _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom_lo, dom_hi, tail_c, head_c, head_d, bp,
-                  w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit, bytes_per_point)
+    return _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom_lo, dom_hi, tail_c, head_c,
+                  head_d, bp, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit, bytes_per_point)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", parallel=True)
 def _drive_many(num, n_num, den, n_den, zeros, n_zeros, poles, n_poles, delay, kind, p, continuous, ln_lo, ln_hi,
-                dom_lo, dom_hi, tail_c, head_c, head_d, bp, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit,
-                bytes_per_point):
+                dom_lo, dom_hi, tail_c, head_c, head_d, bp, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol,
+                mem_limit, bytes_per_point):
     """_drive over the loops of a batch (rows of the arguments; num, den padded), in parallel."""
     L = delay.size
     status = np.zeros(L, np.int64)
@@ -1177,8 +1177,9 @@ def solve_one(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol):
     from ..grid import BYTES_PER_POINT
 
     num, den, zeros, poles, delay = gpart
-    return _drive_one(num, den, zeros, poles, delay, *npart, float(w_lo), float(w_hi), float(A_lo), float(A_hi), int(na), int(nw),
-                      float(tol), float(marginal_tol), float(memory_limit()), float(BYTES_PER_POINT[False]))
+    return _drive_one(num, den, zeros, poles, delay, *npart, float(w_lo), float(w_hi), float(A_lo), float(A_hi),
+                      int(na), int(nw), float(tol), float(marginal_tol), float(memory_limit()),
+                      float(BYTES_PER_POINT[False]))
 
 
 def solve_many(parts, windows, na, nw, tol, marginal_tol):

@@ -17,8 +17,7 @@ __all__ = ["plant_part", "element_part"]
 
 
 def plant_part(G):
-    """(num, den, zeros, poles, delay) of G for the driver: a continuous SISO python-control tf (or ss, through the compiled
-    residual's extraction), optionally inside a :class:`~dfloop.solve.delay.DelayedSystem`; None for anything
+    """(num, den, zeros, poles, delay) of G for the driver: a continuous SISO python-control tf, optionally inside a :class:`~dfloop.solve.delay.DelayedSystem`; None for anything
     else or anything the Python path would reject (it then says why)."""
     ct = sys.modules.get("control")
     delay = 0.0
