@@ -29,7 +29,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).parent))
 sys.path.insert(0, str(pathlib.Path(__file__).parents[1] / "examples"))
 
 import dfloop as df  # noqa: E402
-from bench_solver_vs_control import PROBLEMS  # noqa: E402
+from bench_solver_vs_control import PROBLEMS, floor  # noqa: E402
 from dfloop.batch import predict_many  # noqa: E402
 from monte_carlo_servo import sample, stable_amplitude  # noqa: E402
 
@@ -45,14 +45,6 @@ def best(fn, repeat: int):
         out = fn()
         t_best = min(t_best, time.process_time() - t0)
     return t_best, out
-
-
-def floor(G, N, amps, omega) -> float:
-    """G and N once on the grid with numpy, and their product: the cost below any grid solver."""
-    def once():
-        g = ct.frequency_response(G, omega).complex if hasattr(ct, "frequency_response") else G(1j * omega)
-        return np.asarray(N(amps))[:, None] * np.ravel(g)[None, :]
-    return best(once, 20)[0]
 
 
 def driver_status(G, N, amps, omega) -> str:

@@ -211,3 +211,15 @@ def test_driver_constants_are_the_python_drivers():
     from dfloop.solve.compiled import driver
 
     assert np.array_equal(predict._REACH_GRID, driver._REACH)
+
+
+def test_driver_roots_are_numpys():
+    """The driver's poles and zeros are the Plant's (np.roots), bit for bit, also where it skips numpy's call."""
+    from dfloop.solve.compiled.parts import _roots
+
+    rng = np.random.default_rng(7)
+    for _ in range(500):
+        n = int(rng.integers(1, 5))
+        p = np.concatenate([rng.normal(size=n) * 10.0 ** rng.integers(-5, 5, n), np.zeros(rng.integers(0, 3))])
+        p[0] = p[0] or 1.0
+        assert np.array_equal(np.roots(p), _roots(p))

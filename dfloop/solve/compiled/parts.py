@@ -16,9 +16,34 @@ from .kinds import KINDS
 __all__ = ["plant_part", "element_part"]
 
 
+_CACHE_SIZE = 256  # plants and elements remembered by their contents (repeated calls skip the conversion)
+_PLANTS: dict = {}
+_ELEMENTS: dict = {}
+
+
+def _remember(cache: dict, key, value):
+    if len(cache) >= _CACHE_SIZE:
+        cache.clear()
+    cache[key] = value
+    return value
+
+
+def _roots(p: np.ndarray) -> np.ndarray:
+    """np.roots(p) for p without leading zeros (what :class:`~dfloop.solve.plant.Plant` holds), with the degree-0
+    and degree-1 cases taken without numpy's call overhead: np.roots gives there no root, or the eigenvalue of the
+    1 x 1 companion matrix [-p1 / p0], exactly, followed by the roots at 0 of trailing zeros."""
+    nz = np.flatnonzero(p)
+    core = p[:nz[-1] + 1]
+    if core.size > 2:
+        return np.roots(p)
+    head = np.array([-core[1] / core[0]]) if core.size == 2 else np.empty(0)
+    return np.concatenate([head, np.zeros(p.size - core.size)])
+
+
 def plant_part(G):
-    """(num, den, zeros, poles, delay) of G for the driver: a continuous SISO python-control tf, optionally inside a :class:`~dfloop.solve.delay.DelayedSystem`; None for anything
-    else or anything the Python path would reject (it then says why)."""
+    """(num, den, zeros, poles, delay) of G for the driver: a continuous SISO python-control tf, optionally inside
+    a :class:`~dfloop.solve.delay.DelayedSystem`; None for anything else or anything the Python path would reject
+    (it then says why). Remembered by the coefficients and the delay (the result depends on nothing else)."""
     ct = sys.modules.get("control")
     delay = 0.0
     if isinstance(G, DelayedSystem):
@@ -28,21 +53,38 @@ def plant_part(G):
     if getattr(G, "ninputs", 1) != 1 or getattr(G, "noutputs", 1) != 1 or getattr(G, "dt", 0) not in (0, None):
         return None
     num, den = (np.asarray(x, dtype=float) for x in (G.num[0][0], G.den[0][0]))
-    if num.ndim != 1 or den.ndim != 1 or not (np.all(np.isfinite(num)) and np.all(np.isfinite(den))):
+    if num.ndim != 1 or den.ndim != 1:
         return None
-    if max(den.size, num.size) - 1 > MAX_ORDER:
+    key = (num.tobytes(), den.tobytes(), delay)
+    hit = _PLANTS.get(key)
+    if hit is not None:
+        return hit
+    if not (np.all(np.isfinite(num)) and np.all(np.isfinite(den))) or max(den.size, num.size) - 1 > MAX_ORDER:
         return None
     num, den = (x[np.argmax(x != 0):] if np.any(x) else x[:0] for x in (num, den))
     if num.size == 0 or den.size == 0 or num.size > den.size:
         return None
-    zeros, poles = (np.ascontiguousarray(np.roots(x), complex) for x in (num, den))  # as Plant has them
-    return np.ascontiguousarray(num), np.ascontiguousarray(den), zeros, poles, delay
+    zeros, poles = (np.ascontiguousarray(_roots(x), complex) for x in (num, den))  # as Plant has them
+    return _remember(_PLANTS, key, (np.ascontiguousarray(num), np.ascontiguousarray(den), zeros, poles, delay))
 
 
 def element_part(N, form):
     """The element's arguments for the driver (kind, parameters, continuity, domain and its logs, tail and head
     bound constants, breakpoint), or None where the driver does not mirror the element's methods."""
     cls = type(N)
+    try:
+        key = (cls, tuple(vars(N).items()))  # a built-in element is a function of its attributes
+        hash(key)
+    except TypeError:
+        key = None
+    hit = _ELEMENTS.get(key) if key is not None else None
+    if hit is not None:
+        return hit
+    out = _element_part(N, form, cls)
+    return out if key is None or out is None else _remember(_ELEMENTS, key, out)
+
+
+def _element_part(N, form, cls):
     if cls.validity is not DescribingFunction.validity or cls.error_estimate is not DescribingFunction.error_estimate:
         return None
     owner = next(c for c in cls.__mro__ if "compiled_form" in c.__dict__)
