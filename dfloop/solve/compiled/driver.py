@@ -34,7 +34,7 @@ from numba import njit, prange
 
 from .kernels import accepted, cabs, cdiv, element, plant, refine, slopes_at
 
-__all__ = ["solve_one", "solve_many", "FALLBACK", "MAX_ROOTS", "CONSTANTS", "STABLE", "UNSTABLE", "MARGINAL"]
+__all__ = ["solve_one", "solve_many", "solve_one_dispatcher", "solve_many_dispatcher", "FALLBACK", "MAX_ROOTS", "CONSTANTS", "STABLE", "UNSTABLE", "MARGINAL"]
 
 # the constants of the Python driver this one mirrors (tests/test_compiled.py checks they are the same values)
 CONSTANTS = dict(
@@ -200,12 +200,57 @@ def _dlog(l1, l0):
 
 
 @njit(**_OPTS)
+def _order(x):
+    """A stable argsort of a 1-D array (bottom-up merge sort; NaN-free input): np.argsort(kind="stable")."""
+    n = x.size
+    idx = np.arange(n)
+    tmp = np.empty(n, np.int64)
+    width = 1
+    while width < n:
+        for lo in range(0, n, 2 * width):
+            mid, hi = min(lo + width, n), min(lo + 2 * width, n)
+            i, j, k = lo, mid, lo
+            while i < mid and j < hi:
+                if x[idx[j]] < x[idx[i]]:
+                    tmp[k] = idx[j]
+                    j += 1
+                else:
+                    tmp[k] = idx[i]
+                    i += 1
+                k += 1
+            while i < mid:
+                tmp[k] = idx[i]
+                i += 1
+                k += 1
+            while j < hi:
+                tmp[k] = idx[j]
+                j += 1
+                k += 1
+        idx, tmp = tmp, idx
+        width *= 2
+    return idx
+
+
+@njit(**_OPTS)
+def _bisect(a, x, right):
+    """np.searchsorted(a, x, side="right" if right else "left") on a sorted 1-D array."""
+    lo, hi = 0, a.size
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if a[mid] < x or (right and a[mid] == x):
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@njit(**_OPTS)
 def _unique(x):
-    """np.unique of a float array (sorted, exact duplicates removed)."""
-    s = np.sort(x)
+    """np.unique of a 1-D array (sorted, exact duplicates removed)."""
+    s = x[_order(x)]
     if s.size == 0:
         return s
-    out = np.empty(s.size)
+    out = np.empty(s.size, s.dtype)
     out[0] = s[0]
     k = 1
     for i in range(1, s.size):
@@ -292,7 +337,7 @@ def _resolve_plant(zeros, poles, delay, v):
             return out_x[:1], out_e[:0], 6
     if not settled:
         return out_x[:1], out_e[:0], 6
-    order = np.argsort(out_x[1:n_out], kind="mergesort")
+    order = _order(out_x[1:n_out])
     nodes = np.empty(n_out)
     eps = np.empty(n_out - 1)
     nodes[0] = out_x[0]
@@ -396,7 +441,7 @@ def _resolve_element(kind, p, x):
             return out_x[:1], out_f[:1], out_e[:0], n_eval, 6
     if not settled:
         return out_x[:1], out_f[:1], out_e[:0], n_eval, 6
-    order = np.argsort(out_x[1:n_out], kind="mergesort")
+    order = _order(out_x[1:n_out])
     nodes, vals, eps = np.empty(n_out), np.empty(n_out, np.complex128), np.empty(n_out - 1)
     nodes[0], vals[0] = out_x[0], out_f[0]
     for i in range(n_out - 1):
@@ -563,7 +608,7 @@ def _candidate_cells(ln_n, eps_a, ln_g, eps_v):
     rg = np.empty(nv)
     for j in range(nv):
         rg[j] = ln_g[j].real
-    order = np.argsort(rg, kind="mergesort")
+    order = _order(rg)
     srt = rg[order]
     emax = -np.inf
     for j in range(nv):
@@ -579,8 +624,8 @@ def _candidate_cells(ln_n, eps_a, ln_g, eps_v):
             lo = -np.inf
         if hi != hi:
             hi = np.inf
-        start = np.searchsorted(srt, lo, side="left")
-        stop = np.searchsorted(srt, hi, side="right")
+        start = _bisect(srt, lo, False)
+        stop = _bisect(srt, hi, True)
         for q in range(start, stop):
             j = order[q]
             re = rn + rg[j]
@@ -597,7 +642,8 @@ def _candidate_cells(ln_n, eps_a, ln_g, eps_v):
                     out = grow
                 out[n_out] = i * (nv + 1) + j  # flat index in the node grid
                 n_out += 1
-    return np.sort(out[:n_out])
+    out = out[:n_out]
+    return out[_order(out)]
 
 
 @njit(**_OPTS)
@@ -800,6 +846,213 @@ def _windings(num, den, delay, kind, p, continuous, a, v, n, g, cells):
 
 
 @njit(**_OPTS)
+def _tangent_seeds(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n, g, cells, wind_cells, tol):
+    """The tangent seeds of roots.find_roots and their refinement (with the wider retry next to a jump):
+    (status, points evaluated); status 4 when a seed refines to a root (the Python driver isolates there)."""
+    nc, nv, nA, n_wind = cells.size, v.size, a.size, wind_cells.size
+    n_points = 0
+    # tangent seeds: local minima of m below the threshold among the corners of the candidate cells
+    nodes = np.empty(4 * nc, np.int64)
+    for c in range(nc):
+        i, j = cells[c] // nv, cells[c] % nv
+        nodes[c], nodes[nc + c] = i * nv + j, i * nv + j + 1
+        nodes[2 * nc + c], nodes[3 * nc + c] = (i + 1) * nv + j, (i + 1) * nv + j + 1
+    nodes = _unique(nodes)
+    excl = np.empty(16 * n_wind, np.int64)
+    n_ex = 0
+    for c in range(n_wind):
+        i, j = wind_cells[c] // nv, wind_cells[c] % nv
+        for di in range(-1, 3):
+            for dj in range(-1, 3):
+                x, y = i + di, j + dj
+                if 0 <= x < nA and 0 <= y < nv:
+                    excl[n_ex] = x * nv + y
+                    n_ex += 1
+    excl = excl[:n_ex]
+    excl = excl[_order(excl)]
+    seeds = np.empty(nodes.size, np.int64)
+    n_seed = 0
+    for node in nodes:
+        q = _bisect(excl, node, False)
+        if q < n_ex and excl[q] == node:
+            continue
+        i, j = node // nv, node % nv
+        x = _m(n[i] * g[j])
+        if x >= _TANGENT:
+            continue
+        low = True
+        for di in range(-1, 2):
+            for dj in range(-1, 2):
+                if (di or dj) and 0 <= i + di < nA and 0 <= j + dj < nv:
+                    if _m(n[i + di] * g[j + dj]) < x:
+                        low = False
+        if low:
+            seeds[n_seed] = node
+            n_seed += 1
+    if n_seed > _MAX_SEEDS:
+        return 6, n_points
+    if n_seed:
+        ta, tv = np.empty(n_seed), np.empty(n_seed)
+        b0a, b1a, b0v, b1v = np.empty(n_seed), np.empty(n_seed), np.empty(n_seed), np.empty(n_seed)
+        for s in range(n_seed):
+            i, j = seeds[s] // nv, seeds[s] % nv
+            ta[s], tv[s] = a[i], v[j]
+            b0a[s], b1a[s] = a[max(i - 2, 0)], a[min(i + 2, nA - 1)]
+            b0v[s], b1v[s] = v[max(j - 2, 0)], v[min(j + 2, nv - 1)]
+        xa, xv, tok, _, evaluated = refine(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, ta, tv,
+                                           b0a, b1a, b0v, b1v, tol, False)
+        n_points += evaluated
+        for s in range(n_seed):
+            if tok[s]:
+                return 4, n_points
+        for s in range(n_seed):
+            pinned = xa[s] == b0a[s] or xa[s] == b1a[s] or xv[s] == b0v[s] or xv[s] == b1v[s]
+            if not pinned:
+                continue
+            i, j = seeds[s] // nv, seeds[s] % nv
+            r0, r1, c0, c1 = max(i - 4, 0), min(i + 5, nA), max(j - 4, 0), min(j + 5, nv)
+            near = False
+            for along in (True, False):
+                near |= _dominant_any(n, g, r0, r1, c0, c1, along)
+            if near:
+                wa, wv = np.array([a[i]]), np.array([v[j]])
+                w0a, w1a = np.array([a[max(i - 3, 0)]]), np.array([a[min(i + 3, nA - 1)]])
+                w0v, w1v = np.array([v[max(j - 3, 0)]]), np.array([v[min(j + 3, nv - 1)]])
+                _, _, wok, _, evaluated = refine(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, wa, wv,
+                                                 w0a, w1a, w0v, w1v, tol, False)
+                n_points += evaluated
+                if wok[0]:
+                    return 4, n_points
+    return 0, n_points
+
+
+@njit(**_OPTS)
+def _finish(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, ra, rv, vals, windows, tol, marginal_tol):
+    """The continuum test, roots.merge and predict._build on the refined roots (ra, rv) with their values vals
+    (P, P_a, P_v, G, N): (status, rejected, points evaluated, result rows)."""
+    n_wind = ra.size
+    win_a0, win_a1, win_v0, win_v1 = windows[0], windows[1], windows[2], windows[3]
+    empty = np.empty((0, 10), np.complex128)
+    n_points = 0
+    # the continuum test (refined roots: up to 16 picked, none may be degenerate) ...
+    npick = min(n_wind, 16)
+    pick = _linspace(0.0, n_wind - 1.0, npick)
+    for q in range(npick):
+        k = int(pick[q])
+        da_, dv_ = vals[1, k], vals[2, k]
+        sin = abs(da_.real * dv_.imag - dv_.real * da_.imag) / (cabs(da_) * cabs(dv_))
+        if not math.isfinite(sin):
+            sin = 0.0
+        if sin < _DEGENERATE_SIN:
+            return 5, 0, n_points, empty
+    # ... then roots.merge: sorted by v (then a), same root within 1e-12 plus four position uncertainties
+    order = np.arange(n_wind)
+    for x in range(1, n_wind):  # a stable insertion sort by (v, a): np.lexsort((a, v))
+        y = x
+        while y > 0 and (rv[order[y - 1]] > rv[order[y]]
+                         or (rv[order[y - 1]] == rv[order[y]] and ra[order[y - 1]] > ra[order[y]])):
+            order[y - 1], order[y] = order[y], order[y - 1]
+            y -= 1
+    ma, mv = ra[order], rv[order]
+    mvals = np.empty((5, n_wind), np.complex128)
+    for k in range(n_wind):
+        mvals[:, k] = vals[:, order[k]]
+    if n_wind >= 2:
+        radius = np.empty(n_wind)
+        for k in range(n_wind):
+            s_min = _s_min(mvals[1, k], mvals[2, k])[0]
+            rad = _MERGE_RADIUS + 4 * (cabs(1 + mvals[0, k]) / s_min if s_min > 0 else np.inf)
+            radius[k] = min(rad, 1e-2)
+        idx = np.nonzero(_greedy_unique(ma, mv, radius))[0]
+        ma, mv, mvals = ma[idx], mv[idx], _columns(mvals, idx)
+    # predict._build: the residual bound, then the Loeb labels
+    k_all = ma.size
+    good = np.empty(k_all, np.bool_)
+    rejected = 0
+    for k in range(k_all):
+        good[k] = accepted(mvals[0, k], mvals[1, k], mvals[2, k], ma[k], mv[k], tol)
+        rejected += not good[k]
+    idx = np.nonzero(good)[0]
+    ma, mv, mvals = ma[idx], mv[idx], _columns(mvals, idx)
+    k_all = ma.size
+    det = np.empty(k_all)
+    cond = np.empty(k_all)
+    label = np.empty(k_all, np.int64)
+    dx_, ea_, ev_ = np.empty(k_all), np.empty(k_all), np.empty(k_all)
+    for k in range(k_all):
+        P, ra_, rv_ = mvals[0, k], mvals[1, k], mvals[2, k]
+        det[k], cond[k] = _loeb_from(ma[k], mv[k], ra_, rv_)
+        s_min, jaa, jvv, jav = _s_min(ra_, rv_)
+        dx_[k] = min(4 * cabs(1 + P) / s_min if s_min > 0 else np.inf, 1e-2)
+        ea, ev = jav, s_min ** 2 - jaa
+        if math.hypot(ea, ev) == 0:
+            ea, ev = (1.0, 0.0) if jaa <= jvv else (0.0, 1.0)
+        nrm = math.hypot(ea, ev)
+        ea_[k], ev_[k] = ea / nrm, ev / nrm
+    for k in range(k_all):
+        sd = _sign(det[k])
+        undecided = False
+        for side in range(2):
+            if side == 0:
+                ap, vp = ma[k] + dx_[k] * ea_[k], mv[k] + dx_[k] * ev_[k]
+            else:
+                ap, vp = ma[k] - dx_[k] * ea_[k], mv[k] - dx_[k] * ev_[k]
+            _, pa, pv, _, _ = slopes_at(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, ap, vp)
+            undecided |= _sign(_loeb_from(ap, vp, pa, pv)[0]) != sd
+        n_points += 6
+        if abs(cond[k]) < marginal_tol or undecided:
+            label[k] = MARGINAL
+        else:
+            label[k] = STABLE if det[k] > 0 else UNSTABLE
+    n_marg = 0
+    for k in range(k_all):
+        n_marg += label[k] == MARGINAL
+    keep = np.ones(k_all, np.bool_)
+    if n_marg > 1:  # a double root reached from several seeds: marginal roots within 1e-4 merged
+        idx = np.empty(n_marg, np.int64)
+        q = 0
+        for k in range(k_all):
+            if label[k] == MARGINAL:
+                idx[q] = k
+                q += 1
+        kept = _greedy_unique(ma[idx], mv[idx], np.full(n_marg, 0.5e-4))  # sorted by v since the merge
+        for q in range(n_marg):
+            keep[idx[q]] = kept[q]
+    out = np.empty((int(keep.sum()), 10), np.complex128)
+    rnd = np.empty(k_all)
+    for k in range(k_all):
+        rnd[k] = np.rint(mv[k] * 1e10) / 1e10
+    # np.lexsort((A, round(v, 10))): by rounded frequency, then amplitude (stable)
+    order = np.nonzero(keep)[0]
+    for x in range(1, order.size):
+        y = x
+        before, here = order[y - 1], order[y]
+        while y > 0 and (rnd[before] > rnd[here] or (rnd[before] == rnd[here]
+                                                     and math.exp(ma[before]) > math.exp(ma[here]))):
+            order[y - 1], order[y] = order[y], order[y - 1]
+            y -= 1
+            if y > 0:
+                before, here = order[y - 1], order[y]
+    for q in range(order.size):
+        k = order[q]
+        A, w = math.exp(ma[k]), math.exp(mv[k])
+        gk, nk = mvals[3, k], mvals[4, k]
+        r = 1 + gk * nk
+        edge = (abs(ma[k] - win_a0) <= _EDGE_TOL or abs(ma[k] - win_a1) <= _EDGE_TOL
+                or abs(mv[k] - win_v0) <= _EDGE_TOL or abs(mv[k] - win_v1) <= _EDGE_TOL)
+        res = cabs(r)
+        rel = res / (1 + cabs(gk * nk))
+        for val in (A, w, det[k], cond[k], res):
+            if not math.isfinite(val):
+                return 7, 0, n_points, empty
+        if not (math.isfinite(nk.real) and math.isfinite(nk.imag)):
+            return 9, 0, n_points, empty
+        out[q, 0], out[q, 1], out[q, 2], out[q, 3], out[q, 4] = A, w, det[k], cond[k], label[k]
+        out[q, 5], out[q, 6], out[q, 7], out[q, 8], out[q, 9] = res, rel, gk, nk, edge
+    return 0, rejected, n_points, out
+
+
+@njit(**_OPTS)
 def _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom_lo, dom_hi, tail_c, head_c, head_d, bp,
            w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit, bytes_per_point):
     """One loop end to end. Returns (status, floats, ints, roots): floats = (A_lo, A_hi, w_lo, w_hi, top, bottom,
@@ -938,196 +1191,20 @@ def _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom
                   and _npmax(cl_v - gv, win_v0) <= rv[c] <= _npmin(ch_v + gv, win_v1))
         if not (ok[c] and inside):
             return 2, fl, it, empty
-    # tangent seeds: local minima of m below the threshold among the corners of the candidate cells
-    nodes = np.empty(4 * nc, np.int64)
-    for c in range(nc):
-        i, j = cells[c] // nv, cells[c] % nv
-        nodes[c], nodes[nc + c] = i * nv + j, i * nv + j + 1
-        nodes[2 * nc + c], nodes[3 * nc + c] = (i + 1) * nv + j, (i + 1) * nv + j + 1
-    nodes = np.unique(nodes)
-    excl = np.empty(16 * n_wind, np.int64)
-    n_ex = 0
-    for c in range(n_wind):
-        i, j = wind_cells[c] // nv, wind_cells[c] % nv
-        for di in range(-1, 3):
-            for dj in range(-1, 3):
-                x, y = i + di, j + dj
-                if 0 <= x < nA and 0 <= y < nv:
-                    excl[n_ex] = x * nv + y
-                    n_ex += 1
-    excl = np.sort(excl[:n_ex])
-    seeds = np.empty(nodes.size, np.int64)
-    n_seed = 0
-    for node in nodes:
-        q = np.searchsorted(excl, node)
-        if q < n_ex and excl[q] == node:
-            continue
-        i, j = node // nv, node % nv
-        x = _m(n[i] * g[j])
-        if x >= _TANGENT:
-            continue
-        low = True
-        for di in range(-1, 2):
-            for dj in range(-1, 2):
-                if (di or dj) and 0 <= i + di < nA and 0 <= j + dj < nv:
-                    if _m(n[i + di] * g[j + dj]) < x:
-                        low = False
-        if low:
-            seeds[n_seed] = node
-            n_seed += 1
-    if n_seed > _MAX_SEEDS:
-        return 6, fl, it, empty
-    if n_seed:
-        ta, tv = np.empty(n_seed), np.empty(n_seed)
-        b0a, b1a, b0v, b1v = np.empty(n_seed), np.empty(n_seed), np.empty(n_seed), np.empty(n_seed)
-        for s in range(n_seed):
-            i, j = seeds[s] // nv, seeds[s] % nv
-            ta[s], tv[s] = a[i], v[j]
-            b0a[s], b1a[s] = a[max(i - 2, 0)], a[min(i + 2, nA - 1)]
-            b0v[s], b1v[s] = v[max(j - 2, 0)], v[min(j + 2, nv - 1)]
-        xa, xv, tok, _, evaluated = refine(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, ta, tv,
-                                           b0a, b1a, b0v, b1v, tol, False)
-        n_points += evaluated
-        for s in range(n_seed):
-            if tok[s]:
-                return 4, fl, it, empty
-        for s in range(n_seed):
-            pinned = xa[s] == b0a[s] or xa[s] == b1a[s] or xv[s] == b0v[s] or xv[s] == b1v[s]
-            if not pinned:
-                continue
-            i, j = seeds[s] // nv, seeds[s] % nv
-            r0, r1, c0, c1 = max(i - 4, 0), min(i + 5, nA), max(j - 4, 0), min(j + 5, nv)
-            near = False
-            for along in (True, False):
-                near |= _dominant_any(n, g, r0, r1, c0, c1, along)
-            if near:
-                wa, wv = np.array([a[i]]), np.array([v[j]])
-                w0a, w1a = np.array([a[max(i - 3, 0)]]), np.array([a[min(i + 3, nA - 1)]])
-                w0v, w1v = np.array([v[max(j - 3, 0)]]), np.array([v[min(j + 3, nv - 1)]])
-                _, _, wok, _, evaluated = refine(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, wa, wv,
-                                                 w0a, w1a, w0v, w1v, tol, False)
-                n_points += evaluated
-                if wok[0]:
-                    return 4, fl, it, empty
+    status, n_seed_points = _tangent_seeds(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n, g, cells,
+                                           wind_cells, tol)
+    n_points += n_seed_points
+    if status:
+        return status, fl, it, empty
     if n_wind == 0:
         it[6] = n_points
         return 0, fl, it, empty
-    # the continuum test (refined roots: up to 16 picked, none may be degenerate) ...
-    npick = min(n_wind, 16)
-    pick = _linspace(0.0, n_wind - 1.0, npick)
-    for q in range(npick):
-        k = int(pick[q])
-        da_, dv_ = vals[1, k], vals[2, k]
-        sin = abs(da_.real * dv_.imag - dv_.real * da_.imag) / (cabs(da_) * cabs(dv_))
-        if not math.isfinite(sin):
-            sin = 0.0
-        if sin < _DEGENERATE_SIN:
-            return 5, fl, it, empty
-    # ... then roots.merge: sorted by v (then a), same root within 1e-12 plus four position uncertainties
-    order = np.arange(n_wind)
-    for x in range(1, n_wind):  # a stable insertion sort by (v, a): np.lexsort((a, v))
-        y = x
-        while y > 0 and (rv[order[y - 1]] > rv[order[y]]
-                         or (rv[order[y - 1]] == rv[order[y]] and ra[order[y - 1]] > ra[order[y]])):
-            order[y - 1], order[y] = order[y], order[y - 1]
-            y -= 1
-    ma, mv = ra[order], rv[order]
-    mvals = np.empty((5, n_wind), np.complex128)
-    for k in range(n_wind):
-        mvals[:, k] = vals[:, order[k]]
-    if n_wind >= 2:
-        radius = np.empty(n_wind)
-        for k in range(n_wind):
-            s_min = _s_min(mvals[1, k], mvals[2, k])[0]
-            rad = _MERGE_RADIUS + 4 * (cabs(1 + mvals[0, k]) / s_min if s_min > 0 else np.inf)
-            radius[k] = min(rad, 1e-2)
-        idx = np.nonzero(_greedy_unique(ma, mv, radius))[0]
-        ma, mv, mvals = ma[idx], mv[idx], _columns(mvals, idx)
-    # predict._build: the residual bound, then the Loeb labels
-    k_all = ma.size
-    good = np.empty(k_all, np.bool_)
-    rejected = 0
-    for k in range(k_all):
-        good[k] = accepted(mvals[0, k], mvals[1, k], mvals[2, k], ma[k], mv[k], tol)
-        rejected += not good[k]
+    status, rejected, n_fin, out = _finish(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, ra, rv, vals,
+                                           np.array([win_a0, win_a1, win_v0, win_v1]), tol, marginal_tol)
+    n_points += n_fin
+    if status:
+        return status, fl, it, empty
     it[7] = rejected
-    idx = np.nonzero(good)[0]
-    ma, mv, mvals = ma[idx], mv[idx], _columns(mvals, idx)
-    k_all = ma.size
-    det = np.empty(k_all)
-    cond = np.empty(k_all)
-    label = np.empty(k_all, np.int64)
-    dx_, ea_, ev_ = np.empty(k_all), np.empty(k_all), np.empty(k_all)
-    for k in range(k_all):
-        P, ra_, rv_ = mvals[0, k], mvals[1, k], mvals[2, k]
-        det[k], cond[k] = _loeb_from(ma[k], mv[k], ra_, rv_)
-        s_min, jaa, jvv, jav = _s_min(ra_, rv_)
-        dx_[k] = min(4 * cabs(1 + P) / s_min if s_min > 0 else np.inf, 1e-2)
-        ea, ev = jav, s_min ** 2 - jaa
-        if math.hypot(ea, ev) == 0:
-            ea, ev = (1.0, 0.0) if jaa <= jvv else (0.0, 1.0)
-        nrm = math.hypot(ea, ev)
-        ea_[k], ev_[k] = ea / nrm, ev / nrm
-    for k in range(k_all):
-        sd = _sign(det[k])
-        undecided = False
-        for side in range(2):
-            if side == 0:
-                ap, vp = ma[k] + dx_[k] * ea_[k], mv[k] + dx_[k] * ev_[k]
-            else:
-                ap, vp = ma[k] - dx_[k] * ea_[k], mv[k] - dx_[k] * ev_[k]
-            _, pa, pv, _, _ = slopes_at(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, ap, vp)
-            undecided |= _sign(_loeb_from(ap, vp, pa, pv)[0]) != sd
-        n_points += 6
-        if abs(cond[k]) < marginal_tol or undecided:
-            label[k] = MARGINAL
-        else:
-            label[k] = STABLE if det[k] > 0 else UNSTABLE
-    n_marg = 0
-    for k in range(k_all):
-        n_marg += label[k] == MARGINAL
-    keep = np.ones(k_all, np.bool_)
-    if n_marg > 1:  # a double root reached from several seeds: marginal roots within 1e-4 merged
-        idx = np.empty(n_marg, np.int64)
-        q = 0
-        for k in range(k_all):
-            if label[k] == MARGINAL:
-                idx[q] = k
-                q += 1
-        kept = _greedy_unique(ma[idx], mv[idx], np.full(n_marg, 0.5e-4))  # sorted by v since the merge
-        for q in range(n_marg):
-            keep[idx[q]] = kept[q]
-    out = np.empty((int(keep.sum()), 10), np.complex128)
-    rnd = np.empty(k_all)
-    for k in range(k_all):
-        rnd[k] = np.rint(mv[k] * 1e10) / 1e10
-    # np.lexsort((A, round(v, 10))): by rounded frequency, then amplitude (stable)
-    order = np.nonzero(keep)[0]
-    for x in range(1, order.size):
-        y = x
-        before, here = order[y - 1], order[y]
-        while y > 0 and (rnd[before] > rnd[here] or (rnd[before] == rnd[here]
-                                                     and math.exp(ma[before]) > math.exp(ma[here]))):
-            order[y - 1], order[y] = order[y], order[y - 1]
-            y -= 1
-            if y > 0:
-                before, here = order[y - 1], order[y]
-    for q in range(order.size):
-        k = order[q]
-        A, w = math.exp(ma[k]), math.exp(mv[k])
-        gk, nk = mvals[3, k], mvals[4, k]
-        r = 1 + gk * nk
-        edge = (abs(ma[k] - win_a0) <= _EDGE_TOL or abs(ma[k] - win_a1) <= _EDGE_TOL
-                or abs(mv[k] - win_v0) <= _EDGE_TOL or abs(mv[k] - win_v1) <= _EDGE_TOL)
-        res = cabs(r)
-        rel = res / (1 + cabs(gk * nk))
-        for val in (A, w, det[k], cond[k], res):
-            if not math.isfinite(val):
-                return 7, fl, it, empty
-        if not (math.isfinite(nk.real) and math.isfinite(nk.imag)):
-            return 9, fl, it, empty
-        out[q, 0], out[q, 1], out[q, 2], out[q, 3], out[q, 4] = A, w, det[k], cond[k], label[k]
-        out[q, 5], out[q, 6], out[q, 7], out[q, 8], out[q, 9] = res, rel, gk, nk, edge
     it[6] = n_points
     return 0, fl, it, out
 
@@ -1168,6 +1245,16 @@ def _drive_many(num, n_num, den, n_den, zeros, n_zeros, poles, n_poles, delay, k
 
 
 # ------------------------------------------------------------------------------------------- the Python side
+
+
+def solve_one_dispatcher():
+    """The numba dispatcher of one loop's driver (for the compile announcement)."""
+    return _drive_one
+
+
+def solve_many_dispatcher():
+    """The numba dispatcher of the batch driver (for the compile announcement)."""
+    return _drive_many
 
 
 def solve_one(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol):

@@ -40,17 +40,22 @@ K = _Kernels()
 __all__ = ["CompiledResidual", "compiled_loop", "driver_parts", "element_form", "residual_for", "enabled", "prepare",
            "run_batch", "run_driver", "warmup", "COMPILE_SECONDS"]
 
-COMPILE_SECONDS = 6
+COMPILE_SECONDS = 70
 """About how long compiling the kernels takes once per installation (s; benchmarks/bench_startup.py)."""
+BATCH_COMPILE_SECONDS = 30
+"""About how long the batch driver (parallel over the cores) adds to it (s; benchmarks/bench_startup.py)."""
 _CHECK_W = np.array([0.37, 1.0, 2.9])  # frequencies (rad/s) where the extracted coefficients are checked
 _MEMO_BATCH, _MEMO_SIZE = 64, 8192  # refined batches remembered (as Residual.slopes does)
 
 
-def _kernels() -> tuple:
+def _kernels(batch: bool | None = None) -> tuple:
+    """The dispatchers of the compiled path: those a single call needs (``batch`` False), the one a batch adds
+    (True: the driver's parallel form), or all (None)."""
     from . import driver
 
-    return (K.refine, K.evaluate_slopes, K.products, K.plant_values, K.element_values, driver._drive_one,
-            driver._drive_many)
+    base = (K.refine, K.evaluate_slopes, K.products, K.plant_values, K.element_values, driver.solve_one_dispatcher())
+    many = (driver.solve_many_dispatcher(),)
+    return many if batch else base if batch is False else base + many
 
 
 def enabled() -> bool:
@@ -148,9 +153,13 @@ def _loop_arrays(plant: Plant, N):
     return (*coef[:2], zeros, poles, coef[2], KINDS[form[0]], np.ascontiguousarray(form[1], float), ln_lo, ln_hi)
 
 
-def _announce_compile() -> None:
-    """Say once, before the first compile of this installation, that it is happening and about how long."""
-    announce_compile("the solver", COMPILE_SECONDS, *_kernels())
+def _announce_compile(batch: bool = False) -> None:
+    """Say once, before the first compile of this installation, that it is happening and about how long (``batch``:
+    the driver's parallel form, which a batch adds)."""
+    if batch:
+        announce_compile("the batch solver", BATCH_COMPILE_SECONDS, *_kernels(True))
+    else:
+        announce_compile("the solver", COMPILE_SECONDS, *_kernels(False))
 
 
 class CompiledResidual(Residual):
@@ -258,7 +267,7 @@ def run_batch(parts, windows, na, nw, tol, marginal_tol):
     compile: arrays (status, floats, ints, roots, root counts), one row per loop."""
     from .driver import solve_many
 
-    _announce_compile()
+    _announce_compile(batch=True)
     return solve_many(parts, windows, na, nw, tol, marginal_tol)
 
 
