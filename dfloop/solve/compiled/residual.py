@@ -41,21 +41,25 @@ __all__ = ["CompiledResidual", "compiled_loop", "driver_parts", "element_form", 
            "run_batch", "run_driver", "warmup", "COMPILE_SECONDS"]
 
 COMPILE_SECONDS = 70
-"""About how long compiling the kernels takes once per installation (s; benchmarks/bench_startup.py)."""
+"""About how long compiling the driver takes once per installation (s; benchmarks/bench_startup.py)."""
+RESIDUAL_SECONDS = 6
+"""About how long compiling the compiled residual's kernels takes (s; benchmarks/bench_startup.py)."""
 BATCH_COMPILE_SECONDS = 30
 """About how long the batch driver (parallel over the cores) adds to it (s; benchmarks/bench_startup.py)."""
 _CHECK_W = np.array([0.37, 1.0, 2.9])  # frequencies (rad/s) where the extracted coefficients are checked
 _MEMO_BATCH, _MEMO_SIZE = 64, 8192  # refined batches remembered (as Residual.slopes does)
 
 
-def _kernels(batch: bool | None = None) -> tuple:
-    """The dispatchers of the compiled path: those a single call needs (``batch`` False), the one a batch adds
-    (True: the driver's parallel form), or all (None)."""
+def _kernels(part: str | None = None) -> tuple:
+    """The numba dispatchers of one part of the compiled path: ``"driver"`` (a whole call), ``"residual"`` (the
+    kernels of the Python driver's compiled residual, where the driver hands over), ``"batch"`` (the driver's
+    parallel form), or all (None)."""
     from . import driver
 
-    base = (K.refine, K.evaluate_slopes, K.products, K.plant_values, K.element_values, driver.solve_one_dispatcher())
-    many = (driver.solve_many_dispatcher(),)
-    return many if batch else base if batch is False else base + many
+    parts = {"driver": (driver.solve_one_dispatcher(),),
+             "residual": (K.refine, K.evaluate_slopes, K.products, K.plant_values, K.element_values),
+             "batch": (driver.solve_many_dispatcher(),)}
+    return parts[part] if part is not None else sum(parts.values(), ())
 
 
 def enabled() -> bool:
@@ -153,13 +157,12 @@ def _loop_arrays(plant: Plant, N):
     return (*coef[:2], zeros, poles, coef[2], KINDS[form[0]], np.ascontiguousarray(form[1], float), ln_lo, ln_hi)
 
 
-def _announce_compile(batch: bool = False) -> None:
-    """Say once, before the first compile of this installation, that it is happening and about how long (``batch``:
-    the driver's parallel form, which a batch adds)."""
-    if batch:
-        announce_compile("the batch solver", BATCH_COMPILE_SECONDS, *_kernels(True))
-    else:
-        announce_compile("the solver", COMPILE_SECONDS, *_kernels(False))
+def _announce_compile(part: str = "residual") -> None:
+    """Say once, before the first compile of this installation, that ``part`` (see :func:`_kernels`) compiles and
+    about how long it takes."""
+    what, seconds = {"driver": ("the solver", COMPILE_SECONDS), "batch": ("the batch solver", BATCH_COMPILE_SECONDS),
+                     "residual": ("the solver's residual kernels", RESIDUAL_SECONDS)}[part]
+    announce_compile(what, seconds, *_kernels(part))
 
 
 class CompiledResidual(Residual):
@@ -258,7 +261,7 @@ def run_driver(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol):
     (status, floats, ints, roots) (:func:`.driver.solve_one`)."""
     from .driver import solve_one
 
-    _announce_compile()
+    _announce_compile("driver")
     return solve_one(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol)
 
 
@@ -267,7 +270,7 @@ def run_batch(parts, windows, na, nw, tol, marginal_tol):
     compile: arrays (status, floats, ints, roots, root counts), one row per loop."""
     from .driver import solve_many
 
-    _announce_compile(batch=True)
+    _announce_compile("batch")
     return solve_many(parts, windows, na, nw, tol, marginal_tol)
 
 
