@@ -7,9 +7,11 @@ parameters (the built-in static elements with closed-form DFs). Everything else 
 plants, frequency-dependent, numeric and user-defined elements) keeps the Python residual. The environment
 variable ``DFLOOP_COMPILED=0`` forces the Python path everywhere (the reference the tests compare with).
 
-The algorithm is the Python one: the same driver (:func:`dfloop.predict_limit_cycles`), grid rule, winding
-tests, tangent and continuum searches; only the evaluation of G, N and their slopes and the Levenberg-Marquardt
-refinement (where a call spends most of its time) are compiled.
+Two layers: the compiled driver (:mod:`.driver`, reached through :func:`driver_parts` and :func:`run_driver`, or
+:func:`run_batch` for many loops) runs a whole prediction in one numba call and hands every branch it does not
+carry back to the Python driver (:func:`dfloop.predict_limit_cycles`), which then uses this residual: the same
+grid rule, winding tests, tangent and continuum searches, with the evaluation of G, N and their slopes and the
+Levenberg-Marquardt refinement compiled. Each part announces its first compile (:func:`_announce_compile`).
 """
 from __future__ import annotations
 
