@@ -60,7 +60,7 @@ def driver_status(G, N, amps, omega) -> str:
 
 
 def solve(G, N, amps, omega, compiled: bool):
-    os.environ["DFLOOP_COMPILED"] = "1" if compiled else "0"
+    os.environ["DFLOOP_COMPILED"] = "driver" if compiled else "0"
     return df.predict_limit_cycles(G, N, amplitude=(amps[0], amps[-1]), omega=(omega[0], omega[-1]),
                                    grid=(amps.size, omega.size))
 
@@ -81,7 +81,7 @@ def main() -> str:
         rows.append(f"| {name} | {amps.size} x {omega.size} | {t_pc * 1e3:.2f} | {t_py * 1e3:.2f} | {t_c * 1e3:.2f} | "
                     f"{t_f * 1e3:.3f} | {t_pc / t_c:.0f}x | {t_c / t_f:.0f}x | {'yes' if same else 'NO'} | "
                     f"{driver_status(G, N, amps, omega)} |")
-    os.environ["DFLOOP_COMPILED"] = "1"
+    os.environ["DFLOOP_COMPILED"] = "driver"
     list(predict_many(sample(20, 0), keep=stable_amplitude, progress=False))  # compiled and warm
     t0, c0 = time.perf_counter(), time.process_time()
     amps = predict_many(sample(BATCH, 1), keep=stable_amplitude, progress=False)

@@ -38,7 +38,7 @@ def _mixed():
 
 
 def test_batch_results_are_the_single_calls(monkeypatch):
-    monkeypatch.setenv("DFLOOP_COMPILED", "1")
+    monkeypatch.setenv("DFLOOP_COMPILED", "driver")
     loops = _mixed()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -62,7 +62,7 @@ def test_batch_results_are_the_single_calls(monkeypatch):
 def test_batch_keep_and_the_python_path_agree(monkeypatch):
     """The probability of a stable cycle over sampled servo loops: the compiled batch against the Python driver
     (DFLOOP_COMPILED=0), loop by loop to 1e-12."""
-    monkeypatch.setenv("DFLOOP_COMPILED", "1")
+    monkeypatch.setenv("DFLOOP_COMPILED", "driver")
     fast = np.array(predict_many(sample(60, 5), keep=stable_amplitude, progress=False))
     monkeypatch.setenv("DFLOOP_COMPILED", "0")
     slow = np.array([stable_amplitude(df.predict_limit_cycles(G, N)) for G, N in sample(60, 5)])

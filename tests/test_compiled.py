@@ -47,11 +47,11 @@ KINDS = ["saturation", "deadzone", "relay", "relay_hyst", "backlash", "cubic", "
 @pytest.fixture(autouse=True)
 def compiled_path(monkeypatch):
     """The compiled path wherever it applies (compiling its kernels first if this is a fresh install)."""
-    monkeypatch.setenv("DFLOOP_COMPILED", "1")
+    monkeypatch.setenv("DFLOOP_COMPILED", "driver")
 
 
 def _solve(G, N, monkeypatch, compiled: bool, **options):
-    monkeypatch.setenv("DFLOOP_COMPILED", "1" if compiled else "0")
+    monkeypatch.setenv("DFLOOP_COMPILED", "driver" if compiled else "0")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
@@ -223,3 +223,36 @@ def test_driver_roots_are_numpys():
         p = np.concatenate([rng.normal(size=n) * 10.0 ** rng.integers(-5, 5, n), np.zeros(rng.integers(0, 3))])
         p[0] = p[0] or 1.0
         assert np.array_equal(np.roots(p), _roots(p))
+
+
+def test_a_fresh_install_does_not_make_a_single_call_wait_for_the_driver(monkeypatch, capsys):
+    """Default mode on an installation whose driver is not compiled (numba's cache empty: simulated): the call runs
+    the Python driver on the compiled residual, with the driver's answer (1e-12), says once how to compile the
+    driver, and compiles nothing of it; once the driver is ready, calls use it."""
+    import dfloop.progress as progress
+    import dfloop.solve.compiled.residual as residual
+    import dfloop.solve.predict as predict
+
+    G, N = ct.tf([4], [1, 2, 1, 0]), df.Backlash(h=0.5)
+    monkeypatch.setenv("DFLOOP_COMPILED", "driver")
+    ref = df.predict_limit_cycles(G, N)
+    monkeypatch.setenv("DFLOOP_COMPILED", "1")
+    monkeypatch.setenv("DFLOOP_PROGRESS", "1")
+    monkeypatch.setattr(residual, "_DRIVER_READY", [])
+    monkeypatch.setattr(residual, "_DRIVER_HINTED", [])
+    monkeypatch.setattr(progress, "compile_pending", lambda *d: True)
+
+    def no_driver(*args):
+        raise AssertionError("the driver ran on a fresh install")
+
+    monkeypatch.setattr(predict, "run_driver", no_driver)
+    got = [df.predict_limit_cycles(G, N) for _ in range(2)]
+    hint = capsys.readouterr().err
+    assert hint.count("the compiled solver driver is not compiled") == 1        # said once, not per call
+    for r in got:
+        assert [c.stability for c in r] == [c.stability for c in ref] and len(ref) >= 1
+        assert [x for c in r for x in (c.amplitude, c.frequency)] == pytest.approx(
+            [x for c in ref for x in (c.amplitude, c.frequency)], rel=1e-12)
+    assert not residual.driver_wanted()
+    monkeypatch.setattr(progress, "compile_pending", lambda *d: False)     # compiled (dfloop warmup, a batch)
+    assert residual.driver_wanted() and residual._DRIVER_READY

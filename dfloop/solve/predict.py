@@ -13,7 +13,7 @@ from ..describing.base import DescribingFunction
 from ..describing.interop import as_element
 from ..describing.static import StaticElement
 from ._kernels import candidate_cells
-from .compiled import driver_parts, enabled as compiled_enabled, residual_for, run_batch, run_driver
+from .compiled import driver_parts, driver_wanted, enabled as compiled_enabled, residual_for, run_batch, run_driver
 from .grid import FD_MIN_WIDTH, STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
 from .plant import as_plant
 from .result import GridReport, JumpCrossing, LimitCycle, LimitCycles
@@ -412,7 +412,7 @@ def _compiled_driver(G, N, omega, amplitude, na: int, nw: int, tol: float, margi
     """The result of the compiled driver where it applies and finishes; None otherwise (then the Python driver
     runs: the same algorithm, every branch)."""
     inputs = _driver_inputs(G, N, omega, amplitude)
-    if inputs is None:
+    if inputs is None or not driver_wanted():
         return None
     parts, windows, a_src = inputs
     raw = run_driver(*parts, *windows, na, nw, tol, marginal_tol)

@@ -40,7 +40,7 @@ class _Kernels:
 K = _Kernels()
 
 __all__ = ["CompiledResidual", "compiled_loop", "driver_parts", "element_form", "residual_for", "enabled", "prepare",
-           "run_batch", "run_driver", "warmup", "COMPILE_SECONDS"]
+           "run_batch", "run_driver", "warmup", "driver_wanted", "COMPILE_SECONDS"]
 
 COMPILE_SECONDS = 70
 """About how long compiling the driver takes once per installation (s; benchmarks/bench_startup.py)."""
@@ -66,11 +66,45 @@ def _kernels(part: str | None = None) -> tuple:
 
 def enabled() -> bool:
     """Whether the compiled path is used where it applies: always, unless ``DFLOOP_COMPILED=0`` in the
-    environment selects the Python reference path. (Not "only once cached": results must not depend on the state
-    of numba's cache, and on ill-conditioned outputs such as the ends of a continuum the two paths differ beyond
-    1e-12.) The first use on a fresh install compiles the kernels, announced on the progress channel.
+    environment selects the Python reference path. The first use on a fresh install compiles the residual's kernels
+    (a few seconds), announced on the progress channel. Whether a single call also runs the compiled driver is
+    :func:`driver_wanted`.
     """
     return os.environ.get("DFLOOP_COMPILED", "1") != "0"
+
+
+_DRIVER_READY: list = []   # [True] once the driver is known to be compiled or cached in this process
+
+
+def driver_wanted() -> bool:
+    """Whether a single :func:`dfloop.predict_limit_cycles` call runs the compiled driver (:mod:`.driver`).
+
+    ``DFLOOP_COMPILED=0``: never. ``DFLOOP_COMPILED=driver``: always (compiling it first if needed, announced).
+    Otherwise (the default): when the driver is ready, compiled in this process or in numba's on-disk cache (after
+    ``dfloop warmup``, a batch, or any earlier process that compiled it). A fresh installation does not make a
+    single call wait about ``COMPILE_SECONDS`` for it: the call runs the Python driver on the compiled residual
+    (the same algorithm; results agree to 1e-12, tests/test_compiled.py), and says once that ``dfloop warmup``
+    compiles the driver. Batches (:func:`dfloop.predict_many`) compile it, announced: their loops amortise it.
+    """
+    mode = os.environ.get("DFLOOP_COMPILED", "1")
+    if mode == "0":
+        return False
+    if mode == "driver" or _DRIVER_READY:
+        return True
+    from ...progress import announce, compile_pending
+
+    if compile_pending(*_kernels("driver")) is False:
+        _DRIVER_READY.append(True)
+        return True
+    if not _DRIVER_HINTED:
+        _DRIVER_HINTED.append(True)
+        announce(f"dfloop: the compiled solver driver is not compiled on this installation: this run uses the "
+                 f"standard path (same results, 10-60x slower per call); `dfloop warmup` compiles the driver once "
+                 f"(about {COMPILE_SECONDS} s)")
+    return False
+
+
+_DRIVER_HINTED: list = []
 
 
 def prepare() -> None:
