@@ -108,3 +108,19 @@ def test_exact_biased_orbit_with_delay_against_an_event_located_run():
     # the DF's error on this loop (measured: w 1.729 against 1.662 rad/s, bias 0.091 against 0.080)
     assert abs(c.frequency - ex.frequency) < 0.05 * ex.frequency
     assert abs(c.bias - ex.mean) < 0.05 * c.amplitude
+
+
+def test_autotune_entry_points_take_a_delayed_plant():
+    """closed_loop_check and process_model read the delay of ``delayed(G, L)`` (they used to fail in python-control's
+    margins). Truth: the phase margin of 2 e^{-Ls} / (s + 1) in closed form, crossover at w = sqrt(3)."""
+    from dfloop.autotune.experiment import process_model
+    from dfloop.autotune.rules import closed_loop_check
+
+    L = 0.3
+    Gd = delayed(ct.tf([2.0], [1.0, 1.0]), L)
+    check = closed_loop_check(ct.tf([1.0], [1.0]), Gd)
+    w = math.sqrt(3.0)
+    assert check["phase_margin"] == pytest.approx(180.0 - math.degrees(math.atan(w) + w * L), abs=1e-6)
+    assert check["stable"] and check["final_value"] == pytest.approx(2.0 / 3.0, rel=1e-3)
+    model = process_model(delayed(ct.tf([2.0], [0.5, 1.0]), L), delay=0.1)
+    assert (model.K, model.T, model.L) == (pytest.approx(2.0), (pytest.approx(0.5),), pytest.approx(L + 0.1))

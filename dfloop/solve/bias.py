@@ -129,7 +129,7 @@ class BiasedCycle:
 
 
 class BiasedCycles(list):
-    """The predicted biased cycles (sorted by frequency) and how they were searched.
+    """The predicted biased cycles (sorted by frequency, then amplitude) and how they were searched.
 
     Attributes
     ----------
@@ -151,7 +151,9 @@ class BiasedCycles(list):
 
     def __init__(self, cycles, r0, dc_gain, amplitude_window, bias_window, omega_window, bias_monotone, branches,
                  gaps=()):
-        super().__init__(sorted(cycles, key=lambda c: c.frequency))
+        # by frequency, then amplitude: cycles whose frequencies agree to 9 digits (an integrator's phase crossover
+        # fixes w for every amplitude) keep an order that rounding cannot flip
+        super().__init__(sorted(cycles, key=lambda c: (float(f"{c.frequency:.9g}"), c.amplitude)))
         self.r0, self.dc_gain = r0, dc_gain
         self.amplitude_window, self.bias_window, self.omega_window = amplitude_window, bias_window, omega_window
         self.bias_monotone, self.branches, self.gaps = bias_monotone, branches, list(gaps)
