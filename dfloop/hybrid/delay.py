@@ -44,6 +44,7 @@ __all__ = ["DelayLoop", "DelayFlow", "DelayError", "piecewise_constant", "predic
 STEPS_PER_SCALE = 32
 _BLOCK = 32                   # steps sampled at once
 _GRAZING = 1e-10              # |r.f| below this fraction of |r||f| at a switch: grazing (tangent undefined)
+_CLOCK_ROUNDING = 64 * np.finfo(float).eps   # rounding of absolute instants, relative to the time elapsed
 
 
 class DelayError(RuntimeError):
@@ -499,7 +500,9 @@ def return_map(loop: DelayLoop, s, mode: int, u: float, queue, section: tuple, *
     if not fl.stopped:
         return None
     t1 = fl.t
-    q1 = [[inst - t1, lev] for inst, lev in fl.queue]
+    # a pending instant is t_switch + T - t1 <= T; the clock's rounding (eps t1, not small against a tiny T) can
+    # put the section switch's own instant a hair above T: clamp it back
+    q1 = [[min(inst - t1, loop.delay), lev] for inst, lev in fl.queue]
     J = None
     if tangent:
         n = loop.n
@@ -631,11 +634,14 @@ def delay_periodic_orbit(loop: DelayLoop, A0: float, w0: float, *, tol: float = 
             return dict(success=False, message=f"singular Jacobian at iteration {it} (a multiplier equal to 1: "
                         "a marginal orbit)", method=method, residual=residual, iterations=it)
         step, accepted = 1.0, False
+        # pending instants must stay in (0, T]; the section switch's own instant is T to rounding, which is relative
+        # to the clock (eps times the period), not to T: a tiny delay gets that slack, then the instant is clamped
+        slack = _CLOCK_ROUNDING * (t1 + loop.delay)
         for _ in range(9):
             v = v0 + step * delta
             s_try = v[:loop.n]
-            q_try = [[float(ti), q[1]] for ti, q in zip(v[loop.n:], queue)]
-            if all(0.0 < ti <= loop.delay * (1 + 1e-12) for ti, _ in q_try) and \
+            q_try = [[float(min(ti, loop.delay)), q[1]] for ti, q in zip(v[loop.n:], queue)]
+            if all(0.0 < ti <= loop.delay + slack for ti in v[loop.n:]) and \
                     all(q_try[i][0] <= q_try[i + 1][0] for i in range(len(q_try) - 1)):
                 try:
                     o = return_map(loop, s_try, mode, u, q_try, section, horizon=horizon, tangent=False,
