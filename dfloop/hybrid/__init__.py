@@ -25,8 +25,8 @@ that time model into a loop model:
   orbit finder, :mod:`dfloop.hybrid.delay_sampled`).
 
   The delay loops are served by the same two functions, :func:`delay_orbit` and :func:`delay_simulation`. A
-  constant input rides on the shifted element (:mod:`dfloop.hybrid.constant`), so every delay engine takes it
-  unchanged.
+  constant input rides on the shifted element (:mod:`dfloop.hybrid.constant`), so every delay engine but the
+  impact one takes it unchanged.
 
 A digital loop (a discrete-time plant) is a map, not a flow: :mod:`dfloop.hybrid.discrete` finds its orbits, and
 :func:`dfloop.hybrid.discrete.sample_delayed` turns a delayed plant behind a zero-order hold into its exact sampled
