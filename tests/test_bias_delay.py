@@ -124,3 +124,15 @@ def test_autotune_entry_points_take_a_delayed_plant():
     assert check["stable"] and check["final_value"] == pytest.approx(2.0 / 3.0, rel=1e-3)
     model = process_model(delayed(ct.tf([2.0], [0.5, 1.0]), L), delay=0.1)
     assert (model.K, model.T, model.L) == (pytest.approx(2.0), (pytest.approx(0.5),), pytest.approx(L + 0.1))
+
+
+def test_run_from_inside_a_dead_zone_with_a_delay_rests_at_the_reference():
+    """A start whose predicted input never leaves the dead zone used to stop the delay flow ('never switches');
+    the run now starts at the plant's equilibrium under the held output: with the output 0 the plant's output is
+    0, so x = r0 for all time (closed form)."""
+    from dfloop import simulate_loop
+
+    G = delayed(ct.tf([22.0], [1.0, 6.0, 11.0, 6.0]), 0.2)
+    sim = simulate_loop(G, Relay(1.0, dead_zone=0.2), 0.1, 2.3, periods=5, r0=0.15, bias=0.01)
+    assert not sim.diverged and sim.t[-1] > 4 * 2 * math.pi / 2.3
+    assert np.max(np.abs(sim.x - 0.15)) < 1e-12 and np.all(sim.y == 0.0)

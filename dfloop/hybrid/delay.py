@@ -484,6 +484,18 @@ def predicted_start(loop: DelayLoop, A0: float, w0: float, section: tuple | None
     return s, int(section[1]), u0, queue, tuple(section)
 
 
+def _resting_start(loop: DelayLoop, bias: float):
+    """The start when the predicted input x = bias + A0 sin(w0 t) never switches the element (a run from inside a
+    dead zone or a hysteresis): the element holds the output it has at x = bias, so the plant's periodic response
+    is its equilibrium under that constant input, A s + B u = 0 (least squares with an integrator); no pending
+    switch. Returns (s, mode, u, queue)."""
+    offset = bias - getattr(loop, "r0", 0.0)
+    mode = int(loop.element.initial(np.full(1, offset), 0.0)[0])
+    u = float(loop.levels[mode])
+    s = np.linalg.lstsq(loop.A, -loop.B * u, rcond=1e-12)[0]
+    return s, mode, u, []
+
+
 # --------------------------------------------------------------------------------------- the return map
 
 
@@ -730,7 +742,12 @@ def delay_simulation(loop: DelayLoop | DDELoop | MemoryDDELoop | DelaySampledLoo
             raise DelayError(str(exc)) from None
     else:
         P = 2.0 * math.pi / frequency
-        s, mode, u, queue, _ = predicted_start(loop, amplitude, frequency, bias=bias)
+        try:
+            s, mode, u, queue, _ = predicted_start(loop, amplitude, frequency, bias=bias)
+        except DelayError as exc:
+            if "never switches" not in str(exc):
+                raise
+            s, mode, u, queue = _resting_start(loop, bias)
         t_end = periods * P
         fl = loop.flow(s, mode, u, queue, t_end, max_events=max_events, diverge=diverge * amplitude)
         t = np.arange(int(math.floor(fl.t / P * steps_per_period)) + 1) * (P / steps_per_period)
