@@ -250,8 +250,9 @@ def predict_biased_cycles(G, element, *, r0: float = 0.0, load: float = 0.0, amp
 
     Parameters
     ----------
-    G : python-control tf or ss, or callable
-        The linear part; a callable or frd needs ``dc_gain``.
+    G : python-control tf or ss, ``delayed(G, T)``, or callable
+        The linear part; a callable or frd needs ``dc_gain``. A pure delay enters the first harmonic as
+        G(jw) e^{-jwT} and not the bias equation (G(0) is the rational part's).
     element : DescribingFunction, DualInputDF or callable
         The nonlinear element (any element :class:`~dfloop.describing.dual_input.DualInputDF` accepts, symmetric
         or not), or its dual-input DF.
@@ -377,7 +378,7 @@ def biased_confidence(G, element, bias: float, amplitude: float, frequency: floa
 
     Parameters
     ----------
-    G : python-control tf or ss, or callable (then ``dc_gain`` is needed)
+    G : python-control tf or ss, ``delayed(G, T)``, or callable (then ``dc_gain`` is needed)
     element : DualInputDF or anything it accepts
     bias, amplitude, frequency : float
         The predicted cycle (input units, rad/s).
