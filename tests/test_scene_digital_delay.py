@@ -59,6 +59,15 @@ def test_scene_with_delay_and_digital_controller_runs_end_to_end(tmp_path, monke
     # the orbit's outputs are quantized inputs, and its inputs are the continuous delayed plant's periodic response
     assert np.array_equal(Quantizer(STEP).output(ex.x), ex.y)
     assert np.max(np.abs(_periodic_samples(ex.y) - ex.x)) < 1e-12
+    # verification runs the exact map: the run from inside the stable cycle settles on a periodic sequence whose
+    # samples are again the continuous delayed plant's periodic response to its held outputs
+    (v_unstable, v_stable) = report.verifications
+    assert v_stable.verdict == "stable" and v_unstable.verdict != "stable"
+    run = v_stable.runs[0]
+    tail_x, tail_y = run.x[-5 * ex.y.size:], run.y[-5 * ex.y.size:]
+    period = next(p for p in range(1, 200) if np.array_equal(tail_y[p:], tail_y[:-p]))
+    assert np.max(np.abs(_periodic_samples(tail_y[-period:]) - tail_x[-period:])) < 1e-12
+    assert np.array_equal(run.t[:3], [0.0, DT, 2 * DT])
     # the delay made the cycles: without it (same gain, |C G| = 0.79 at -180 deg, below 1 / 1.27) there are none
     G0 = K * ct.sample_system(ct.tf([1.0], [1.0, 3.0, 3.0, 1.0]), DT, "zoh")
     assert len(predict_limit_cycles(G0, Quantizer(STEP), amplitude=(0.026, 1.0))) == 0
@@ -81,3 +90,13 @@ def test_plant_with_its_own_dt_and_a_delay_is_the_exact_sampled_map(tmp_path):
     z = np.exp(1j * w * DT)
     ref = load_scene(ROOT / "models" / "digital_quantizer_delay.toml").plant
     assert np.allclose(scene.plant(z), ref(z), rtol=1e-12)
+
+
+def test_digital_run_refuses_memory_and_constant_input():
+    from dfloop import Relay, simulate_loop
+
+    G = K * ct.sample_system(ct.tf([1.0], [1.0, 3.0, 3.0, 1.0]), DT, "zoh")
+    with pytest.raises(ValueError, match="N: Relay is not a static element"):
+        simulate_loop(G, Relay(1.0, hysteresis=0.1), 0.5, 1.0)
+    with pytest.raises(ValueError, match="r0 must be 0"):
+        simulate_loop(G, Quantizer(STEP), 0.05, 1.4, r0=0.1)
