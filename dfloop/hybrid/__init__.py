@@ -30,7 +30,7 @@ that time model into a loop model:
 
 A digital loop (a discrete-time plant) is a map, not a flow: :mod:`dfloop.hybrid.discrete` finds its orbits, and
 :func:`dfloop.hybrid.discrete.sample_delayed` turns a delayed plant behind a zero-order hold into its exact sampled
-map.
+map; :mod:`dfloop.hybrid.discrete_run` runs it sample by sample (``simulate_loop``, ``verify_cycle``).
 
 Every other loop model has ``size``, ``x_row``, ``method``, ``exact`` (flows carry a monodromy), ``settle_periods``
 (periods to run before shooting), ``plant`` (A, B), ``start(s0, x_history)``, ``admissible_mode(z, mode)``,
