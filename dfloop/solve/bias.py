@@ -35,7 +35,7 @@ from .predict import predict_limit_cycles
 __all__ = ["BiasedCycle", "BiasedCycles", "predict_biased_cycles", "static_gain", "biased_confidence"]
 
 _BISECTIONS = 200  # bisection steps on the bias (machine precision is reached in about 60 for any window)
-_JUMP = 1e-6  # a sign change of the bias equation is a jump, not a root, when |F| stays above this (relative) at rounding
+_JUMP = 1e-6  # a sign change of the bias equation is a jump, no root, when |F| there stays above this (relative)
 
 
 def static_gain(G) -> float:
