@@ -99,14 +99,18 @@ def _simulate(G, N, A: float, w: float, periods: float, r0: float = 0.0, load: f
     try:
         z, mode = start_on_prediction(loop, N, A, w, bias=bias)
         for p in range(int(periods)):
-            fl = loop.flow(z, mode, P, max_events=100_000)
+            fl = loop.flow(z, mode, P, max_events=100_000,
+                           **({"limit": _DIVERGED * A} if getattr(loop, "bounded", False) else {}))
             tk = np.arange(64) * (P / 64)
+            if getattr(fl, "stopped", None) is not None:   # passed the divergence bound within the period
+                tk = tk[tk <= fl.stopped]
+                diverged = True
             xk, yk = loop.signals(fl, tk)
             y_end = float(yk[-1])
             ts.append(p * P + tk)
             xs.append(xk)
             z, mode = fl.z, fl.mode
-            if not np.all(np.isfinite(xk)) or np.max(np.abs(xk - bias)) > _DIVERGED * A:
+            if diverged or not np.all(np.isfinite(xk)) or np.max(np.abs(xk - bias)) > _DIVERGED * A:
                 diverged = True
                 break
     except HybridError:
