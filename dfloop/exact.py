@@ -315,7 +315,7 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
 def _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations, settle_periods, max_events,
                  max_deviation, nodes, m, globalise, constant) -> ExactCycle:
     from .hybrid import ShootingError, delay_orbit, loop_model, periodic_orbit
-    from .hybrid.globalise import shoot_or_globalise
+    from .hybrid.globalise import homotopy_allowed, shoot_or_globalise
 
     A0, w0 = predicted
     r0, load, bias = constant["r0"], constant["load"], constant["bias"]
@@ -338,7 +338,7 @@ def _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations
     try:
         orbit = periodic_orbit(loop, N, A0, w0, tol=tol, max_iterations=max_iterations,
                                settle_periods=loop.settle_periods if settle_periods is None else settle_periods,
-                               nodes=m, max_events=max_events, bias=bias)
+                               nodes=m, max_events=max_events, bias=bias, homotopy=homotopy_allowed())
     except ShootingError as exc:
         return _failure(str(exc), predicted, loop.method, exc.residual, exc.iterations)
     out = _result(loop, orbit, predicted, harmonics, samples)

@@ -15,8 +15,10 @@ realisation :func:`conditioned` returns:
    result realises the same plant. Balanced, the states are commensurate with the output (controllability and
    observability Gramians equal and diagonal) and the output row cancels little at any frequency.
 
-When a step is ill-determined (a non-minimal plant: a Hankel singular value at rounding level, or a Schur
-reordering that fails) the realisation is kept as given, and the returned ``basis`` is the identity.
+When the balancing is ill-determined (a Hankel singular value at rounding level: a non-minimal plant, or a
+mode too fast to matter, such as a lag at 1e4 times the other poles) the block-diagonal form of step 1 is used,
+each block's input and output rows scaled to one size; when step 1 fails (a Schur reordering that splits a
+cluster) the realisation is kept as given and the returned ``basis`` is the identity.
 """
 from __future__ import annotations
 
@@ -46,9 +48,12 @@ def conditioned(A: np.ndarray, B: np.ndarray, C: np.ndarray):
                 Bd[a:b] /= d
                 Cd[a:b] *= d
                 V[:, a:b] *= d
-        Ab, Bb, Cb, W = _balanced(Ad, Bd, Cd)
     except (np.linalg.LinAlgError, ValueError, _Unbalanced):
         return A, B, C, eye
+    try:
+        Ab, Bb, Cb, W = _balanced(Ad, Bd, Cd)
+    except (np.linalg.LinAlgError, ValueError, _Unbalanced):
+        Ab, Bb, Cb, W = Ad, Bd, Cd, eye      # a Hankel singular value at rounding level: the modal form
     basis = V @ W
     if not all(np.all(np.isfinite(m)) for m in (Ab, Bb, Cb, basis)):
         return A, B, C, eye
