@@ -15,6 +15,11 @@ realisation :func:`conditioned` returns:
    result realises the same plant. Balanced, the states are commensurate with the output (controllability and
    observability Gramians equal and diagonal) and the output row cancels little at any frequency.
 
+Plants of order up to ``LOW_ORDER`` (6) keep python-control's realisation: there the companion form is
+accurate, and it keeps the structural zeros of the Markov parameters (C B = 0 ... for a relative degree > 1)
+exact, which a dense realisation holds only to rounding (measured: the relative error of C(jw - A)^-1 B of an
+order-6 lag chain at 100 rad/s, where |G| = 1e-12, is 8e-7 balanced and 3e-17 in companion form).
+
 When the balancing is ill-determined (a Hankel singular value at rounding level: a non-minimal plant, or a
 mode too fast to matter, such as a lag at 1e4 times the other poles) the block-diagonal form of step 1 is used,
 each block's input and output rows scaled to one size; when step 1 fails (a Schur reordering that splits a
@@ -25,18 +30,20 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import eigh, schur, solve_continuous_lyapunov, solve_sylvester, svd
 
-__all__ = ["conditioned", "CLUSTER"]
+__all__ = ["conditioned", "CLUSTER", "LOW_ORDER"]
 
 CLUSTER = 1e-2            # eigenvalues within this relative distance share a diagonal block
+LOW_ORDER = 6             # plants up to this order keep their realisation (see the module)
 _MINIMAL = 1e-13          # smallest / largest Hankel singular value below this: not minimal, not balanced
 
 
 def conditioned(A: np.ndarray, B: np.ndarray, C: np.ndarray):
     """(A', B', C', V) with A' = V^-1 A V, B' = V^-1 B, C' = C V: the plant in a block-diagonal balanced
-    realisation (states s = V s'), or (A, B, C, I) unchanged when that is ill-determined (see the module)."""
+    realisation (states s = V s'), or (A, B, C, I) unchanged for a plant of order at most ``LOW_ORDER`` or when
+    that is ill-determined (see the module)."""
     n = A.shape[0]
     eye = np.eye(n)
-    if n == 0:
+    if n <= LOW_ORDER:
         return A, B, C, eye
     try:
         Ad, V, bounds = _block_diagonal(A)
