@@ -113,18 +113,27 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
         if settle_periods > 0:
             zs, modes, T, c, returns = _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events,
                                                       bias)
-        else:   # nodes on the predicted sinusoidal orbit itself (right for unstable cycles, which a flow leaves)
-            zs, modes, c = _predicted_nodes(loop, N, amplitude, frequency, m, max_events, bias)
-        m = len(zs)
+            return newton_orbit(loop, zs, modes, T, c, tol=tol, max_iterations=max_iterations,
+                                max_events=max_events, returns=returns)
+        # nodes on the predicted sinusoidal orbit itself (right for unstable cycles, which a flow leaves)
+        zs, modes, c = _predicted_nodes(loop, N, amplitude, frequency, m, max_events, bias)
     except HybridError as exc:
         raise ShootingError(f"the flow from the predicted orbit failed: {exc}") from None
-    try:
-        return newton_orbit(loop, zs, modes, T, c, tol=tol, max_iterations=max_iterations, max_events=max_events,
-                            returns=returns)
-    except ShootingError as exc:
-        if settle_periods > 0 or not homotopy:
-            raise
-        first = exc
+    first = None
+    for shift in (0.0, 0.5):   # Newton's basin depends on where the nodes sit: a second set half a node later
+        try:
+            if shift:
+                zs_s, modes_s, c_s = _predicted_nodes(loop, N, amplitude, frequency, m, max_events, bias, shift)
+            else:
+                zs_s, modes_s, c_s = zs, modes, c
+            return newton_orbit(loop, zs_s, modes_s, T, c_s, tol=tol, max_iterations=max_iterations,
+                                max_events=max_events)
+        except HybridError:
+            continue
+        except ShootingError as exc:
+            first = first or exc
+    if not homotopy:
+        raise first
     try:   # Newton from the predicted orbit stalled: follow the Newton homotopy from it before giving up
         return homotopy_orbit(loop, zs, modes, T, c, tol=tol, max_iterations=max_iterations, max_events=max_events)
     except ShootingError as exc:
@@ -143,8 +152,9 @@ def node_count(loop, period: float, nodes: int) -> int:
     return int(min(max(nodes, need), max(nodes, MAX_NODES)))
 
 
-def _predicted_nodes(loop, N, amplitude, frequency, m, max_events, bias):
-    """m nodes on the predicted orbit x = bias + A sin(w t): (states, modes, intervals as fractions of T).
+def _predicted_nodes(loop, N, amplitude, frequency, m, max_events, bias, shift: float = 0.0):
+    """m nodes on the predicted orbit x = bias + A sin(w t): (states, modes, intervals as fractions of T); the
+    first node ``shift`` node intervals after the middle of the longest segment.
 
     Each node flows only its own interval (a strongly unstable orbit's one-period flow diverges); the switches
     those short flows meet place the first node in the middle of the longest segment between switches and move
@@ -162,7 +172,7 @@ def _predicted_nodes(loop, N, amplitude, frequency, m, max_events, bias):
         if bounds.size:
             gaps = np.diff(np.append(bounds, bounds[0] + T))
             k = int(np.argmax(gaps))
-            t_first = bounds[k] + 0.5 * gaps[k]
+            t_first = bounds[k] + 0.5 * gaps[k] + shift * T / m
             t = t_first + np.arange(m) * (T / m)
             edges = np.concatenate([bounds - T, bounds, bounds + T, bounds + 2 * T])
             j = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, edges.size - 2)
