@@ -90,7 +90,7 @@ def simulate_loop(G, N, amplitude: float, frequency: float, *, periods: float = 
     r0, load, bias = finite("r0", r0), finite("load", load), finite("bias", bias)
     loop = loop_model(G, N, A0 + abs(bias), w, steps_per_period=steps_per_period, r0=r0, load=load)
     if loop.delay > 0:   # a pure delay: the exact delay flow from the predicted orbit's switches
-        return delay_simulation(loop, A0, w, periods, steps_per_period, diverge=_DIVERGED)
+        return delay_simulation(loop, A0, w, periods, steps_per_period, diverge=_DIVERGED, bias=bias)
     z, mode = start_on_prediction(loop, N, A0, w, bias=bias)
     return simulate(loop, z, mode, 2 * np.pi / w, periods, steps_per_period, limit=_DIVERGED * (A0 + abs(bias)))
 

@@ -105,8 +105,9 @@ def test_the_dispatcher_picks_the_delay_engine_from_the_time_model():
     from dfloop.hybrid.dde_memory import MemoryDDELoop
 
     assert isinstance(loop_model(G, df.Backlash(h=0.5), 2.0, 2.0), MemoryDDELoop)   # memory: its state in history
-    with pytest.raises(ValueError, match="N: DynamicBacklash"):                     # impacts with a delay: not here
-        loop_model(G, df.DynamicBacklash(1.0, 1.0, 0.1, 0.5), 2.0, 2.0)
+    from dfloop.hybrid.delay_impact import DelayImpactLoop                           # impacts: steps on the engine
+
+    assert isinstance(loop_model(G, df.DynamicBacklash(1.0, 1.0, 0.1, 0.5), 2.0, 2.0), DelayImpactLoop)
 
 
 def test_multipliers_with_a_delay_longer_than_the_period():

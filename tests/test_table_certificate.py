@@ -10,7 +10,7 @@ import pytest
 
 from dfloop.describing.base import DescribingFunction
 from dfloop.describing.time_model import Impact
-from dfloop.exact import ExactCycle, table_certificate
+from dfloop.exact import ExactCycle, exact_cycle, table_certificate
 from dfloop.impact.extract import impact_describing_function
 from dfloop.solve.verdict import classify, exact_kind
 
@@ -92,3 +92,45 @@ def test_exact_cycle_attaches_the_certificate_and_the_verdict_states_it():
     assert v.kind == "confirmed" and "N from a table: error estimate 1.0e-06 relative" in v.detail
     # a closed-form element carries no certificate
     assert "table" not in df.exact_cycle(ct.tf([5.0], [1.0, 1.0, 0.0]), df.Backlash(h=1.0), (1.5, 1.8)).extra
+
+
+def test_the_confidence_of_a_tabulated_cycle_carries_the_certificate_and_the_true_distortion():
+    """cycle_confidence of a dynamic-backlash cycle: the table certified at the cycle, and the distortion from the
+    re-simulated motion's harmonics. Truth: the exact closed-loop orbit (exact_cycle on the impact engine), whose
+    input harmonics the one-pass estimate must reproduce (filter hypothesis: same order of harmonics)."""
+    from dfloop.solve.confidence import cycle_confidence
+
+    conf = cycle_confidence(PD, _Table(), F0, W0)
+    assert conf.available and conf.table["status"] == "confirmed"
+    assert abs(conf.amplitude_error) < 1e-6 and abs(conf.frequency_error) < 1e-6   # a right table: no table error
+    orbit = exact_cycle(PD, _Table(), (F0, W0))
+    assert orbit.success
+    X = orbit.harmonics
+    true_distortion = np.sqrt(np.sum(np.abs(X[1:]) ** 2)) / abs(X[0])
+    assert conf.distortion == pytest.approx(true_distortion, rel=0.05)
+    for k in (3, 5):                                        # the odd harmonics that carry the distortion
+        assert abs(conf.harmonics[k - 1]) / F0 == pytest.approx(abs(X[k - 1]) / abs(X[0]), rel=0.05)
+    assert "confirmed" in repr(conf)
+
+
+def test_the_confidence_of_a_wrong_table_value_estimates_the_shift_to_the_direct_root():
+    """A table 5 % off: at its own root (found here by Newton on 1 + G (1.05 N_direct)) the confidence says
+    'replaced', and its estimated errors are the shift to the root of the direct equation, (F0, W0)."""
+    from dfloop.solve.confidence import cycle_confidence
+
+    u = np.log([F0, W0])
+    for _ in range(8):       # Newton in (ln F, ln w) on the biased equation, forward differences
+        r = 1.0 + 1.05 * (_R(*np.exp(u)) - 1.0)            # 1 + G (1.05 N_direct)
+        J = np.empty((2, 2))
+        for k in range(2):
+            e = np.zeros(2)
+            e[k] = 1e-6
+            rk = 1.0 + 1.05 * (_R(*np.exp(u + e)) - 1.0)
+            J[:, k] = [(rk - r).real / 1e-6, (rk - r).imag / 1e-6]
+        u = u - np.linalg.solve(J, [r.real, r.imag])
+    Fb, wb = np.exp(u)
+    assert abs(1.0 + 1.05 * (_R(Fb, wb) - 1.0)) < 1e-8
+    conf = cycle_confidence(PD, _Table(bias=1.05, error=1e-6), Fb, wb)
+    assert conf.table["status"] == "replaced"
+    assert conf.amplitude_error == pytest.approx(Fb / F0 - 1, rel=0.05)     # linearised balance vs the true shift
+    assert conf.frequency_error == pytest.approx(wb / W0 - 1, rel=0.05)

@@ -370,7 +370,8 @@ def _run(loop: MemoryDDELoop, sc: _Scheme, st: _State, steps: int, *, tangent: b
     return out, M, (np.array(xs), np.array(ys), evs, diverged)
 
 
-def _start(loop: MemoryDDELoop, A0: float, w0: float, h: float, L: int, section: bool = True) -> _State:
+def _start(loop: MemoryDDELoop, A0: float, w0: float, h: float, L: int, section: bool = True,
+           offset: float = 0.0) -> _State:
     """The DF's sinusoidal orbit x = A0 sin(w0 (t + t0)) as a discretised state at t = 0: x's history on the nodes,
     the plant in the periodic state the delayed fundamental of the element's response drives it to, the element in
     the state the sinusoid leaves at -T. With ``section`` the phase t0 puts the element's window (-T) in the middle
@@ -379,13 +380,13 @@ def _start(loop: MemoryDDELoop, A0: float, w0: float, h: float, L: int, section:
     tm, T = loop.element, loop.delay
     P = 2 * np.pi / w0
     theta = 2 * np.pi * np.arange(512) / 512
-    y = np.asarray(tm.response(A0 * np.sin(theta)), float)
+    y = np.asarray(tm.response(offset + A0 * np.sin(theta)), float)
     Y1 = complex(2 * np.mean(y * np.sin(theta)) + 2j * np.mean(y * np.cos(theta)))
     Y0 = float(np.mean(y))
 
     def element_at(t):        # (mode, e) after the sinusoid up to time t
         th = t - 4 * P + P * np.arange(4 * 256 + 1) / 256
-        return tm.initial(A0 * np.sin(w0 * th), A0 * w0 * math.cos(w0 * t))
+        return tm.initial(offset + A0 * np.sin(w0 * th), A0 * w0 * math.cos(w0 * t))
 
     t0 = 0.0
     if section:
@@ -407,7 +408,7 @@ def _start(loop: MemoryDDELoop, A0: float, w0: float, h: float, L: int, section:
     s = (X * np.exp(1j * w0 * (t0 - T))).imag
     if abs(Y0) > 0 and abs(np.linalg.det(A)) > 0:
         s = s - np.linalg.solve(A, B) * Y0
-    hist = A0 * np.sin(w0 * (t0 + h * np.arange(-L, 0)))
+    hist = offset + A0 * np.sin(w0 * (t0 + h * np.arange(-L, 0)))
     mode, e = element_at(t0 - T)
     return _State(s, hist, mode, e)
 
@@ -483,12 +484,14 @@ def _refine(loop, st: _State, xs: np.ndarray, N: int, L2: int) -> _State:
 
 
 def memory_orbit(loop: MemoryDDELoop, A0: float, w0: float, *, nodes: int = 128, tol: float = 1e-11,
-                 max_iterations: int = 40, harmonics: int = 15, samples: int = 512, count: int = 8) -> dict:
+                 max_iterations: int = 40, harmonics: int = 15, samples: int = 512, count: int = 8,
+                 offset: float = 0.0) -> dict:
     """The periodic orbit of a delayed loop around an element with memory (module notes), near (A0, w0).
 
     Solves at ``nodes`` and 2 ``nodes`` steps per period (at least 4.5 P / T, so the step stays below a third of
     the delay); the orbit is the finer one and ``extra["error_estimate"]`` the change of (A, w) between the two
     (4th order: the finer one's error is about 1/15 of it). ``count`` multipliers are kept (largest first).
+    ``offset``: the start's mean of x (x = offset + A0 sin(w0 t)).
     Returns a dict of :class:`dfloop.exact.ExactCycle` fields (``success`` False with the reason on failure).
     """
     T = loop.delay
@@ -504,7 +507,7 @@ def memory_orbit(loop: MemoryDDELoop, A0: float, w0: float, *, nodes: int = 128,
         L = _history_size(loop, Nn, P0)
         try:
             if st is None:
-                st = _start(loop, A0, w0, P / Nn, L)
+                st = _start(loop, A0, w0, P / Nn, L, offset=offset)
             else:
                 st = _refine(loop, st, xs, Nn // 2, L)
             st, P, res, it, M, (xs, ys, evs, _) = _periodic(loop, st, P, Nn, L, tol, max_iterations)

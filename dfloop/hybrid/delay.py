@@ -32,7 +32,10 @@ from scipy.optimize import brentq
 
 from ..describing.time_model import OUT_OF_RANGE, PiecewiseAffine
 from .dde import DDELoop, dde_orbit, dde_simulation
+from .constant import unshift
 from .dde_memory import DelayMemoryError, MemoryDDELoop, memory_orbit, memory_simulation
+from .delay_impact import DelayImpactError, DelayImpactLoop, impact_orbit, impact_simulation
+from .delay_sampled import DelaySampledLoop, sampled_delay_simulation
 from .run import LoopSimulation
 
 __all__ = ["DelayLoop", "DelayFlow", "DelayError", "piecewise_constant", "predicted_start", "return_map",
@@ -403,12 +406,12 @@ class DelayLoop:
 # ----------------------------------------------------------------------------------------------- starts
 
 
-def _sinusoid_switches(loop: DelayLoop, A0: float, w0: float, t0: float, t1: float, mode: int):
-    """Element switches (time, from, to) driven by x = A0 sin(w0 t) on [t0, t1] from ``mode``, located by
+def _sinusoid_switches(loop: DelayLoop, A0: float, w0: float, t0: float, t1: float, mode: int, offset: float = 0.0):
+    """Element switches (time, from, to) driven by x = offset + A0 sin(w0 t) on [t0, t1] from ``mode``, located by
     bisection to rounding level; returns (switches, mode at t1)."""
     P = 2.0 * math.pi / w0
     ts = np.linspace(t0, t1, int(math.ceil((t1 - t0) / P * 4096)) + 2)
-    xs = A0 * np.sin(w0 * ts)
+    xs = offset + A0 * np.sin(w0 * ts)
     out = []
     i = 0
     while i < ts.size - 1:
@@ -417,7 +420,7 @@ def _sinusoid_switches(loop: DelayLoop, A0: float, w0: float, t0: float, t1: flo
             r_c, c, tgt = gd.cx, gd.c1, gd.target
             g0, g1 = r_c * xs[i] + c, r_c * xs[i + 1] + c
             if g0 >= 0.0 > g1:
-                tc = brentq(lambda t: r_c * A0 * math.sin(w0 * t) + c, ts[i], ts[i + 1], xtol=1e-15 * P)
+                tc = brentq(lambda t: r_c * (offset + A0 * math.sin(w0 * t)) + c, ts[i], ts[i + 1], xtol=1e-15 * P)
                 if nxt is None or tc < nxt[0]:
                     nxt = (tc, j, tgt)
         if nxt is None:
@@ -433,8 +436,8 @@ def _sinusoid_switches(loop: DelayLoop, A0: float, w0: float, t0: float, t1: flo
     return out, mode
 
 
-def predicted_start(loop: DelayLoop, A0: float, w0: float, section: tuple | None = None):
-    """Loop state just after an element switch on the predicted orbit x = A0 sin(w0 t).
+def predicted_start(loop: DelayLoop, A0: float, w0: float, section: tuple | None = None, bias: float = 0.0):
+    """Loop state just after an element switch on the predicted orbit x = bias + A0 sin(w0 t).
 
     The element is driven by the sinusoid (its switches located exactly); the plant state is the exact
     periodic response, (I - e^{AP}) s = int e^{A(P - r)} B u(r) dr (least squares when G has an integrator),
@@ -447,10 +450,11 @@ def predicted_start(loop: DelayLoop, A0: float, w0: float, section: tuple | None
     P = 2.0 * math.pi / w0
     T = loop.delay
     span = T + 3.0 * P
-    mode0 = int(loop.element.initial(np.zeros(1), 0.0)[0])   # the element at x = 0 (any mode works after a period)
-    sw, _ = _sinusoid_switches(loop, A0, w0, -span, P, mode0)
+    offset = bias - getattr(loop, "r0", 0.0)       # the element's input of a shifted model is x - r0
+    mode0 = int(loop.element.initial(np.full(1, offset), 0.0)[0])   # at x = bias (any mode works after a period)
+    sw, _ = _sinusoid_switches(loop, A0, w0, -span, P, mode0, offset)
     if not sw:
-        raise DelayError(f"the predicted input x = {A0:g} sin({w0:g} t) never switches the element")
+        raise DelayError(f"the predicted input x = {bias:g} + {A0:g} sin({w0:g} t) never switches the element")
     if section is None:
         top = max(loop.levels[to] for _, _, to in sw)
         section = next((f, to) for _, f, to in reversed(sw) if loop.levels[to] == top)
@@ -514,19 +518,45 @@ def _pack(s, queue):
 
 def delay_orbit(loop: DelayLoop | DDELoop | MemoryDDELoop, A0: float, w0: float, *, tol: float = 1e-11, max_iterations: int = 40,
                 harmonics: int = 15, samples: int = 512, max_events: int = 100_000, max_deviation: float = 0.5,
-                start=None) -> dict:
+                start=None, bias: float = 0.0) -> dict:
     """:func:`delay_periodic_orbit` (:func:`~dfloop.hybrid.dde.dde_orbit` for a
     :class:`~dfloop.hybrid.dde.DDELoop`, :func:`~dfloop.hybrid.dde_memory.memory_orbit` for a
     :class:`~dfloop.hybrid.dde_memory.MemoryDDELoop`) with the prediction's errors and the ``max_deviation`` test: a dict of the
-    fields of :class:`dfloop.exact.ExactCycle` (``ExactCycle(**delay_orbit(...))``)."""
-    if isinstance(loop, DDELoop):   # a static element with sloped pieces or a smooth one: the delay equation
+    fields of :class:`dfloop.exact.ExactCycle` (``ExactCycle(**delay_orbit(...))``).
+
+    A loop with a constant input (``loop.r0``, ``loop.load``: :mod:`dfloop.hybrid.constant`) is solved around its
+    shifted element and read back (x, y and ``mean`` in the loop's own signals); ``bias`` is the predicted mean of
+    x, where the exact delay flow's start sits (x = bias + A0 sin(w0 t)).
+
+    Raises
+    ------
+    ValueError
+        ``loop`` is a :class:`~dfloop.hybrid.delay_sampled.DelaySampledLoop` (an element known only through an
+        operator: a fixed-step run, no exact orbit), naming N.
+    """
+    if isinstance(loop, DelaySampledLoop):
+        raise ValueError(f"N: {loop.model.name} is known only through a sampled operator ({loop.method}): "
+                         "exact_cycle needs an exact time model (piecewise affine, smooth or impact; implement "
+                         "time_model(), see dfloop.describing.time_model)")
+    r0, load = getattr(loop, "r0", 0.0), getattr(loop, "load", 0.0)
+    if isinstance(loop, DelayImpactLoop):   # masses and impacts: the method of steps on the impact engine
+        out = impact_orbit(loop, A0, w0, tol=max(tol, 1e-10), max_iterations=max_iterations, harmonics=harmonics,
+                           samples=samples)
+    elif isinstance(loop, DDELoop):   # a static element with sloped pieces or a smooth one: the delay equation
         out = dde_orbit(loop, A0, w0, harmonics=harmonics, samples=samples)
     elif isinstance(loop, MemoryDDELoop):   # an element with memory (backlash): its state in the history
         out = memory_orbit(loop, A0, w0, tol=max(tol, 1e-12), max_iterations=max_iterations, harmonics=harmonics,
-                           samples=samples)
+                           samples=samples, offset=bias - r0)
     else:
+        if start is None and bias != 0.0:
+            try:
+                start = predicted_start(loop, A0, w0, bias=bias)
+            except DelayError as exc:
+                return dict(success=False, message=f"no start on the prediction: {exc}", method=loop.method,
+                            predicted=(A0, w0))
         out = delay_periodic_orbit(loop, A0, w0, tol=tol, max_iterations=max_iterations, harmonics=harmonics,
                                    samples=samples, max_events=max_events, start=start)
+    out = unshift(out, r0, load)
     out["predicted"] = (A0, w0)
     if not out["success"]:
         return {k: out[k] for k in ("success", "message", "predicted", "method", "residual", "iterations")
@@ -661,29 +691,47 @@ def _orbit_fields(loop, fl, J, s, mode, u, queue, section, P, residual, it, harm
                        "section": section, "delay": loop.delay})
 
 
-def delay_simulation(loop: DelayLoop | DDELoop | MemoryDDELoop, amplitude: float, frequency: float, periods: float,
-                     steps_per_period: int, diverge: float = 1e6, max_events: int = 10_000_000) -> LoopSimulation:
+def delay_simulation(loop: DelayLoop | DDELoop | MemoryDDELoop | DelaySampledLoop, amplitude: float, frequency: float,
+                     periods: float, steps_per_period: int, diverge: float = 1e6, max_events: int = 10_000_000,
+                     bias: float = 0.0) -> LoopSimulation:
     """Run the delayed loop from the predicted orbit of (amplitude, frequency) (:func:`predicted_start`, time 0
     at the switch into the element's highest level) for ``periods`` periods; x and y sampled uniformly. A
     :class:`~dfloop.hybrid.dde.DDELoop` runs its method of steps instead (:func:`dde_simulation`), a
-    :class:`~dfloop.hybrid.dde_memory.MemoryDDELoop` its own (:func:`memory_simulation`).
+    :class:`~dfloop.hybrid.dde_memory.MemoryDDELoop` its own (:func:`memory_simulation`), a
+    :class:`~dfloop.hybrid.delay_sampled.DelaySampledLoop` its fixed step with the exact delay line
+    (:func:`~dfloop.hybrid.delay_sampled.sampled_delay_simulation`, x and y at its step times).
+
+    With a constant input (``loop.r0``, ``loop.load``) x and y are the loop's own signals (the shifted element's
+    read back, :mod:`dfloop.hybrid.constant`); the exact delay flow starts on x = ``bias`` + amplitude sin(w t).
 
     Returns the :class:`~dfloop.hybrid.run.LoopSimulation`; the run stops early when |x| exceeds ``diverge``
     times the amplitude.
     """
-    if isinstance(loop, DDELoop):
-        return dde_simulation(loop, amplitude, frequency, periods, steps_per_period, diverge)
-    if isinstance(loop, MemoryDDELoop):
+    r0, load = getattr(loop, "r0", 0.0), getattr(loop, "load", 0.0)
+    if isinstance(loop, DelayImpactLoop):
         try:
-            return memory_simulation(loop, amplitude, frequency, periods, steps_per_period, diverge)
+            sim = impact_simulation(loop, amplitude, frequency, periods, steps_per_period, diverge)
+        except DelayImpactError as exc:
+            raise DelayError(str(exc)) from None
+    elif isinstance(loop, DDELoop):
+        sim = dde_simulation(loop, amplitude, frequency, periods, steps_per_period, diverge)
+    elif isinstance(loop, DelaySampledLoop):
+        sim = sampled_delay_simulation(loop, amplitude, frequency, periods, diverge)
+    elif isinstance(loop, MemoryDDELoop):
+        try:
+            sim = memory_simulation(loop, amplitude, frequency, periods, steps_per_period, diverge)
         except DelayMemoryError as exc:
             raise DelayError(str(exc)) from None
-    P = 2.0 * math.pi / frequency
-    s, mode, u, queue, _ = predicted_start(loop, amplitude, frequency)
-    t_end = periods * P
-    fl = loop.flow(s, mode, u, queue, t_end, max_events=max_events, diverge=diverge * amplitude)
-    t = np.arange(int(math.floor(fl.t / P * steps_per_period)) + 1) * (P / steps_per_period)
-    t = t[t <= fl.t]
-    x = loop.x(loop.sample(fl, t))
-    y = loop.output(fl, t)
-    return LoopSimulation(t, x, y, fl.diverged, loop.method)
+    else:
+        P = 2.0 * math.pi / frequency
+        s, mode, u, queue, _ = predicted_start(loop, amplitude, frequency, bias=bias)
+        t_end = periods * P
+        fl = loop.flow(s, mode, u, queue, t_end, max_events=max_events, diverge=diverge * amplitude)
+        t = np.arange(int(math.floor(fl.t / P * steps_per_period)) + 1) * (P / steps_per_period)
+        t = t[t <= fl.t]
+        x = loop.x(loop.sample(fl, t))
+        y = loop.output(fl, t)
+        sim = LoopSimulation(t, x, y, fl.diverged, loop.method)
+    if r0 != 0.0 or load != 0.0:
+        sim = LoopSimulation(sim.t, sim.x + r0, sim.y - load, sim.diverged, sim.method)
+    return sim

@@ -38,7 +38,7 @@ from ..describing.interop import as_element
 from ..describing.time_model import OUT_OF_RANGE, PiecewiseAffine, Smooth
 
 __all__ = ["DiscreteOrbit", "DiscreteOrbits", "discrete_orbits", "discrete_system", "shoot_discrete",
-           "fundamental", "iterate", "is_discrete", "discrete_cycle"]
+           "fundamental", "iterate", "is_discrete", "discrete_cycle", "sample_delayed"]
 
 MAX_NODES = 300_000       # default bound on partial sequences examined per period
 _SINGULAR = 1e-10         # I - A^P with a singular value below this (relative) is singular
@@ -172,6 +172,43 @@ def discrete_system(G, what: str = "discrete_orbits"):
         raise ValueError(f"G must be strictly proper (D = 0) for {what}: a direct feedthrough closes an algebraic "
                          f"loop through the element within one sample; got D = {D!r}")
     return (np.asarray(sys.A, float), np.asarray(sys.B, float)[:, 0], np.asarray(sys.C, float)[0], float(dt))
+
+
+def sample_delayed(G, dt: float):
+    """A continuous plant with a pure delay behind a zero-order hold of period dt, as a discrete python-control
+    ss system: the exact sampled map of :func:`dfloop.hybrid.delay_sampled.delayed_sampled_system`.
+
+    Its state is (s, y_{k-m-1}, ..., y_{k-1}): the plant state and the m + 1 held values still pending in the
+    delay line (T = m dt + r, 0 <= r < dt), so the periodic orbits :func:`discrete_orbits`,
+    :func:`shoot_discrete` and :func:`discrete_cycle` find on it are those of the digital loop with the delay, and
+    their multipliers include the pending values. A delay of k whole samples gives G(z) z^-k; T = 0 gives
+    ``control.sample_system(G, dt)`` (zero-order hold), with one extra state (a pole at 0) that a delay adds.
+
+    Parameters
+    ----------
+    G : :class:`~dfloop.solve.delay.DelayedSystem`, or a continuous python-control tf or ss (T = 0)
+        Strictly proper, SISO.
+    dt : float
+        The sampling period (s), > 0.
+
+    Returns
+    -------
+    control.StateSpace
+        Discrete-time, sampling period dt, strictly proper.
+    """
+    import control as ct
+
+    from .delay import split_delay
+    from .delay_sampled import delayed_sampled_system
+    from .loop import plant_matrices
+
+    dt = positive("dt", dt)
+    free, T = split_delay(G)
+    if getattr(free, "dt", 0) not in (0, None):
+        raise ValueError(f"G must be a continuous-time plant for sample_delayed, got dt={free.dt!r}")
+    A, B, C = plant_matrices(free, what="sample_delayed")
+    Ad, Bd, Cd = delayed_sampled_system(A, B, C, T, dt)
+    return ct.ss(Ad, Bd[:, None], Cd[None, :], np.zeros((1, 1)), dt)
 
 
 def iterate(A, B, C, f, s0, steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -97,14 +97,16 @@ def _simulate(G, N, A: float, w: float, periods: float, r0: float = 0.0, load: f
         return None
     if loop.delay > 0:
         try:
-            sim = delay_simulation(loop, A, w, periods, 64, diverge=_DIVERGED)
+            sim = delay_simulation(loop, A, w, periods, 64, diverge=_DIVERGED, bias=bias)
         except DelayError as exc:
             if "left the range" in str(exc):          # the quantizer's modelled range (64 A): a divergence
                 return np.array([0.0]), np.array([_DIVERGED * A]), True, str(exc), math.nan
             if "never switches" in str(exc):          # the element stays at rest: so does its output
                 return np.array([0.0]), np.array([0.0]), False, str(exc), 0.0
             return None
-        return sim.t, sim.x, sim.diverged, sim.method, float(sim.y[-1])
+        shifted = (r0 or load or bias) and not sim.diverged       # x less its final mean, as below
+        x = sim.x - np.mean(sim.x[-max(sim.x.size // 10, 1):]) if shifted else sim.x
+        return sim.t, x, sim.diverged, sim.method, float(sim.y[-1])
     P = 2.0 * math.pi / w
     ts, xs = [], []
     diverged, y_end = False, math.nan

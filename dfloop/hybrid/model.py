@@ -8,7 +8,10 @@ import numpy as np
 from ..describing.time_model import Impact, PiecewiseAffine, Sampled, Smooth
 from .dde import DDELoop, static_map
 from .dde_memory import MemoryDDELoop
+from .constant import shifted_model
 from .delay import DelayLoop, piecewise_constant, split_delay
+from .delay_impact import DelayImpactLoop
+from .delay_sampled import DelaySampledLoop
 from .impact import ImpactLoop
 from .loop import HybridLoop, plant_matrices, plant_system
 from .sampled import SampledLoop
@@ -31,8 +34,10 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
         output is piecewise constant (relays with hysteresis and dead zone, quantizer), a
         :class:`~dfloop.hybrid.dde.DDELoop` (the delay differential equation, discretised) for other static
         elements (saturation, dead zone, cubic stiffness, ...), a :class:`~dfloop.hybrid.dde_memory.MemoryDDELoop`
-        (the same with the element's state in the history) for piecewise-affine elements with memory (backlash);
-        impact and sampled elements with a delay raise ``ValueError`` naming N.
+        (the same with the element's state in the history) for piecewise-affine elements with memory (backlash),
+        a :class:`~dfloop.hybrid.delay_sampled.DelaySampledLoop` (fixed step, the delay line exact) for an element
+        known only through an operator, a :class:`~dfloop.hybrid.delay_impact.DelayImpactLoop` (the delay equation
+        with impacts, a method of steps on the impact engine) for an impact element.
     N : DescribingFunction
         The element; its ``time_model(amplitude)`` says how it behaves in time.
     amplitude, frequency : float
@@ -43,13 +48,16 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
         The caller's name for error messages.
     r0, load : float
         Constant input: a reference r0 at the summing junction (x = r0 - c) and a load added to the element's
-        output before the plant (piecewise-affine and smooth elements without delay; 0 for the others).
+        output before the plant: piecewise-affine and smooth elements without delay (the loop's constant state);
+        with a pure delay every element but an impact element (the shifted element of
+        :mod:`dfloop.hybrid.constant`; the model keeps ``r0`` and ``load`` to read its results back).
 
     Raises
     ------
     ValueError
-        N has no time model (naming N), or G is not a suitable plant (naming G), or G has a delay and N's output
-        has memory (naming N), or a constant input with a delay, an impact or a sampled element (naming r0).
+        N has no time model (naming N), or G is not a suitable plant (naming G), or G has a delay and N's time
+        model is none of the above (naming N), or a constant input on an impact or (without delay) a sampled
+        element (naming r0).
     """
     if not callable(getattr(N, "time_model", None)):
         raise ValueError(f"N must be a DescribingFunction (with time_model()), got {type(N).__name__}")
@@ -61,25 +69,12 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
     time_scale = 2.0 * math.pi / frequency
     G, delay = split_delay(G)
     constant = {"r0": float(r0), "load": float(load)}
-    if (r0 != 0.0 or load != 0.0) and (delay > 0.0 or not isinstance(tm, (PiecewiseAffine, Smooth))):
+    if (r0 != 0.0 or load != 0.0) and delay == 0.0 and not isinstance(tm, (PiecewiseAffine, Smooth)):
         raise ValueError(f"r0 = {r0!r}, load = {load!r}: a constant input is supported for piecewise-affine and "
-                         f"smooth elements without a pure delay, not for {type(N).__name__} "
-                         f"({type(tm).__name__}{', delay' if delay > 0.0 else ''})")
+                         f"smooth elements (and any but impact elements behind a pure delay), not for "
+                         f"{type(N).__name__} ({type(tm).__name__})")
     if delay > 0.0:
-        A, B, C = plant_matrices(G, what=what)
-        if piecewise_constant(tm):     # relays, quantizer: the exact delay flow
-            return DelayLoop(A, B, C, tm, delay, time_scale)
-        f, kinks = static_map(tm)
-        if f is not None:              # sloped or smooth static elements: the delay differential equation
-            return DDELoop(A, B, C, f, kinks, delay, tm.name)
-        if isinstance(tm, PiecewiseAffine) and tm.n_states == 1:   # memory (backlash): its state in the history
-            return MemoryDDELoop(A, B, C, tm, delay)
-        raise ValueError(f"N: {type(N).__name__} with a pure delay in G is not supported here: the exact delay flow "
-                         "needs an element whose output is constant between switches (Relay with hysteresis and "
-                         "dead zone, Quantizer), static elements with sloped pieces and piecewise-affine elements "
-                         "with a state (backlash) run as a delay differential equation, but impact and sampled "
-                         f"elements ({type(tm).__name__} time model) with a delay are not available (use "
-                         "delayed(G, T).pade(n) for an approximation)")
+        return _delay_model(G, N, tm, delay, time_scale, steps_per_period, what, amplitude=amplitude, **constant)
     if isinstance(tm, Impact):
         A, B, C, D = plant_system(G, what=what)
         model = ImpactLoop(A, B, C, D, tm, amplitude, frequency)
@@ -95,6 +90,43 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
             raise ValueError(f"N: {type(N).__name__}.time_model() returned {type(tm).__name__}, not one of "
                              "PiecewiseAffine, Smooth, Impact, Sampled (dfloop.describing.time_model)")
     model.response = tm.response   # the element's periodic response: the biased start's mean and fundamental
+    return model
+
+
+def _describing(N):
+    """N(F, w) of an element (its amplitude-only value for an element that is not frequency dependent)."""
+    if getattr(N, "frequency_dependent", False):
+        return lambda F, w: complex(N(F, w))
+    return lambda F, w: complex(N(F))
+
+
+def _delay_model(G, N, tm, delay, time_scale, steps_per_period, what, r0, load, amplitude):
+    """The loop model of a plant with a pure delay T > 0; a constant input rides on the shifted element
+    (:mod:`dfloop.hybrid.constant`), and the model keeps r0 and load to read its results back."""
+    if isinstance(tm, Impact) and r0 == 0.0 and load == 0.0:   # masses driven through the delayed plant
+        A, B, C, D = plant_system(G, what=what)
+        model = DelayImpactLoop(A, B, C, D, tm, delay, amplitude, 2.0 * math.pi / time_scale)
+        model.describing = _describing(N)
+        model.r0, model.load = 0.0, 0.0
+        return model
+    A, B, C = plant_matrices(G, what=what)
+    tm = shifted_model(tm, r0, load)
+    if piecewise_constant(tm):     # relays, quantizer: the exact delay flow
+        model = DelayLoop(A, B, C, tm, delay, time_scale)
+    elif isinstance(tm, Sampled):  # an operator: fixed step, the delay line exact
+        model = DelaySampledLoop(A, B, C, tm, delay, time_scale / steps_per_period, steps_per_period)
+    else:
+        f, kinks = static_map(tm)
+        if f is not None:              # sloped or smooth static elements: the delay differential equation
+            model = DDELoop(A, B, C, f, kinks, delay, tm.name)
+        elif isinstance(tm, PiecewiseAffine) and tm.n_states == 1:   # memory (backlash): its state in the history
+            model = MemoryDDELoop(A, B, C, tm, delay)
+        else:
+            raise ValueError(f"N: {type(N).__name__} with a pure delay in G is not supported here: its "
+                             f"{type(tm).__name__} time model is none that the delay engines take (piecewise constant, "
+                             "static, piecewise affine with one state, smooth, impact, or an operator); use "
+                             "delayed(G, T).pade(n) for an approximation")
+    model.r0, model.load = r0, load
     return model
 
 

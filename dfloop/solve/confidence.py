@@ -15,6 +15,7 @@ How well the estimates bracket the true errors from :func:`dfloop.exact_cycle` i
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,6 +57,12 @@ class Confidence:
     bias_error : float or None
         Biased cycles only (:func:`dfloop.solve.bias.biased_confidence`): estimated error of the predicted bias,
         predicted - exact (absolute, input units).
+    table : dict or None
+        Tabulated elements only (the dynamic backlash): the certificate of the table value at the cycle
+        (:func:`dfloop.impact.certificate.table_certificate`: ``status`` "confirmed" or "replaced", the table
+        value, its error estimate and the re-simulated value). The estimated errors then come from the
+        re-simulated value (the table's own error at the cycle); the harmonic-balance correction is not
+        computed for an impact element (its response to a distorted force would need a second simulation).
     """
 
     distortion: float | None
@@ -67,6 +74,7 @@ class Confidence:
     sampled_spread: float | None = None
     samples_per_period: int | None = None
     bias_error: float | None = None
+    table: dict | None = None
 
     @property
     def reliable(self) -> bool:
@@ -94,7 +102,8 @@ class Confidence:
                 "frequency_error": plain(self.frequency_error), "available": self.available,
                 "reliable": self.reliable, "note": self.note, "harmonics": plain(self.harmonics),
                 "sampled_spread": plain(self.sampled_spread), "samples_per_period": self.samples_per_period,
-                "bias_error": plain(self.bias_error)}
+                "bias_error": plain(self.bias_error),
+                "table": None if self.table is None else {k: plain(v) for k, v in self.table.items()}}
 
     def to_csv(self, path) -> None:
         """Write the scalars of :meth:`to_dict` as a one-row CSV file (the harmonics are in ``to_dict``)."""
@@ -103,14 +112,15 @@ class Confidence:
         write_csv(path, [flat(self.to_dict())])
 
     def __repr__(self) -> str:
+        table = "" if self.table is None else f"; table value {self.table['status']} at the cycle"
         if not self.available:
-            return f"Confidence(unavailable: {self.note})"
+            return f"Confidence(unavailable: {self.note}{table})"
         warn = "" if self.reliable else "; distortion above 5 %: the DF is unreliable here, errors may be larger"
         if self.sampled_spread is not None and self.sampled_spread > DISTORTION_LIMIT:
             warn = (f"; {self.samples_per_period} samples per period: the sampled element's DF varies by "
                     f"{100 * self.sampled_spread:.3g} % with the phase of the samples, the DF is questionable here")
         return (f"Confidence(distortion {100 * self.distortion:.3g} %, estimated DF error: amplitude "
-                f"{100 * self.amplitude_error:+.3g} %, frequency {100 * self.frequency_error:+.3g} %{warn})")
+                f"{100 * self.amplitude_error:+.3g} %, frequency {100 * self.frequency_error:+.3g} %{table}{warn})")
 
 
 def _fundamentals(y: np.ndarray, K: int) -> np.ndarray:
@@ -161,7 +171,6 @@ def cycle_confidence(G, N, amplitude: float, frequency: float | None = None, *, 
     """
     from .._checks import in_closed_interval
     from .plant import as_plant
-    from .roots import Residual
 
     N = as_element(N)
     if frequency is None:
@@ -172,7 +181,7 @@ def cycle_confidence(G, N, amplitude: float, frequency: float | None = None, *, 
     S = int(in_closed_interval("samples", samples, 64, 2**20))
     K = int(in_closed_interval("harmonics", harmonics, 2, S // 4))
     if N.frequency_dependent:
-        return unavailable(f"{type(N).__name__} depends on frequency (its harmonic response is not a static map)")
+        return _tabulated_confidence(G, N, A, w, S, K)
     try:
         response = N.time_model(A).response
     except NotImplementedError:
@@ -193,8 +202,7 @@ def cycle_confidence(G, N, amplitude: float, frequency: float | None = None, *, 
     dN = (_fundamentals(response(x2), 1)[0] - Y[0]) / A
 
     # the solver's residual R = 1 + G N and its Jacobian in (ln A, ln w): R_A = dR/d(ln A) / A, R_w likewise
-    R_a, R_v = Residual(plant, N).jacobian(np.array([np.log(A)]), np.array([np.log(w)]))
-    R_A, R_w = complex(R_a[0]) / A, complex(R_v[0]) / w
+    R_A, R_w = _balance_slopes(plant, N, A, w)
     J = np.array([[R_A.real, R_w.real], [R_A.imag, R_w.imag]])
     rhs = -Gk[0] * dN
     try:
@@ -213,3 +221,74 @@ def cycle_confidence(G, N, amplitude: float, frequency: float | None = None, *, 
         note += (f"; discrete time (dt={dt:g} s): {n_samples} samples per period, the sampled DF varies by "
                  f"{100 * spread:.3g} % with the phase of the samples")
     return Confidence(distortion, float(-dA / (A + dA)), float(-dw / (w + dw)), X, True, note, spread, n_samples)
+
+
+def _tabulated_confidence(G, N, A: float, w: float, S: int, K: int) -> Confidence:
+    """The confidence of a cycle of a frequency-dependent element: for a tabulated impact element (the dynamic
+    backlash), the table certified at the cycle, the distortion from the re-simulated steady motion's harmonics
+    and the errors the table's deviation from that motion makes; unavailable (saying why) otherwise."""
+    from ..impact.certificate import table_certificate
+    from .plant import as_plant
+
+    why = f"{type(N).__name__} depends on frequency (its harmonic response is not a static map)"
+    plant = as_plant(G)
+    cert = table_certificate(lambda om: complex(plant(np.array([om]))[0]), N, A, w)
+    if cert is None or cert["direct"] is None:
+        return dataclasses.replace(unavailable(why), table=cert)
+    if not cert["regular"]:
+        return dataclasses.replace(unavailable(f"the re-simulated motion at the cycle is not periodic "
+                                               f"(N there is an average): no harmonics"), table=cert)
+    Y = _impact_harmonics(N.time_model(A), A, w, S, K)
+    if Y is None or abs(Y[0] / A - cert["direct"]) > 1e-6 * abs(cert["direct"]):
+        return dataclasses.replace(unavailable("the steady motion at the cycle could not be reproduced for its "
+                                               "harmonics"), table=cert)
+    Gk, usable = plant_harmonics(plant, w, K)
+    X = -Gk * Y
+    X[0] = A
+    distortion = float(np.sqrt(np.sum(np.abs(X[1:]) ** 2)) / A)
+    dN = cert["direct"] - cert["table"]
+    R_A, R_w = _balance_slopes(plant, N, A, w)
+    J = np.array([[R_A.real, R_w.real], [R_A.imag, R_w.imag]])
+    rhs = -Gk[0] * dN
+    try:
+        dA, dw = np.linalg.solve(J, [rhs.real, rhs.imag])
+    except np.linalg.LinAlgError:
+        return Confidence(distortion, np.inf, np.inf, X, True, "the balance is singular in (A, w) here (a marginal "
+                          "cycle): no error estimate", table=cert)
+    note = (f"{S} samples per period, {K} harmonics of the re-simulated steady motion; errors from the table's "
+            f"deviation from it (table value {cert['status']}), no harmonic-balance correction for an impact "
+            "element" + ("" if usable.all() else f"; G known for {int(usable.sum())} of {K} harmonics"))
+    return Confidence(distortion, float(-dA / (A + dA)), float(-dw / (w + dw)), X, True, note, table=cert)
+
+
+def _balance_slopes(plant, N, A: float, w: float) -> tuple[complex, complex]:
+    """dR/dA and dR/dw of R = 1 + G(jw) N(A, w) at (A, w), from the solver's Jacobian in (ln A, ln w)."""
+    from .roots import Residual
+
+    R_a, R_v = Residual(plant, N).jacobian(np.array([np.log(A)]), np.array([np.log(w)]))
+    return complex(R_a[0]) / A, complex(R_v[0]) / w
+
+
+def _impact_harmonics(tm, F: float, w: float, S: int, K: int) -> np.ndarray | None:
+    """Complex amplitudes Y_k (k = 1..K, y ~ sum Im(Y_k e^{jk w t'})) of the steady output x1 of the impact element
+    driven by F sin(w t') (the DF's phase convention), or None when its motion is not periodic.
+
+    The steady motion's period and transient come from :func:`dfloop.impact.extract.impact_describing_function`;
+    a plain run from rest over that transient and two more periods is sampled (``S`` points per forcing period)
+    over its last period, with x1's constant drift (a free mass) removed."""
+    from ..impact.extract import impact_describing_function
+    from ..impact.kernel import simulate
+
+    r = impact_describing_function(tm.m1, tm.m2, tm.h, tm.restitution, F, w, effects=tm.effects,
+                                   chatter_tol=tm.chatter_tol)
+    if not r.regular:
+        return None
+    P, Tp = int(r.period), 2.0 * np.pi / w
+    t_b = (r.transient_periods + 2 * P) * Tp
+    traj = simulate(tm.m1, tm.m2, tm.h, tm.restitution, F, w, t_b, effects=tm.effects, chatter_tol=tm.chatter_tol)
+    t_a = t_b - P * Tp
+    t = t_a + P * Tp * np.arange(S * P) / (S * P)
+    ends = traj.evaluate(np.array([t_a, t_b]))["x1"]
+    y = traj.evaluate(t)["x1"] - (ends[1] - ends[0]) / (P * Tp) * (t - t_a)
+    Y = 2j * np.fft.rfft(y)[P * np.arange(1, K + 1)] / y.size     # x1 against cos(w t), t from a whole period
+    return Y * (-1j) ** np.arange(1, K + 1)                        # F cos(w t) = F sin(w t'), t' = t + pi / (2 w)
