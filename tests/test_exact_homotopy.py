@@ -2,8 +2,6 @@
 start stalls it can find the orbit, and every orbit it returns is a true one. Truths: an event-located DOP853
 integration of one period from the orbit's start with the element written in the test (tests/loop_reference.py,
 rtol 1e-12), and the orbit Newton finds from the DF prediction itself."""
-import math
-
 import control as ct
 import numpy as np
 import pytest

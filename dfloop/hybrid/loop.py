@@ -354,7 +354,7 @@ class HybridLoop(LoopModel):
     def _uniform(self, mode: int, z0: np.ndarray, first: float, gap: float, count: int) -> np.ndarray:
         """exp(A (first + j gap)) z0, j < count: one exponential to the first sample, then exact steps
         exp(A gap) (cached per mode and gap). :func:`propagate` would step from the segment's start across every
-        scan step (about 1 ms per segment of an order-11 loop; 9 of the 24 s of a globalised search)."""
+        scan step, which dominated the sampling of long runs on high-order loops."""
         A = self.matrices[mode]
         key = (mode, gap)
         E = self._sample_exps.get(key)

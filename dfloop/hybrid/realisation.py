@@ -3,9 +3,9 @@
 python-control realises a transfer function in companion form. For a high-order plant (a Padé chain of order 8
 around a servo: order 12) its states span 20 orders of magnitude on a slow orbit, the output row adds terms 1e11
 times larger than the output, and the relative tolerances of the switch tests (rounding of r . A^k z bounded by
-|r| |A|^k |z|) lose their meaning: the flow then reports a sliding release that does not happen. The exact flows
-of :class:`~dfloop.hybrid.loop.HybridLoop` and :class:`~dfloop.hybrid.smooth.SmoothLoop` therefore run in the
-realisation :func:`conditioned` returns:
+|r| |A|^k |z|) lose their meaning: the flow then reports a sliding release that does not happen. The exact flow
+of :class:`~dfloop.hybrid.loop.HybridLoop` (piecewise-affine elements) therefore runs in the realisation
+:func:`conditioned` returns:
 
 1. real Schur form (orthogonal), then block-diagonalised by Sylvester equations between clusters of eigenvalues
    (eigenvalues within ``CLUSTER`` relative distance stay in one block, so every Sylvester solve is well
@@ -17,8 +17,9 @@ realisation :func:`conditioned` returns:
 
 Plants of order up to ``LOW_ORDER`` (6) keep python-control's realisation: there the companion form is
 accurate, and it keeps the structural zeros of the Markov parameters (C B = 0 ... for a relative degree > 1)
-exact, which a dense realisation holds only to rounding (measured: the relative error of C(jw - A)^-1 B of an
-order-6 lag chain at 100 rad/s, where |G| = 1e-12, is 8e-7 balanced and 3e-17 in companion form).
+exact, which a dense realisation holds only to rounding (``python benchmarks/bench_exact.py --high-order``: the
+relative error of C(jw - A)^-1 B of an order-6 lag chain at 100 rad/s, where |G| = 1e-12, is 2e-5 balanced and
+2e-16 in companion form).
 
 When the balancing is ill-determined (a Hankel singular value at rounding level: a non-minimal plant, or a
 mode too fast to matter, such as a lag at 1e4 times the other poles) the block-diagonal form of step 1 is used,
