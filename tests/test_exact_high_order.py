@@ -89,3 +89,14 @@ def test_verify_cycle_runs_on_the_order_12_backlash_loop_and_says_it_diverges():
     (c,) = df.predict_limit_cycles(G, N)
     v = df.verify_cycle(G, N, c, periods=10)
     assert v.verdict == "unstable" and "diverged" in v.message and "rest" in v.message
+
+
+@pytest.mark.parametrize("name,verdict", [("saturation, pade-8, order 11", "stable"),
+                                          ("dead zone (unstable), pade-8, order 11", "unstable")])
+def test_verify_cycle_agrees_with_the_exact_verdict_on_order_11_loops(name, verdict):
+    G, N, pick = CASES[name]
+    c = df.predict_limit_cycles(G, N)[pick]
+    e = df.exact_cycle(G, N, c)
+    assert e.stable == (verdict == "stable")
+    v = df.verify_cycle(G, N, (e.amplitude, e.frequency), perturbation=0.05, periods=40)
+    assert v.verdict == verdict, v.message
