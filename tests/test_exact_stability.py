@@ -66,7 +66,7 @@ def _distance_to_orbit(ref, pieces, period, s):
     return float(best.fun)
 
 
-LOOPS = _random_loops(7, 8)
+LOOPS = _random_loops(7, 12)
 
 
 @pytest.mark.parametrize("name,G,N", LOOPS, ids=[n for n, _, _ in LOOPS])
