@@ -4,8 +4,9 @@ For python-control's own small problems and dense 200 x 500 windows (the problem
 bench_solver_vs_control.py, same windows and grid sizes): python-control's describing_function_response, dfloop's
 Python path (DFLOOP_COMPILED=0) and the compiled path; and the *floor*: evaluating G and N once on the initial
 grid with numpy (G by python-control's frequency response, N by the element, one outer product), the least any
-grid solver spends. Then a batch of sampled servo loops (examples/monte_carlo_servo.py) through predict_many in
-this process: microseconds per loop per core, its floor (G and N once on each loop's 64 x 256 grid), and the
+grid solver spends; and whether the compiled driver answered the call or left it to the Python driver (and
+why). Then a batch of sampled servo loops (examples/monte_carlo_servo.py) through predict_many in this process
+(chunks of loops through the compiled driver in parallel over the cores): microseconds per loop per core, its floor (G and N once on each loop's 64 x 256 grid), and the
 peak traced memory of the streamed batch (tracemalloc, results kept as one float per loop).
 
 Run: python benchmarks/bench_compiled.py [--batch N] [--write]   (default N = 2000 loops; --write also writes
@@ -28,7 +29,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).parent))
 sys.path.insert(0, str(pathlib.Path(__file__).parents[1] / "examples"))
 
 import dfloop as df  # noqa: E402
-from bench_solver_vs_control import PROBLEMS  # noqa: E402
+from bench_solver_vs_control import PROBLEMS, floor  # noqa: E402
 from dfloop.batch import predict_many  # noqa: E402
 from monte_carlo_servo import sample, stable_amplitude  # noqa: E402
 
@@ -46,43 +47,20 @@ def best(fn, repeat: int):
     return t_best, out
 
 
-def floor(G, N, amps, omega) -> float:
-    """G and N once on the grid with numpy, and their product: the cost below any grid solver."""
-    def once():
-        g = ct.frequency_response(G, omega).complex if hasattr(ct, "frequency_response") else G(1j * omega)
-        return np.asarray(N(amps))[:, None] * np.ravel(g)[None, :]
-    return best(once, 20)[0]
+def driver_status(G, N, amps, omega) -> str:
+    """Whether the compiled driver answered the call itself, or why it left it to the Python driver."""
+    from dfloop.solve.compiled import driver_parts, run_driver
+    from dfloop.solve.compiled.driver import FALLBACK
 
-
-PHASES = {"plant (tf to poles, zeros)": "plant.py:as_plant", "G's grid": "grid.py:resolve_plant",
-          "N's grid": "grid.py:resolve_sampled", "candidate cells": "_kernels.py:candidate_cells",
-          "windings": "roots.py:grid_windings", "refinement": "roots.py:refine",
-          "tangent seeds": "_kernels.py:tangent_seeds", "continuum check": "roots.py:check_continuum",
-          "merge": "roots.py:merge", "stability and result": "predict.py:_build"}
-
-
-def phases(call) -> dict:
-    """Cumulative share of each solver phase in ``call`` (by the function that implements it)."""
-    import cProfile
-    import pstats
-
-    prof = cProfile.Profile()
-    prof.enable()
-    for _ in range(30):
-        call()
-    prof.disable()
-    stats = pstats.Stats(prof).stats
-    total = max(ct_ for (_, _, fn), (_, _, _, ct_, _) in stats.items() if fn == "predict_limit_cycles")
-    out = {}
-    for label, where in PHASES.items():
-        file, fn_name = where.split(":")
-        out[label] = sum(ct_ for (path, _, fn), (_, _, _, ct_, _) in stats.items()
-                         if fn == fn_name and path.endswith(file)) / total
-    return out
+    parts = driver_parts(G, df.as_element(N))
+    if parts is None:
+        return "n/a"
+    status = int(run_driver(*parts, omega[0], omega[-1], amps[0], amps[-1], amps.size, omega.size, 1e-10, 1e-4)[0])
+    return "answered" if status == 0 else f"fallback: {FALLBACK[status]}"
 
 
 def solve(G, N, amps, omega, compiled: bool):
-    os.environ["DFLOOP_COMPILED"] = "1" if compiled else "0"
+    os.environ["DFLOOP_COMPILED"] = "driver" if compiled else "0"
     return df.predict_limit_cycles(G, N, amplitude=(amps[0], amps[-1]), omega=(omega[0], omega[-1]),
                                    grid=(amps.size, omega.size))
 
@@ -90,7 +68,7 @@ def solve(G, N, amps, omega, compiled: bool):
 def main() -> str:
     warnings.simplefilter("ignore")
     rows = ["| problem | grid | python-control [ms] | Python path [ms] | compiled [ms] | floor [ms] | "
-            "compiled vs python-control | compiled / floor | same answers |", "|---|---|---|---|---|---|---|---|---|"]
+            "compiled vs python-control | compiled / floor | same answers | driver |", "|---|---|---|---|---|---|---|---|---|---|"]
     for name, G, F, N, amps, omega in PROBLEMS:
         t_pc, _ = best(lambda: ct.describing_function_response(G, F, amps, omega), 2)
         t_py, r_py = best(lambda: solve(G, N, amps, omega, False), 3)
@@ -101,13 +79,9 @@ def main() -> str:
                                              abs(a.frequency / b.frequency - 1) <= 1e-12 and a.stability == b.stability
                                              for a, b in zip(r_py, r_c))
         rows.append(f"| {name} | {amps.size} x {omega.size} | {t_pc * 1e3:.2f} | {t_py * 1e3:.2f} | {t_c * 1e3:.2f} | "
-                    f"{t_f * 1e3:.3f} | {t_pc / t_c:.0f}x | {t_c / t_f:.0f}x | {'yes' if same else 'NO'} |")
-    rows += ["", "Where a compiled call spends its time (cProfile, 30 calls each, cumulative share of the call):", "",
-             "| problem | " + " | ".join(PHASES) + " |", "|---|" + "---|" * len(PHASES)]
-    for name, G, F, N, amps, omega in (PROBLEMS[1], PROBLEMS[4]):
-        shares = phases(lambda: solve(G, N, amps, omega, True))
-        rows.append(f"| {name} | " + " | ".join(f"{100 * shares[p]:.0f} %" for p in PHASES) + " |")
-    os.environ["DFLOOP_COMPILED"] = "1"
+                    f"{t_f * 1e3:.3f} | {t_pc / t_c:.0f}x | {t_c / t_f:.0f}x | {'yes' if same else 'NO'} | "
+                    f"{driver_status(G, N, amps, omega)} |")
+    os.environ["DFLOOP_COMPILED"] = "driver"
     list(predict_many(sample(20, 0), keep=stable_amplitude, progress=False))  # compiled and warm
     t0, c0 = time.perf_counter(), time.process_time()
     amps = predict_many(sample(BATCH, 1), keep=stable_amplitude, progress=False)
@@ -117,6 +91,8 @@ def main() -> str:
     predict_many(sample(n_mem, 1), keep=stable_amplitude, progress=False)
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
+    import resource
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     # floor of one batch loop: G and N once on its 64 x 256 initial grid
     G, N = next(sample(1, 1))
     plant = df.solve.as_plant(G)
@@ -127,11 +103,13 @@ def main() -> str:
     t_floor = best(once, 50)[0]
     p = float(np.mean(np.isfinite(amps)))
     rows += ["", f"Batch: {BATCH} sampled servo loops (examples/monte_carlo_servo.py: K e^(-s tau)/(s(0.5s+1)) with "
-             f"backlash) through predict_many(keep=...) in this process: {cpu / BATCH * 1e6:.0f} us "
+             f"backlash) through predict_many(keep=...) in this process (the compiled driver on chunks of 256 loops, "
+             f"in parallel over the cores): {cpu / BATCH * 1e6:.0f} us "
              f"CPU per loop per core ({wall / BATCH * 1e6:.0f} us wall); floor (G and N once on a 64 x 256 grid) "
              f"{t_floor * 1e6:.0f} us, ratio {cpu / BATCH / t_floor:.0f}x; peak traced memory "
              f"{peak / 2**20:.1f} MiB for "
-             f"{n_mem} loops (streamed: independent of the number of loops but for one float kept per loop); "
+             f"{n_mem} loops (streamed in chunks of 256: independent of the number of loops but for one float kept "
+             f"per loop); peak resident memory of the whole benchmark process {rss:.0f} MiB; "
              f"P(stable cycle) = {p:.3f}."]
     return "\n".join(rows)
 

@@ -25,6 +25,7 @@ from typing import Any, Callable, Iterable, Sequence
 from . import _checks
 from .progress import progress_bar
 from .solve import predict_limit_cycles
+from .solve.predict import predict_chunk
 from .solve.compiled import prepare as prepare_compiled
 
 __all__ = ["predict_many", "run_batch", "solver_options"]
@@ -80,11 +81,15 @@ def run_batch(fn: Callable[[Any], Any], items: Iterable, *, executor: cf.Executo
     list
         ``fn(item)`` for each item, in the order of ``items``.
     """
+    return _batch(partial(_run_chunk, fn, label=label), items, executor, chunksize, progress, label, timeout, 1)
+
+
+def _batch(chunk_fn: Callable, items: Iterable, executor, chunksize, progress, label: str, timeout, local: int) -> list:
+    """:func:`run_batch` with a function of whole chunks, ``chunk_fn(start, chunk) -> list`` (arguments checked)."""
     try:
         items = list(items)
     except TypeError:
         raise ValueError(f"items must be an iterable of work items; got {_checks.show(items)}") from None
-    n = len(items)
     if chunksize is not None:
         chunksize = _checks.integer_at_least("chunksize", chunksize, 1)
     progress = _checks.flag("progress", progress, none=True)
@@ -94,16 +99,25 @@ def run_batch(fn: Callable[[Any], Any], items: Iterable, *, executor: cf.Executo
     if executor is not None and not callable(getattr(executor, "submit", None)):
         raise ValueError(f"executor must be a concurrent.futures.Executor (with submit); got "
                          f"{type(executor).__name__}")
+    return _run_chunks(chunk_fn, items, executor, chunksize, progress, label, timeout, local)
+
+
+def _run_chunks(chunk_fn: Callable, items: list, executor, chunksize, progress, label: str, timeout,
+                local: int) -> list:
+    """``chunk_fn(start, items[start:start + c])`` over the chunks of ``items``, on ``executor`` (chunks of
+    ``chunksize``, default about 64 tasks) or in this process (chunks of ``local`` items), results in item order."""
+    n = len(items)
     with progress_bar(label, n, enabled=progress) as bar:
         if executor is None:
             out = []
-            for i, item in enumerate(items):
-                out.extend(_run_chunk(fn, i, [item], label))
-                bar.update(1)
+            c = local if chunksize is None or local == 1 else chunksize
+            for s in range(0, n, c):
+                out.extend(chunk_fn(s, items[s:s + c]))
+                bar.update(min(c, n - s))
             return out
         c = _chunk_size(chunksize, n)
         starts = range(0, n, c)
-        futures = {executor.submit(_run_chunk, fn, s, items[s:s + c], label): s for s in starts}
+        futures = {executor.submit(chunk_fn, s, items[s:s + c]): s for s in starts}
         results: dict[int, list] = {}
         try:
             for fut in cf.as_completed(futures, timeout=timeout):
@@ -135,31 +149,59 @@ def solver_options(options: dict, exclude: tuple[str, ...] = ()) -> dict:
     return options
 
 
-def _predict_pair(loop, options: dict, keep: Callable | None = None):
-    if not (isinstance(loop, (tuple, list)) and len(loop) == 2):
-        raise ValueError(f"a loop must be a pair (G, N); got {type(loop).__name__}")
-    G, N = loop
+def _labelled(label: str, index: int, exc: BaseException) -> Exception:
+    """The exception a batch raises for a failed item: ValueError or RuntimeError naming its index."""
+    if isinstance(exc, ValueError):
+        return ValueError(f"{label}, item {index}: {exc}")
+    return RuntimeError(f"{label}, item {index}: {type(exc).__name__}: {exc}")
+
+
+def _predict_loops(start: int, chunk: Sequence, options: dict, keep: Callable | None = None,
+                   label: str = "predict_many") -> list:
+    """``[keep(predict_limit_cycles(G, N, **options)) for G, N in chunk]``, the loops the compiled driver applies to
+    in one parallel call of it (:func:`dfloop.solve.predict.predict_chunk`: the same results); a failure names
+    the loop's index in the whole batch."""
+    for i, loop in enumerate(chunk):
+        if not (isinstance(loop, (tuple, list)) and len(loop) == 2):
+            raise ValueError(f"{label}, item {start + i}: a loop must be a pair (G, N); got {type(loop).__name__}")
     prepare_compiled()  # a batch amortises the one-time compile of the solver's kernels (announced)
-    result = predict_limit_cycles(G, N, **options)
-    return result if keep is None else keep(result)
+
+    def failed(k, exc):
+        raise _labelled(label, start + k, exc) from exc
+
+    results = predict_chunk(chunk, errors=failed, **options)
+    if keep is None:
+        return results
+    out = []
+    for k, r in enumerate(results):
+        try:
+            out.append(keep(r))
+        except Exception as exc:  # noqa: BLE001 - re-raised with the index; the type is named in the text
+            raise _labelled(label, start + k, exc) from exc
+    return out
 
 
-_STREAM_CHUNK = 256  # loops per task when their number is not known in advance
+_STREAM_CHUNK = 256  # loops per task (per compiled driver call) of a stream, and per call in this process
 _IN_FLIGHT = 8  # chunks submitted ahead of the one awaited (bounds the memory of a streamed batch)
 
 
-def _stream(fn: Callable, items: Iterable, executor, chunksize: int, progress, label: str, timeout, total):
-    """``[fn(x) for x in items]`` consuming ``items`` lazily: at most ``_IN_FLIGHT`` chunks are held at once,
-    so a generator of 10^5 loops never exists as a list (only the kept results do)."""
+def _stream(chunk_fn: Callable, items: Iterable, executor, chunksize: int, progress, label: str, timeout, total):
+    """``chunk_fn(start, chunk)`` over chunks of ``chunksize`` items read lazily from ``items``: at most
+    ``_IN_FLIGHT`` chunks are held at once (one in this process), so a generator of 10^5 loops never exists as a
+    list (only the kept results do)."""
     it = iter(items)
     out: list = []
     deadline = None if timeout is None else time.monotonic() + timeout
     with progress_bar(label, total, enabled=progress) as bar:
         if executor is None:
-            for i, item in enumerate(it):
-                out.extend(_run_chunk(fn, i, [item], label))
-                bar.update(1)
-            return out
+            start = 0
+            while True:
+                chunk = list(itertools.islice(it, chunksize))
+                if not chunk:
+                    return out
+                out.extend(chunk_fn(start, chunk))
+                start += len(chunk)
+                bar.update(len(chunk))
         pending: collections.deque = collections.deque()
         start = 0
 
@@ -167,7 +209,7 @@ def _stream(fn: Callable, items: Iterable, executor, chunksize: int, progress, l
             nonlocal start
             chunk = list(itertools.islice(it, chunksize))
             if chunk:
-                pending.append(executor.submit(_run_chunk, fn, start, chunk, label))
+                pending.append(executor.submit(chunk_fn, start, chunk))
                 start += len(chunk)
             return bool(chunk)
 
@@ -234,7 +276,7 @@ def predict_many(loops: Iterable, *, executor: cf.Executor | None = None, chunks
     solver_options(options)
     if keep is not None and not callable(keep):
         raise ValueError(f"keep must be a callable applied to each result, or None; got {_checks.show(keep)}")
-    fn = partial(_predict_pair, options=options, keep=keep)
+    chunk_fn = partial(_predict_loops, options=options, keep=keep, label="predict_many")
     if not isinstance(loops, (list, tuple)):
         try:
             iter(loops)
@@ -248,10 +290,9 @@ def predict_many(loops: Iterable, *, executor: cf.Executor | None = None, chunks
             total = _checks.integer_at_least("total", total, 0)
         elif hasattr(loops, "__len__"):
             total = len(loops)
-        return _stream(fn, loops, executor, size, _checks.flag("progress", progress, none=True), "predict_many",
-                       timeout, total)
+        return _stream(chunk_fn, loops, executor, size, _checks.flag("progress", progress, none=True),
+                       "predict_many", timeout, total)
     for i, loop in enumerate(loops):
         if not (isinstance(loop, (tuple, list)) and len(loop) == 2):
             raise ValueError(f"loops[{i}] must be a pair (G, N); got {type(loop).__name__}")
-    return run_batch(fn, loops, executor=executor, chunksize=chunksize, progress=progress, label="predict_many",
-                     timeout=timeout)
+    return _batch(chunk_fn, loops, executor, chunksize, progress, "predict_many", timeout, _STREAM_CHUNK)

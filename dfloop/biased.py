@@ -25,7 +25,7 @@ def biased_cycles(G, element, *, r0: float = 0.0, load: float = 0.0, amplitude, 
     Parameters
     ----------
     G : python-control tf or ss
-        The plant (strictly proper; no delay when ``exact``).
+        The plant (strictly proper), or ``delayed(G, T)`` (the exact orbit then runs on the delay flow).
     element : DescribingFunction, DualInputDF or callable
         As for :func:`~dfloop.solve.bias.predict_biased_cycles`; the exact orbit runs the element's time model
         (a static map given as a callable or :meth:`DualInputDF.piecewise_affine` runs as a

@@ -20,6 +20,8 @@ from ._blas import single_threaded_blas
 from .describing.interop import as_element
 from .harmonics import SteadyState, steady_state
 from .hybrid import LoopSimulation, delay_simulation, loop_model, simulate, start_on_prediction
+from .hybrid.discrete import is_discrete
+from .hybrid.discrete_run import discrete_simulation
 
 __all__ = ["LoopSimulation", "simulate_loop", "Verification", "verify_cycle"]
 
@@ -88,6 +90,8 @@ def simulate_loop(G, N, amplitude: float, frequency: float, *, periods: float = 
     from ._checks import finite
 
     r0, load, bias = finite("r0", r0), finite("load", load), finite("bias", bias)
+    if is_discrete(G):   # a digital loop (with or without a delay behind the hold) is a map: run it exactly
+        return discrete_simulation(G, N, A0, w, periods, r0=r0, load=load, bias=bias, diverge=_DIVERGED)
     loop = loop_model(G, N, A0 + abs(bias), w, steps_per_period=steps_per_period, r0=r0, load=load)
     if loop.delay > 0:   # a pure delay: the exact delay flow from the predicted orbit's switches
         return delay_simulation(loop, A0, w, periods, steps_per_period, diverge=_DIVERGED, bias=bias)

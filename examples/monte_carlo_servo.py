@@ -9,9 +9,11 @@ Prints the probability of a stable limit cycle (with its 95 % binomial interval)
 the cycle amplitudes at the backlash input (mrad).
 
 Run: python examples/monte_carlo_servo.py [--samples N] [--workers W] [--seed S] [--out FILE]
-(default 2000 samples in this process; ``--samples 100000 --workers 2`` is the full study, about 6 ms of CPU per
-loop (benchmarks/bench_compiled.py); it gave P = 0.632 +- 0.003 in 954 s on a shared 2-core machine; the figure
-goes to FILE, default monte_carlo_servo.png in the system's temporary directory)
+(default 2000 samples in this process, where the compiled driver already solves each chunk of 256 loops in
+parallel over the cores; ``--samples 100000`` is the full study, about 1 ms of CPU per loop
+(benchmarks/bench_compiled.py, whose batch is these loops: P(stable cycle) = 0.632); ``--workers W`` spreads the
+chunks over W processes instead, e.g. one per machine of a cluster; the figure goes to FILE, default
+monte_carlo_servo.png in the system's temporary directory)
 """
 from __future__ import annotations
 
@@ -69,8 +71,8 @@ def main(samples: int, workers: int, seed: int, out: pathlib.Path) -> None:
     hit = np.isfinite(amps)
     p = hit.mean()
     half = 1.96 * math.sqrt(max(p * (1 - p), 1e-12) / samples)
-    print(f"{samples} sampled loops in {wall:.1f} s ({wall / samples * 1e3 * workers:.2f} ms per loop per core, "
-          f"{workers} worker(s))")
+    print(f"{samples} sampled loops in {wall:.1f} s of wall time ({wall / samples * 1e3:.2f} ms per loop, "
+          f"{workers} worker process(es), each parallel over its cores)")
     print(f"P(stable limit cycle) = {p:.4f} +- {half:.4f} (95 %)")
     if hit.any():
         q = np.percentile(amps[hit], [5, 50, 95])

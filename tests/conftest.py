@@ -9,3 +9,7 @@ import os
 
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
+
+# the compiled driver on every call, whatever the state of numba's cache: results must not depend on which
+# test ran first (the default mode runs it only once it is compiled; dfloop.solve.compiled.driver_wanted)
+os.environ.setdefault("DFLOOP_COMPILED", "driver")

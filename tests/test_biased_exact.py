@@ -72,7 +72,9 @@ def _tsypkin(G, drive, levels, r0, guess):
             eq.append(float(np.dot(u, unknowns[:u.size])))
         return eq
 
-    sol = fsolve(equations, guess, xtol=1e-13)
+    sol, info, status, message = fsolve(equations, guess, xtol=1e-13, full_output=True)
+    if status != 1:    # stalled short of xtol (the integrator's state starts at a rough 0): polish from there
+        sol = fsolve(equations, sol, xtol=1e-13)
     assert max(abs(v) for v in equations(sol)) < 1e-11
     y, y_mean, T = orbit(sol)
     return sol[:u.size], r0 - y_mean, T

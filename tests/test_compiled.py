@@ -1,7 +1,8 @@
 """The compiled pipeline (dfloop.solve.compiled) against the Python reference path (DFLOOP_COMPILED=0).
 
-Both paths run the same driver; the compiled one evaluates G, N and their slopes and refines the roots in numba
-kernels. The truth here is the Python path itself: on the textbook loops and on 160 random loops (plants of order
+The compiled path runs the whole prediction in the compiled driver (solve/compiled/driver.py) where it applies and
+finishes, and otherwise the Python driver with G, N, their slopes and the refinement in numba kernels. The truth
+here is the Python path itself: on the textbook loops and on 160 random loops (plants of order
 1-7 with dampings down to 1e-6, unstable poles, integrators, pure delays; every element kind with a compiled
 form) both must find the same number of cycles, at the same amplitudes and frequencies to 1e-12 (relative; or
 within the roots' own position uncertainty where rounding leaves more), with the same labels, on the same grid,
@@ -18,7 +19,7 @@ import pytest
 import dfloop as df
 from dfloop.describing.numeric import NumericDF
 from dfloop.solve import as_plant
-from dfloop.solve.compiled import CompiledResidual, residual_for
+from dfloop.solve.compiled import CompiledResidual, driver_parts, residual_for, run_driver
 from dfloop.solve.compiled import kernels as K
 from dfloop.solve.delay import delayed
 from dfloop.solve.roots import Residual
@@ -46,33 +47,37 @@ KINDS = ["saturation", "deadzone", "relay", "relay_hyst", "backlash", "cubic", "
 @pytest.fixture(autouse=True)
 def compiled_path(monkeypatch):
     """The compiled path wherever it applies (compiling its kernels first if this is a fresh install)."""
-    monkeypatch.setenv("DFLOOP_COMPILED", "1")
+    monkeypatch.setenv("DFLOOP_COMPILED", "driver")
 
 
-def _solve(G, N, monkeypatch, compiled: bool):
-    monkeypatch.setenv("DFLOOP_COMPILED", "1" if compiled else "0")
+def _solve(G, N, monkeypatch, compiled: bool, **options):
+    monkeypatch.setenv("DFLOOP_COMPILED", "driver" if compiled else "0")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            return df.predict_limit_cycles(G, N)
+            return df.predict_limit_cycles(G, N, **options)
         except (ValueError, RuntimeError) as exc:
             return type(exc)
 
 
-def _same(G, N, monkeypatch) -> int:
-    ref, got = _solve(G, N, monkeypatch, False), _solve(G, N, monkeypatch, True)
+def _same(G, N, monkeypatch, **options) -> int:
+    ref, got = _solve(G, N, monkeypatch, False, **options), _solve(G, N, monkeypatch, True, **options)
     if isinstance(ref, type):
         assert got is ref
         return 0
     assert len(got) == len(ref), (G, N, ref, got)
     assert got.grid_report.shape == ref.grid_report.shape  # the same grid, chosen from G and N
     assert got.grid_report.candidate_cells == ref.grid_report.candidate_cells
+    assert got.window_source == ref.window_source
+    assert np.allclose(got.amplitude_window + got.omega_window, ref.amplitude_window + ref.omega_window,
+                       rtol=1e-12, atol=0)
     for c, r in zip(got, ref):
         # 1e-12, or the roots' own position uncertainty where rounding leaves more (roots.merge's rule for "the
         # same root": a root at the rounding floor of its residual, A ~ 1e7 on a saturation, moves by 3e-11)
         near = 1e-12 + _radius(G, N, r) + _radius(G, N, c)
         assert abs(np.log(c.amplitude / r.amplitude)) <= near and abs(np.log(c.frequency / r.frequency)) <= near
         assert c.stability == r.stability
+        assert c.on_edge == r.on_edge and c.valid == r.valid
     return len(ref)
 
 
@@ -150,3 +155,104 @@ def test_the_compiled_path_is_the_default_and_the_python_one_a_switch(monkeypatc
     assert isinstance(residual_for(plant, df.Relay()), CompiledResidual)  # whatever numba's cache holds
     monkeypatch.setenv("DFLOOP_COMPILED", "0")
     assert type(residual_for(plant, df.Relay())) is Residual
+
+
+def _status(G, N, **windows) -> int:
+    """The compiled driver's status on the loop (0: it answered; otherwise why it left it to the Python driver)."""
+    parts = driver_parts(G, N)
+    assert parts is not None
+    w = [windows.get(k, np.nan) for k in ("w_lo", "w_hi", "A_lo", "A_hi")]
+    return int(run_driver(*parts, *w, 64, 256, 1e-10, 1e-4)[0])
+
+
+def test_the_driver_answers_the_common_case_and_agrees_with_the_python_path(monkeypatch):
+    answered = [G_N for G_N in TEXTBOOK if _status(*G_N) == 0]
+    assert len(answered) >= 11  # the driver, not the fallback, is what the comparisons above measure
+    # given windows (the python-control problems) and another grid
+    for G, N in answered[:6]:
+        _same(G, N, monkeypatch, omega=(0.05, 30.0), amplitude=(0.2, 8.0), grid=(40, 120))
+
+
+def test_fallback_cases_give_the_python_answer(monkeypatch):
+    """Loops the driver leaves to the Python driver (here: N's limits leave no amplitude for a root, a token
+    window; a plant that is a callable; an element without a compiled form) get exactly the Python answer."""
+    token = [(ct.tf([2.50869721], [1.0, 2.63526412]), df.DeadZone(8.114730904806219, 0.30362030994322053)),
+             (ct.tf([0.2947], [1, 1.547]), df.DeadZone(0.906166742393567, 0.11706236171721078))]
+    for G, N in token:
+        assert _status(G, N) == 9
+        ref, got = _solve(G, N, monkeypatch, False), _solve(G, N, monkeypatch, True)
+        assert got.amplitude_window == ref.amplitude_window and got.window_source == ref.window_source
+        assert len(got) == len(ref) == 0
+    # a cell that winds twice: two roots in one grid cell (a coarse grid over a double crossing)
+    G, N = ct.tf([1], [1, 2, 2, 1]) * ct.tf(*ct.pade(5, 4)) * 4, df.Backlash(h=1.0)
+    status = _status(G, N)
+    ref, got = _solve(G, N, monkeypatch, False), _solve(G, N, monkeypatch, True)
+    assert [(c.amplitude, c.frequency, c.stability) for c in got] == pytest.approx(
+        [(c.amplitude, c.frequency, c.stability) for c in ref], rel=1e-12) if status else True
+    assert driver_parts(lambda w: 1 / (1j * w + 1), df.Relay()) is None
+    assert driver_parts(ct.tf([1], [1, 1]), NumericDF(lambda x: np.clip(x, -1, 1))) is None
+
+
+def test_driver_constants_are_the_python_drivers():
+    from dfloop.solve import grid, predict, roots
+    from dfloop.solve.compiled.driver import CONSTANTS as C
+
+    assert (C["STEP"], C["GOLDEN"], C["MONOTONE_WIDTH"], C["MAX_ROUNDS"], C["MIN_WIDTH"], C["MAX_POINTS"]) == (
+        grid.STEP, grid._GOLDEN, grid._MONOTONE_WIDTH, grid._MAX_ROUNDS, grid._MIN_WIDTH, grid._MAX_POINTS)
+    assert (C["SPLIT_PHASE"], C["MAX_EDGE_DEPTH"], C["MAX_SEGMENTS"], C["JUMP_LENGTH"], C["JUMP_SIZE"],
+            C["JUMP_KEEP"], C["TANGENT_THRESHOLD"], C["MAX_TANGENT_SEEDS"], C["MERGE_RADIUS"], C["JUMP_DOMINANCE"],
+            C["DEGENERATE_SIN"]) == (roots._SPLIT_PHASE, roots._MAX_EDGE_DEPTH, roots._MAX_SEGMENTS,
+                                     roots._JUMP_LENGTH, roots._JUMP_SIZE, roots._JUMP_KEEP, roots._TANGENT_THRESHOLD,
+                                     roots._MAX_TANGENT_SEEDS, roots._MERGE_RADIUS, roots._JUMP_DOMINANCE,
+                                     roots._DEGENERATE_SIN)
+    from dfloop.solve import plant
+
+    assert C["DECADES"] == plant._DECADES_BEYOND_FEATURES
+    from dfloop.solve.compiled import driver
+
+    assert np.array_equal(predict._REACH_GRID, driver._REACH)
+
+
+def test_driver_roots_are_numpys():
+    """The driver's poles and zeros are the Plant's (np.roots), bit for bit, also where it skips numpy's call."""
+    from dfloop.solve.compiled.parts import _roots
+
+    rng = np.random.default_rng(7)
+    for _ in range(500):
+        n = int(rng.integers(1, 5))
+        p = np.concatenate([rng.normal(size=n) * 10.0 ** rng.integers(-5, 5, n), np.zeros(rng.integers(0, 3))])
+        p[0] = p[0] or 1.0
+        assert np.array_equal(np.roots(p), _roots(p))
+
+
+def test_a_fresh_install_does_not_make_a_single_call_wait_for_the_driver(monkeypatch, capsys):
+    """Default mode on an installation whose driver is not compiled (numba's cache empty: simulated): the call runs
+    the Python driver on the compiled residual, with the driver's answer (1e-12), says once how to compile the
+    driver, and compiles nothing of it; once the driver is ready, calls use it."""
+    import dfloop.progress as progress
+    import dfloop.solve.compiled.residual as residual
+    import dfloop.solve.predict as predict
+
+    G, N = ct.tf([4], [1, 2, 1, 0]), df.Backlash(h=0.5)
+    monkeypatch.setenv("DFLOOP_COMPILED", "driver")
+    ref = df.predict_limit_cycles(G, N)
+    monkeypatch.setenv("DFLOOP_COMPILED", "1")
+    monkeypatch.setenv("DFLOOP_PROGRESS", "1")
+    monkeypatch.setattr(residual, "_DRIVER_READY", [])
+    monkeypatch.setattr(residual, "_DRIVER_HINTED", [])
+    monkeypatch.setattr(progress, "compile_pending", lambda *d: True)
+
+    def no_driver(*args):
+        raise AssertionError("the driver ran on a fresh install")
+
+    monkeypatch.setattr(predict, "run_driver", no_driver)
+    got = [df.predict_limit_cycles(G, N) for _ in range(2)]
+    hint = capsys.readouterr().err
+    assert hint.count("the compiled solver driver is not compiled") == 1        # said once, not per call
+    for r in got:
+        assert [c.stability for c in r] == [c.stability for c in ref] and len(ref) >= 1
+        assert [x for c in r for x in (c.amplitude, c.frequency)] == pytest.approx(
+            [x for c in ref for x in (c.amplitude, c.frequency)], rel=1e-12)
+    assert not residual.driver_wanted()
+    monkeypatch.setattr(progress, "compile_pending", lambda *d: False)     # compiled (dfloop warmup, a batch)
+    assert residual.driver_wanted() and residual._DRIVER_READY

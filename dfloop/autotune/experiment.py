@@ -159,9 +159,11 @@ def _biased_prediction(plant, relay: Relay, bias: float, symmetric: LimitCycle, 
 
 def process_model(G, delay: float = 0.0) -> ProcessModel:
     """The :class:`ProcessModel` K e^{-Ls} / prod (T_i s + 1) of a continuous first- or second-order tf/ss G
-    without zeros and with real stable poles (ValueError otherwise)."""
+    without zeros and with real stable poles (ValueError otherwise); a ``delayed(G, T)`` adds its T to ``delay``."""
     import control as ct
 
+    if isinstance(G, DelayedSystem):
+        G, delay = G.system, G.delay + delay
     if not isinstance(G, (ct.TransferFunction, ct.StateSpace)) or not G.isctime():
         raise ValueError(f"G must be a continuous first- or second-order tf K/((T1 s + 1)(T2 s + 1)) here; got "
                          f"{type(G).__name__}")

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..solve.delay import DelayedSystem
 from .models import ProcessModel
 
 __all__ = ["Tuning", "tune", "closed_loop_check", "RULES"]
@@ -125,7 +126,8 @@ def closed_loop_check(controller, G, *, delay: float = 0.0, t_end: float | None 
     A delay is replaced by a 12th-order Pade approximation. Returns ``gain_margin``, ``phase_margin`` (deg),
     ``Ms`` (max |1 / (1 + loop)| over 1e-4..1e3 rad/s divided by the loop's crossover scale: a 4000-point log grid),
     ``stable`` (all closed-loop poles in the left half plane), ``overshoot`` (fraction) and ``final_value`` of the
-    step response over [0, ``t_end``] s (default 100 s). G may be a :class:`ProcessModel` (its delay is used).
+    step response over [0, ``t_end``] s (default 100 s). G may be a :class:`ProcessModel` (its delay is used) or a
+    ``delayed(G, T)`` (T is added to ``delay``).
     """
     import control as ct
 
@@ -133,6 +135,8 @@ def closed_loop_check(controller, G, *, delay: float = 0.0, t_end: float | None 
 
     if isinstance(G, ProcessModel):
         G, delay = G.tf(), G.L
+    if isinstance(G, DelayedSystem):   # delayed(G, T): its delay joins ``delay``
+        G, delay = G.system, G.delay + delay
     delay = nonnegative("delay", delay)
     loop = controller * G
     if delay > 0:

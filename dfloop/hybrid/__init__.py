@@ -14,8 +14,23 @@ that time model into a loop model:
   switches of the delay line, so it has its own orbit finder and run (:func:`delay_orbit`,
   :func:`delay_simulation`); ``delay`` > 0 says so (0 for every other loop model);
 - a plant with a pure delay and another static element (sloped pieces or smooth) -> :class:`DDELoop`: the delay
-  differential equation, discretised (4th-order periodic method of steps, :mod:`dfloop.hybrid.dde`), served by
-  the same two functions.
+  differential equation, discretised (4th-order periodic method of steps, :mod:`dfloop.hybrid.dde`);
+- a plant with a pure delay and an element with memory (backlash) ->
+  :class:`~dfloop.hybrid.dde_memory.MemoryDDELoop`: the delay equation with the element's state in the history,
+  its switches located on it (:mod:`dfloop.hybrid.dde_memory`);
+- a plant with a pure delay and an impact element -> :class:`~dfloop.hybrid.delay_impact.DelayImpactLoop`: a
+  method of steps on the impact engine (:mod:`dfloop.hybrid.delay_impact`);
+- a plant with a pure delay and an element known only through an operator ->
+  :class:`~dfloop.hybrid.delay_sampled.DelaySampledLoop`: fixed step with the delay line exact (not exact; no
+  orbit finder, :mod:`dfloop.hybrid.delay_sampled`).
+
+  The delay loops are served by the same two functions, :func:`delay_orbit` and :func:`delay_simulation`. A
+  constant input rides on the shifted element (:mod:`dfloop.hybrid.constant`), so every delay engine but the
+  impact one takes it unchanged.
+
+A digital loop (a discrete-time plant) is a map, not a flow: :mod:`dfloop.hybrid.discrete` finds its orbits, and
+:func:`dfloop.hybrid.discrete.sample_delayed` turns a delayed plant behind a zero-order hold into its exact sampled
+map; :mod:`dfloop.hybrid.discrete_run` runs it sample by sample (``simulate_loop``, ``verify_cycle``).
 
 Every other loop model has ``size``, ``x_row``, ``method``, ``exact`` (flows carry a monodromy), ``settle_periods``
 (periods to run before shooting), ``plant`` (A, B), ``start(s0, x_history)``, ``admissible_mode(z, mode)``,

@@ -44,6 +44,7 @@ __all__ = ["DelayLoop", "DelayFlow", "DelayError", "piecewise_constant", "predic
 STEPS_PER_SCALE = 32
 _BLOCK = 32                   # steps sampled at once
 _GRAZING = 1e-10              # |r.f| below this fraction of |r||f| at a switch: grazing (tangent undefined)
+_CLOCK_ROUNDING = 64 * np.finfo(float).eps   # rounding of absolute instants, relative to the time elapsed
 
 
 class DelayError(RuntimeError):
@@ -483,6 +484,18 @@ def predicted_start(loop: DelayLoop, A0: float, w0: float, section: tuple | None
     return s, int(section[1]), u0, queue, tuple(section)
 
 
+def _resting_start(loop: DelayLoop, bias: float):
+    """The start when the predicted input x = bias + A0 sin(w0 t) never switches the element (a run from inside a
+    dead zone or a hysteresis): the element holds the output it has at x = bias, so the plant's periodic response
+    is its equilibrium under that constant input, A s + B u = 0 (least squares with an integrator); no pending
+    switch. Returns (s, mode, u, queue)."""
+    offset = bias - getattr(loop, "r0", 0.0)
+    mode = int(loop.element.initial(np.full(1, offset), 0.0)[0])
+    u = float(loop.levels[mode])
+    s = np.linalg.lstsq(loop.A, -loop.B * u, rcond=1e-12)[0]
+    return s, mode, u, []
+
+
 # --------------------------------------------------------------------------------------- the return map
 
 
@@ -499,7 +512,9 @@ def return_map(loop: DelayLoop, s, mode: int, u: float, queue, section: tuple, *
     if not fl.stopped:
         return None
     t1 = fl.t
-    q1 = [[inst - t1, lev] for inst, lev in fl.queue]
+    # a pending instant is t_switch + T - t1 <= T; the clock's rounding (eps t1, not small against a tiny T) can
+    # put the section switch's own instant a hair above T: clamp it back
+    q1 = [[min(inst - t1, loop.delay), lev] for inst, lev in fl.queue]
     J = None
     if tangent:
         n = loop.n
@@ -631,11 +646,14 @@ def delay_periodic_orbit(loop: DelayLoop, A0: float, w0: float, *, tol: float = 
             return dict(success=False, message=f"singular Jacobian at iteration {it} (a multiplier equal to 1: "
                         "a marginal orbit)", method=method, residual=residual, iterations=it)
         step, accepted = 1.0, False
+        # pending instants must stay in (0, T]; the section switch's own instant is T to rounding, which is relative
+        # to the clock (eps times the period), not to T: a tiny delay gets that slack, then the instant is clamped
+        slack = _CLOCK_ROUNDING * (t1 + loop.delay)
         for _ in range(9):
             v = v0 + step * delta
             s_try = v[:loop.n]
-            q_try = [[float(ti), q[1]] for ti, q in zip(v[loop.n:], queue)]
-            if all(0.0 < ti <= loop.delay * (1 + 1e-12) for ti, _ in q_try) and \
+            q_try = [[float(min(ti, loop.delay)), q[1]] for ti, q in zip(v[loop.n:], queue)]
+            if all(0.0 < ti <= loop.delay + slack for ti in v[loop.n:]) and \
                     all(q_try[i][0] <= q_try[i + 1][0] for i in range(len(q_try) - 1)):
                 try:
                     o = return_map(loop, s_try, mode, u, q_try, section, horizon=horizon, tangent=False,
@@ -724,7 +742,12 @@ def delay_simulation(loop: DelayLoop | DDELoop | MemoryDDELoop | DelaySampledLoo
             raise DelayError(str(exc)) from None
     else:
         P = 2.0 * math.pi / frequency
-        s, mode, u, queue, _ = predicted_start(loop, amplitude, frequency, bias=bias)
+        try:
+            s, mode, u, queue, _ = predicted_start(loop, amplitude, frequency, bias=bias)
+        except DelayError as exc:
+            if "never switches" not in str(exc):
+                raise
+            s, mode, u, queue = _resting_start(loop, bias)
         t_end = periods * P
         fl = loop.flow(s, mode, u, queue, t_end, max_events=max_events, diverge=diverge * amplitude)
         t = np.arange(int(math.floor(fl.t / P * steps_per_period)) + 1) * (P / steps_per_period)

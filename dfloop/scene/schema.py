@@ -57,7 +57,9 @@ class SceneMeta(_Table):
 
 class _Plant(_Table):
     delay: float = Field(0.0, ge=0.0, description="Pure delay in seconds: the plant becomes `delayed(G, delay)`, exact in "
-                                                    "prediction, exact cycles and verification.")
+                                                    "prediction, exact cycles and verification; in a digital loop "
+                                                    "(`dt`, or a controller with `dt`) the exact sampled map of "
+                                                    "G e^{-s delay} behind the hold.")
     dt: float | None = Field(None, gt=0.0, description="Sampling period in seconds of a digital loop: the system "
                              "is sampled behind a zero-order hold (control.sample_system), or, with `discrete = "
                              "true`, its coefficients are already in powers of z. The loop then uses G(e^{jw dt}).")

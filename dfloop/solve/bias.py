@@ -35,11 +35,12 @@ from .predict import predict_limit_cycles
 __all__ = ["BiasedCycle", "BiasedCycles", "predict_biased_cycles", "static_gain", "biased_confidence"]
 
 _BISECTIONS = 200  # bisection steps on the bias (machine precision is reached in about 60 for any window)
+_JUMP = 1e-6  # a sign change of the bias equation is a jump, no root, when |F| there stays above this (relative)
 
 
 def static_gain(G) -> float:
-    """G(0) of a rational plant (python-control tf or ss): ``inf`` (signed by the low-frequency phase) when G has a
-    pole at s = 0 (an integrator).
+    """G(0) of a rational plant (python-control tf or ss, or ``delayed(G, T)``: G's, as e^{-sT} is 1 at s = 0):
+    ``inf`` (signed by the low-frequency phase) when G has a pole at s = 0 (an integrator).
 
     Raises
     ------
@@ -52,7 +53,8 @@ def static_gain(G) -> float:
     zeros, poles = plant.roots
     if np.any(poles == 0):
         return math.inf
-    return float(np.real(plant.lti.dcgain()))
+    rational = plant.lti if plant.delay_free is None else plant.delay_free   # a delay's e^{-sT} is 1 at s = 0
+    return float(np.real(rational.dcgain()))
 
 
 @dataclass(frozen=True)
@@ -127,7 +129,7 @@ class BiasedCycle:
 
 
 class BiasedCycles(list):
-    """The predicted biased cycles (sorted by frequency) and how they were searched.
+    """The predicted biased cycles (sorted by frequency, then amplitude) and how they were searched.
 
     Attributes
     ----------
@@ -149,7 +151,9 @@ class BiasedCycles(list):
 
     def __init__(self, cycles, r0, dc_gain, amplitude_window, bias_window, omega_window, bias_monotone, branches,
                  gaps=()):
-        super().__init__(sorted(cycles, key=lambda c: c.frequency))
+        # by frequency, then amplitude: cycles whose frequencies agree to 9 digits (an integrator's phase crossover
+        # fixes w for every amplitude) keep an order that rounding cannot flip
+        super().__init__(sorted(cycles, key=lambda c: (float(f"{c.frequency:.9g}"), c.amplitude)))
         self.r0, self.dc_gain = r0, dc_gain
         self.amplitude_window, self.bias_window, self.omega_window = amplitude_window, bias_window, omega_window
         self.bias_monotone, self.branches, self.gaps = bias_monotone, branches, list(gaps)
@@ -176,30 +180,45 @@ class _BiasEquation:
         return m if math.isinf(self.g0) else B + self.g0 * m - self.r0
 
     def brackets(self, A: np.ndarray):
-        """F on the bias grid for each amplitude (rows): values and sign-change mask (cells)."""
+        """F on the bias grid for each amplitude (rows), the sign-change mask (cells) that are roots, and each root.
+
+        A sign change of F across a jump (a relay with hysteresis holding one output when A is below its
+        hysteresis: the mean output jumps from -M to +M) is no root: every sign-change cell is bisected and kept
+        only if |F| at the converged bracket is below ``_JUMP`` times the row's largest |F|. Returns
+        ``(F, change, B)`` with ``B`` the bisected root of each kept cell (NaN elsewhere).
+        """
         Bg, Ag = np.meshgrid(self.grid, A)
         F = self(Bg, Ag)
         change = np.sign(F[:, :-1]) * np.sign(F[:, 1:]) <= 0
         change &= ~((F[:, :-1] == 0) & (np.arange(F.shape[1] - 1) > 0))  # a zero on a node counts once
-        return F, change
+        B = np.full(change.shape, np.nan)
+        rows, cells = np.nonzero(change)
+        if rows.size:
+            # Chandrupatla's bracketing method (interpolation where F is smooth, bisection where it is not: the
+            # mean output of a relay with hysteresis jumps), to a bracket of a few ulps of the bias window
+            span = float(self.grid[-1] - self.grid[0])
+            res = find_root(lambda b, a: self(b, a), (self.grid[cells], self.grid[cells + 1]), args=(A[rows],),
+                            tolerances=dict(xatol=4 * np.finfo(float).eps * span, xrtol=4 * np.finfo(float).eps,
+                                            fatol=0.0, frtol=0.0), maxiter=_BISECTIONS)
+            if not np.all(res.success):
+                bad = int(np.argmin(res.success))
+                raise DfloopError(f"the bias root at A = {float(A[rows[bad]])!r} did not converge in {_BISECTIONS} "
+                                  f"steps")
+            scale = np.max(np.abs(F), axis=1)[rows]
+            f_lo, f_hi = (np.abs(f) for f in res.f_bracket)
+            root = (np.minimum(f_lo, f_hi) <= _JUMP * scale) | (res.f_x == 0)
+            change[rows[~root], cells[~root]] = False
+            B[rows[root], cells[root]] = res.x[root]
+        return F, change, B
 
     def root(self, A: np.ndarray, j: int) -> np.ndarray:
-        """The j-th bias root at each amplitude (bisection to rounding in its grid cell)."""
-        _, change = self.brackets(A)
+        """The j-th bias root at each amplitude (bisected to rounding in its grid cell)."""
+        _, change, B = self.brackets(A)
         count = change.sum(axis=1)
         if np.any(count <= j):
             raise DfloopError(f"bias branch {j} does not exist at A = {float(A[count <= j][0])!r}")
         cell = np.argmax(np.cumsum(change, axis=1) > j, axis=1)
-        lo, hi = self.grid[cell], self.grid[cell + 1]
-        # Chandrupatla's bracketing method (interpolation where F is smooth, bisection where it is not: the mean
-        # output of a relay with hysteresis jumps), to a bracket of a few ulps, vectorised over the amplitudes
-        res = find_root(lambda B, a: self(B, a), (lo, hi), args=(A,),
-                        tolerances=dict(xatol=np.finfo(float).tiny, xrtol=4 * np.finfo(float).eps, fatol=0.0,
-                                        frtol=0.0), maxiter=_BISECTIONS)
-        if not np.all(res.success):
-            bad = int(np.argmin(res.success))
-            raise DfloopError(f"the bias root at A = {float(A[bad])!r} did not converge in {_BISECTIONS} steps")
-        return np.asarray(res.x, float)
+        return B[np.arange(A.size), cell]
 
 
 class _BranchDF(DescribingFunction):
@@ -231,8 +250,9 @@ def predict_biased_cycles(G, element, *, r0: float = 0.0, load: float = 0.0, amp
 
     Parameters
     ----------
-    G : python-control tf or ss, or callable
-        The linear part; a callable or frd needs ``dc_gain``.
+    G : python-control tf or ss, ``delayed(G, T)``, or callable
+        The linear part; a callable or frd needs ``dc_gain``. A pure delay enters the first harmonic as
+        G(jw) e^{-jwT} and not the bias equation (G(0) is the rational part's).
     element : DescribingFunction, DualInputDF or callable
         The nonlinear element (any element :class:`~dfloop.describing.dual_input.DualInputDF` accepts, symmetric
         or not), or its dual-input DF.
@@ -288,7 +308,7 @@ def predict_biased_cycles(G, element, *, r0: float = 0.0, load: float = 0.0, amp
     else:
         b_lo, b_hi = _signed_window(bias)
     equation = _BiasEquation(dual, g0, r0, load, np.linspace(b_lo, b_hi, n_b))
-    F, change = equation.brackets(A)
+    F, change, _ = equation.brackets(A)
     count = change.sum(axis=1)
     dF = np.diff(F, axis=1)
     slack = 1e-12 * np.max(np.abs(F), axis=1, keepdims=True)  # flat parts (a saturated mean) vary by rounding
@@ -358,7 +378,7 @@ def biased_confidence(G, element, bias: float, amplitude: float, frequency: floa
 
     Parameters
     ----------
-    G : python-control tf or ss, or callable (then ``dc_gain`` is needed)
+    G : python-control tf or ss, ``delayed(G, T)``, or callable (then ``dc_gain`` is needed)
     element : DualInputDF or anything it accepts
     bias, amplitude, frequency : float
         The predicted cycle (input units, rad/s).

@@ -13,7 +13,7 @@ from ..describing.base import DescribingFunction
 from ..describing.interop import as_element
 from ..describing.static import StaticElement
 from ._kernels import candidate_cells
-from .compiled import residual_for
+from .compiled import driver_parts, driver_wanted, enabled as compiled_enabled, residual_for, run_batch, run_driver
 from .grid import FD_MIN_WIDTH, STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
 from .plant import as_plant
 from .result import GridReport, JumpCrossing, LimitCycle, LimitCycles
@@ -21,7 +21,7 @@ from .roots import (JUMP_BOX, OuterProduct, Residual, accepted, dominant_steps, 
                     unresolved_boxes)
 from .stability import MARGINAL_TOL, classify
 
-__all__ = ["predict_limit_cycles"]
+__all__ = ["predict_limit_cycles", "predict_chunk"]
 
 _MAX_REFINE_ROUNDS = 30
 _MAX_GRID = 1_000_000  # points per axis of the initial grid
@@ -270,7 +270,6 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     discontinuity without a refinable root is a jump crossing. Roots are accepted only at a small
     residual, which a jump cannot fake.
     """
-    plant = as_plant(G)
     N = as_element(N)
     if not isinstance(exact, (bool, np.bool_)):
         raise ValueError(f"exact must be True or False; got {exact!r}")
@@ -281,6 +280,11 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     if not (0 <= marginal_tol < 1):
         raise ValueError(f"marginal_tol must lie in [0, 1); got {marginal_tol}")
     na, nw = _grid_size(grid, N.frequency_dependent)
+    if not exact:  # the common case end to end in one compiled call (solve/compiled/driver.py), where it applies
+        result = _compiled_driver(G, N, omega, amplitude, na, nw, tol, marginal_tol)
+        if result is not None:
+            return result
+    plant = as_plant(G)
     res = residual_for(plant, N)  # compiled where G and N have compiled forms (solve/compiled)
 
     if omega is None:
@@ -372,6 +376,134 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     cycles = _open_loop_label(plant, _attach_confidence(G, N, cycles, exact))
     result = LimitCycles(cycles, (A_lo, A_hi), (w_lo, w_hi), {"amplitude": a_src, "omega": w_src},
                          (a.size, v.size), res.n_points, crossings, report)
+    result.plant, result.element = G, N
+    return result
+
+
+_LABELS = ("stable", "unstable", "marginal")  # the driver's label codes
+
+
+def _driver_inputs(G, N, omega, amplitude):
+    """(parts, windows (w_lo, w_hi, A_lo, A_hi), amplitude source) of the loop for the compiled driver
+    (solve/compiled/driver.py; NaN windows: the defaults), or None where it does not apply."""
+    if not compiled_enabled():
+        return None
+    parts = driver_parts(G, N)
+    if parts is None:
+        return None
+    w_lo = w_hi = A_lo = A_hi = math.nan
+    if omega is not None:
+        w_lo, w_hi = checked_window("omega", omega)
+    a_src = None
+    if amplitude is not None:
+        A_lo, A_hi = checked_window("amplitude", amplitude)
+        a_src = "given"
+        dom = parts[1][5:7]
+        if A_lo <= dom[0]:
+            A_lo, a_src = dom[0] * (1 + 1e-9), "given, clipped to N's amplitude domain"
+        if A_hi >= dom[1]:
+            A_hi, a_src = dom[1] * (1 - 1e-9), "given, clipped to N's amplitude domain"
+        if A_lo >= A_hi:
+            return None  # the Python path says why
+    return parts, (w_lo, w_hi, A_lo, A_hi), a_src
+
+
+def _compiled_driver(G, N, omega, amplitude, na: int, nw: int, tol: float, marginal_tol: float):
+    """The result of the compiled driver where it applies and finishes; None otherwise (then the Python driver
+    runs: the same algorithm, every branch)."""
+    inputs = _driver_inputs(G, N, omega, amplitude)
+    if inputs is None or not driver_wanted():
+        return None
+    parts, windows, a_src = inputs
+    raw = run_driver(*parts, *windows, na, nw, tol, marginal_tol)
+    if raw[0] != 0:
+        return None
+    return _driver_result(G, N, raw[1], raw[2], raw[3], omega is not None, a_src)
+
+
+def predict_chunk(loops, *, omega=None, amplitude=None, grid=(64, 256), tol: float = 1e-10,
+                  marginal_tol: float = MARGINAL_TOL, exact: bool = False, errors=None) -> list:
+    """:func:`predict_limit_cycles` for each loop (G, N) of ``loops``, with the same options: the loops the
+    compiled driver applies to run in one call of it, in parallel over the cores (:func:`.compiled.run_batch`),
+    the others, and those it leaves to the Python driver, one by one. The results are the ones of
+    ``predict_limit_cycles(G, N, ...)`` for each loop (the same code computes them).
+
+    ``errors(index, exc)``, when given, is called for a loop that raises (and its result is None); by default
+    the exception propagates.
+    """
+    loops = list(loops)
+    out: list = [None] * len(loops)
+    fast, where = [], []
+    opts = dict(omega=omega, amplitude=amplitude, grid=grid, tol=tol, marginal_tol=marginal_tol, exact=exact)
+    if not exact and isinstance(exact, (bool, np.bool_)) and compiled_enabled():
+        tol_c, mtol_c = finite("tol", tol), finite("marginal_tol", marginal_tol)
+        if 0 < tol_c < 1e-3 and 0 <= mtol_c < 1:
+            try:
+                na, nw = _grid_size(grid, False)
+            except ValueError:
+                na = None
+            for k, (G, N) in enumerate(loops):
+                if na is None:
+                    break
+                try:
+                    N = as_element(N)
+                    inputs = _driver_inputs(G, N, omega, amplitude)
+                except ValueError:
+                    inputs = None
+                if inputs is not None:
+                    fast.append((k, G, N, inputs))
+    if fast:
+        raw = run_batch([f[3][0] for f in fast], [f[3][1] for f in fast], na, nw, tol_c, mtol_c)
+        status, fl, it, rows, count = raw
+        for q, (k, G, N, inputs) in enumerate(fast):
+            if status[q] == 0:
+                out[k] = _driver_result(G, N, fl[q], it[q], rows[q, :count[q]], omega is not None, inputs[2])
+                where.append(k)
+    done = set(where)
+    for k, (G, N) in enumerate(loops):
+        if k in done:
+            continue
+        try:
+            out[k] = predict_limit_cycles(G, N, **opts)
+        except Exception as exc:  # noqa: BLE001 - handed to the caller's handler, or re-raised
+            if errors is None:
+                raise
+            errors(k, exc)
+    return out
+
+
+def _driver_result(G, N, fl, it, rows, w_given: bool, a_src) -> LimitCycles:
+    """LimitCycles from the compiled driver's output (floats fl, ints it, root rows; see driver._drive)."""
+    A_lo, A_hi, w_lo, w_hi, top, bottom, step_v, step_a, mag_lo, mag_hi = fl.tolist()
+    case, n_a, n_v, n_jumps, n_cand, n_eval, n_points, rejected, real_unstable = it.tolist()
+    if a_src is None:
+        limits = "; no root beyond A=%.3g by N's limit" % top if top == top else ""
+        limits += "; no root below A=%.3g by N's limit" % bottom if bottom == bottom else ""
+        a_src = (f"default: where |G N| can reach 1 within N's amplitude domain{limits}" if case == 0 else
+                 f"default: N's amplitude domain (|G N| never reaches 1){limits}")
+    if w_given:
+        w_src = "given"
+    elif not math.isfinite(mag_lo):
+        w_src = "default: G has no pole or zero off the origin: 0.01-100 rad/s"
+    else:
+        at = f"{mag_lo:.3g}" if f"{mag_lo:.3g}" == f"{mag_hi:.3g}" else f"{mag_lo:.3g}..{mag_hi:.3g}"
+        w_src = f"default: 2 decades beyond G's poles/zeros at {at} rad/s, where G's phase and slope have settled"
+    cycles = []
+    for A, w, det, cond, label, r, rel, g, n, edge in rows.tolist():
+        A, w, label = A.real, w.real, _LABELS[int(label.real)]
+        if edge.real:
+            warnings.warn(f"limit cycle at A={A:.6g}, omega={w:.6g} rad/s lies on the edge of the search "
+                          "window; widen the window to confirm it", stacklevel=4)
+        if real_unstable and label == "stable":
+            label = LOEB_ONLY
+        cycles.append(LimitCycle(amplitude=A, frequency=w, stability=label, residual=r.real, relative_residual=rel.real,
+                                 loeb_determinant=det.real, loeb_conditioning=cond.real, G=g, N=n,
+                                 on_edge=bool(edge.real), _confidence=functools.partial(_confidence, G, N, A, w)))
+    report = GridReport(shape=(n_a, n_v), frequency_rule="exact", amplitude_rule="sampled", max_step_frequency=step_v,
+                        max_step_amplitude=step_a, n_jumps=n_jumps, candidate_cells=n_cand, n_evaluations=n_eval,
+                        rejected=rejected)
+    result = LimitCycles(cycles, (A_lo, A_hi), (w_lo, w_hi), {"amplitude": a_src, "omega": w_src}, (n_a, n_v),
+                         n_points, (), report)
     result.plant, result.element = G, N
     return result
 

@@ -7,9 +7,11 @@ parameters (the built-in static elements with closed-form DFs). Everything else 
 plants, frequency-dependent, numeric and user-defined elements) keeps the Python residual. The environment
 variable ``DFLOOP_COMPILED=0`` forces the Python path everywhere (the reference the tests compare with).
 
-The algorithm is the Python one: the same driver (:func:`dfloop.predict_limit_cycles`), grid rule, winding
-tests, tangent and continuum searches; only the evaluation of G, N and their slopes and the Levenberg-Marquardt
-refinement (where a call spends most of its time) are compiled.
+Two layers: the compiled driver (:mod:`.driver`, reached through :func:`driver_parts` and :func:`run_driver`, or
+:func:`run_batch` for many loops) runs a whole prediction in one numba call and hands every branch it does not
+carry back to the Python driver (:func:`dfloop.predict_limit_cycles`), which then uses this residual: the same
+grid rule, winding tests, tangent and continuum searches, with the evaluation of G, N and their slopes and the
+Levenberg-Marquardt refinement compiled. Each part announces its first compile (:func:`_announce_compile`).
 """
 from __future__ import annotations
 
@@ -22,6 +24,7 @@ from ...progress import announce_compile
 from ..plant import Plant
 from ..roots import Residual
 from .kinds import KINDS
+from .parts import element_part, plant_part
 
 
 class _Kernels:
@@ -36,25 +39,72 @@ class _Kernels:
 
 K = _Kernels()
 
-__all__ = ["CompiledResidual", "compiled_loop", "residual_for", "enabled", "prepare", "warmup", "COMPILE_SECONDS"]
+__all__ = ["CompiledResidual", "compiled_loop", "driver_parts", "element_form", "residual_for", "enabled", "prepare",
+           "run_batch", "run_driver", "warmup", "driver_wanted", "COMPILE_SECONDS"]
 
-COMPILE_SECONDS = 6
-"""About how long compiling the kernels takes once per installation (s; benchmarks/bench_startup.py)."""
+COMPILE_SECONDS = 70
+"""About how long compiling the driver takes once per installation (s; benchmarks/bench_startup.py)."""
+RESIDUAL_SECONDS = 6
+"""About how long compiling the compiled residual's kernels takes (s; benchmarks/bench_startup.py)."""
+BATCH_COMPILE_SECONDS = 30
+"""About how long the batch driver (parallel over the cores) adds to it (s; benchmarks/bench_startup.py)."""
 _CHECK_W = np.array([0.37, 1.0, 2.9])  # frequencies (rad/s) where the extracted coefficients are checked
 _MEMO_BATCH, _MEMO_SIZE = 64, 8192  # refined batches remembered (as Residual.slopes does)
 
 
-def _kernels() -> tuple:
-    return K.refine, K.evaluate_slopes, K.products, K.plant_values, K.element_values
+def _kernels(part: str | None = None) -> tuple:
+    """The numba dispatchers of one part of the compiled path: ``"driver"`` (a whole call), ``"residual"`` (the
+    kernels of the Python driver's compiled residual, where the driver hands over), ``"batch"`` (the driver's
+    parallel form), or all (None)."""
+    from . import driver
+
+    parts = {"driver": (driver.solve_one_dispatcher(),),
+             "residual": (K.refine, K.evaluate_slopes, K.products, K.plant_values, K.element_values),
+             "batch": (driver.solve_many_dispatcher(),)}
+    return parts[part] if part is not None else sum(parts.values(), ())
 
 
 def enabled() -> bool:
     """Whether the compiled path is used where it applies: always, unless ``DFLOOP_COMPILED=0`` in the
-    environment selects the Python reference path. (Not "only once cached": results must not depend on the state
-    of numba's cache, and on ill-conditioned outputs such as the ends of a continuum the two paths differ beyond
-    1e-12.) The first use on a fresh install compiles the kernels, announced on the progress channel.
+    environment selects the Python reference path. The first use on a fresh install compiles the residual's kernels
+    (a few seconds), announced on the progress channel. Whether a single call also runs the compiled driver is
+    :func:`driver_wanted`.
     """
     return os.environ.get("DFLOOP_COMPILED", "1") != "0"
+
+
+_DRIVER_READY: list = []   # [True] once the driver is known to be compiled or cached in this process
+
+
+def driver_wanted() -> bool:
+    """Whether a single :func:`dfloop.predict_limit_cycles` call runs the compiled driver (:mod:`.driver`).
+
+    ``DFLOOP_COMPILED=0``: never. ``DFLOOP_COMPILED=driver``: always (compiling it first if needed, announced).
+    Otherwise (the default): when the driver is ready, compiled in this process or in numba's on-disk cache (after
+    ``dfloop warmup``, a batch, or any earlier process that compiled it). A fresh installation does not make a
+    single call wait about ``COMPILE_SECONDS`` for it: the call runs the Python driver on the compiled residual
+    (the same algorithm; results agree to 1e-12, tests/test_compiled.py), and says once that ``dfloop warmup``
+    compiles the driver. Batches (:func:`dfloop.predict_many`) compile it, announced: their loops amortise it.
+    """
+    mode = os.environ.get("DFLOOP_COMPILED", "1")
+    if mode == "0":
+        return False
+    if mode == "driver" or _DRIVER_READY:
+        return True
+    from ...progress import announce, compile_pending
+
+    if compile_pending(*_kernels("driver")) is False:
+        _DRIVER_READY.append(True)
+        return True
+    if not _DRIVER_HINTED:
+        _DRIVER_HINTED.append(True)
+        announce(f"dfloop: the compiled solver driver is not compiled on this installation: this run uses the "
+                 f"standard path (same results, 10-60x slower per call); `dfloop warmup` compiles the driver once "
+                 f"(about {COMPILE_SECONDS} s)")
+    return False
+
+
+_DRIVER_HINTED: list = []
 
 
 def prepare() -> None:
@@ -112,8 +162,15 @@ def compiled_loop(plant: Plant, N):
 
 def _form(plant: Plant, N):
     """The element's compiled form (kind, parameters) when G and N both have one (checked without numba)."""
-    if getattr(N, "frequency_dependent", True) or plant.roots is None or plant.frequency_map is not None \
-            or plant.dt is not None:
+    if plant.roots is None or plant.frequency_map is not None or plant.dt is not None:
+        return None
+    return element_form(N)
+
+
+def element_form(N):
+    """The compiled form (kind name, parameters) of an amplitude-only element, or None: no compiled form, a
+    frequency-dependent element, or a user's subclass that evaluates N its own way."""
+    if getattr(N, "frequency_dependent", True):
         return None
     form = getattr(N, "compiled_form", None)
     if form is None or not _own_form(type(N)):
@@ -136,9 +193,12 @@ def _loop_arrays(plant: Plant, N):
     return (*coef[:2], zeros, poles, coef[2], KINDS[form[0]], np.ascontiguousarray(form[1], float), ln_lo, ln_hi)
 
 
-def _announce_compile() -> None:
-    """Say once, before the first compile of this installation, that it is happening and about how long."""
-    announce_compile("the solver", COMPILE_SECONDS, *_kernels())
+def _announce_compile(part: str = "residual") -> None:
+    """Say once, before the first compile of this installation, that ``part`` (see :func:`_kernels`) compiles and
+    about how long it takes."""
+    what, seconds = {"driver": ("the solver", COMPILE_SECONDS), "batch": ("the batch solver", BATCH_COMPILE_SECONDS),
+                     "residual": ("the solver's residual kernels", RESIDUAL_SECONDS)}[part]
+    announce_compile(what, seconds, *_kernels(part))
 
 
 class CompiledResidual(Residual):
@@ -205,6 +265,51 @@ class CompiledResidual(Residual):
         return ra, rv, ok
 
 
+def driver_parts(G, N):
+    """(plant part, element part) of the loop for the compiled driver (:mod:`.driver`), or None where it does not
+    apply: the compiled path switched off, an element without a compiled form (or one the driver does not mirror),
+    a plant that is not a rational continuous tf/ss (with or without a pure delay). Loads no numba."""
+    if not enabled():
+        return None
+    form = element_form(N)
+    if form is None:
+        return None
+    npart = element_part(N, form)
+    if npart is None:
+        return None
+    gpart = plant_part(G)
+    if gpart is None:  # a state-space form: its polynomials as the Python path reads them (checked there)
+        from .. import plant as plant_module
+
+        try:
+            plant = plant_module.as_plant(G)
+        except (ValueError, TypeError):
+            return None
+        coef = _coefficients(plant) if _form(plant, N) is not None else None
+        if coef is None:
+            return None
+        gpart = (coef[0], coef[1], *(np.ascontiguousarray(r, complex) for r in plant.roots), coef[2])
+    return gpart, npart
+
+
+def run_driver(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol):
+    """The compiled driver on one loop (windows NaN: the defaults), announcing a first compile:
+    (status, floats, ints, roots) (:func:`.driver.solve_one`)."""
+    from .driver import solve_one
+
+    _announce_compile("driver")
+    return solve_one(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol)
+
+
+def run_batch(parts, windows, na, nw, tol, marginal_tol):
+    """The compiled driver over many loops in one parallel call (:func:`.driver.solve_many`), announcing a first
+    compile: arrays (status, floats, ints, roots, root counts), one row per loop."""
+    from .driver import solve_many
+
+    _announce_compile("batch")
+    return solve_many(parts, windows, na, nw, tol, marginal_tol)
+
+
 def residual_for(plant: Plant, N) -> Residual:
     """The residual of the loop: compiled where :func:`compiled_loop` applies, the Python one otherwise."""
     loop = compiled_loop(plant, N)
@@ -232,4 +337,9 @@ def warmup() -> float:
         from ..roots import Box
 
         res.refine(a, v, Box(-1.0, 1.0, 0.0, 1.0), 1e-10, True)
+    parts = driver_parts(ct.tf([5.0], [1.0, 1.0, 0.0]), N)
+    if parts is not None:  # the driver, for one loop and for a batch
+        nan = float("nan")
+        run_driver(*parts, nan, nan, nan, nan, 8, 16, 1e-10, 1e-4)
+        run_batch([parts], [(nan, nan, nan, nan)], 8, 16, 1e-10, 1e-4)
     return time.perf_counter() - t0

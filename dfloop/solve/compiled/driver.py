@@ -1,0 +1,1300 @@
+"""The compiled driver: :func:`dfloop.predict_limit_cycles` end to end in one numba call, for the common case.
+
+Where it applies: a rational continuous G (coefficients ``num``, ``den``, optionally a pure delay) and an
+amplitude-only element with a compiled form (:mod:`.kinds`). It runs the Python driver's algorithm with the same
+floating-point expressions in the same order (numpy's reduction order, complex division, ``linspace``):
+
+1. the default frequency window two decades beyond the poles and zeros (numpy's, as the Plant has them);
+2. G's grid, refined from the exact bound on its variation (:meth:`~dfloop.solve.plant.Plant.log_variation`);
+3. the default amplitude window (``predict._default_amplitude_window`` with ``_limit_reach``), N's breakpoints as
+   nodes and N's grid (``grid.resolve_sampled`` with ``monotone=True``);
+4. the candidate cells (``_kernels.candidate_cells``), their windings with the edge bisection of
+   ``roots.edge_phases``, the refinement of single-winding cells (``roots.refine``), the tangent seeds and their
+   refinement (with the wider retry next to a jump), the continuum test, ``roots.merge``;
+5. the residual-bound acceptance, the Loeb classification (``stability.label_roots``), the merge of marginal
+   roots and the order of the result (``predict._build``).
+
+Whenever the Python driver would take a branch this one does not carry (a cell of winding other than +-1, a
+failed refinement, a root on a grid edge, a tangent seed that refines to a root, a degenerate root that may sit
+on a continuum, a work bound, a non-finite value, an input the Python path rejects), it stops with a non-zero
+status and :func:`dfloop.predict_limit_cycles` runs the Python driver instead: a different route, never a
+different answer. The elementary functions (exp, log, atan2, pow) come from the platform's libm here and
+possibly from numpy's SIMD versions in the Python path, so results agree to rounding (tests/test_compiled.py
+compares both on many loops to 1e-12).
+
+:func:`solve_many` runs the same driver over a batch of loops in one call, in parallel over the cores
+(``prange``); each loop is independent and computed exactly as :func:`solve_one` computes it.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .kernels import accepted, cabs, cdiv, element, plant, refine, slopes_at
+
+__all__ = ["solve_one", "solve_many", "solve_one_dispatcher", "solve_many_dispatcher", "FALLBACK", "MAX_ROOTS", "CONSTANTS", "STABLE", "UNSTABLE", "MARGINAL"]
+
+# the constants of the Python driver this one mirrors (tests/test_compiled.py checks they are the same values)
+CONSTANTS = dict(
+    STEP=0.35, GOLDEN=0.3819660112501051, MONOTONE_WIDTH=1e-9, MAX_ROUNDS=64, MIN_WIDTH=1e-13,
+    MAX_POINTS=2_000_000, SPLIT_PHASE=np.pi / 2, MAX_EDGE_DEPTH=50, MAX_SEGMENTS=4_000_000, JUMP_LENGTH=1e-9,
+    JUMP_SIZE=1e-3, JUMP_KEEP=0.9, TANGENT_THRESHOLD=0.1, MAX_TANGENT_SEEDS=5000, MERGE_RADIUS=1e-12,
+    JUMP_DOMINANCE=4.0, DEGENERATE_SIN=1e-4, DECADES=2.0, EDGE_TOL=1e-9)
+_STEP = CONSTANTS["STEP"]
+_GOLDEN = CONSTANTS["GOLDEN"]
+_MONOTONE_WIDTH = CONSTANTS["MONOTONE_WIDTH"]
+_MAX_ROUNDS = CONSTANTS["MAX_ROUNDS"]
+_MIN_WIDTH = CONSTANTS["MIN_WIDTH"]
+_MAX_POINTS = CONSTANTS["MAX_POINTS"]
+_SPLIT = CONSTANTS["SPLIT_PHASE"]
+_MAX_EDGE_DEPTH = CONSTANTS["MAX_EDGE_DEPTH"]
+_MAX_SEGMENTS = CONSTANTS["MAX_SEGMENTS"]
+_JUMP_LENGTH = CONSTANTS["JUMP_LENGTH"]
+_JUMP_SIZE = CONSTANTS["JUMP_SIZE"]
+_JUMP_KEEP = CONSTANTS["JUMP_KEEP"]
+_TANGENT = CONSTANTS["TANGENT_THRESHOLD"]
+_MAX_SEEDS = CONSTANTS["MAX_TANGENT_SEEDS"]
+_MERGE_RADIUS = CONSTANTS["MERGE_RADIUS"]
+_DOMINANCE = CONSTANTS["JUMP_DOMINANCE"]
+_DEGENERATE_SIN = CONSTANTS["DEGENERATE_SIN"]
+_EDGE_TOL = CONSTANTS["EDGE_TOL"]
+_WIN_LO = 10.0 ** -CONSTANTS["DECADES"]
+_WIN_HI = 10.0 ** CONSTANTS["DECADES"]
+_TWO_PI = 2.0 * np.pi
+_PI = np.pi
+_MAX_PAIRWISE = 128  # roots of a plant beyond which the numpy reduction order is not mirrored (a fallback)
+
+# the constant candidate amplitudes of predict._default_amplitude_window and the grid of predict._limit_reach
+_CAND_ABOVE = np.logspace(-9, 8, 171)
+_CAND_ALL = np.logspace(-30, 30, 601)
+_CAND_BELOW = np.logspace(-9, -0.3, 88)
+_REACH = np.logspace(-300, 300, 12001)
+
+MAX_ROOTS = 64
+"""Roots one loop of a batch may hold (more: that loop falls back to the Python driver)."""
+
+FALLBACK = {1: "a cell winds other than once", 2: "a single-winding cell's refinement failed",
+            3: "a root on a grid edge", 4: "a tangent seed refined to a root", 5: "a degenerate root (continuum?)",
+            6: "a work bound", 7: "a non-finite value", 8: "an input the Python path rejects",
+            9: "a marginal or on-edge case", 10: "too many roots for the batch", 11: "a plant of high order"}
+"""Why the compiled driver left a loop to the Python driver (status codes)."""
+
+_OPTS = dict(cache=True, nogil=True, error_model="numpy")
+
+_CORNER_I = np.array([0, 1, 1, 0])
+_CORNER_J = np.array([0, 0, 1, 1])
+
+# label codes
+STABLE, UNSTABLE, MARGINAL = 0, 1, 2
+
+
+# ------------------------------------------------------------------------------------------ numpy's arithmetic
+
+
+@njit(**_OPTS)
+def _npmax(x, y):
+    """np.maximum of two floats (NaN propagates)."""
+    if x != x:
+        return x
+    if y != y:
+        return y
+    return x if x >= y else y
+
+
+@njit(**_OPTS)
+def _npmin(x, y):
+    if x != x:
+        return x
+    if y != y:
+        return y
+    return x if x <= y else y
+
+
+@njit(**_OPTS)
+def _pairwise(x, lo, n):
+    """numpy's pairwise sum of x[lo:lo + n] (n <= 128: one block of eight accumulators)."""
+    if n < 8:
+        res = -0.0
+        for i in range(n):
+            res += x[lo + i]
+        return res
+    r0, r1, r2, r3 = x[lo], x[lo + 1], x[lo + 2], x[lo + 3]
+    r4, r5, r6, r7 = x[lo + 4], x[lo + 5], x[lo + 6], x[lo + 7]
+    i = 8
+    while i < n - (n % 8):
+        r0 += x[lo + i]
+        r1 += x[lo + i + 1]
+        r2 += x[lo + i + 2]
+        r3 += x[lo + i + 3]
+        r4 += x[lo + i + 4]
+        r5 += x[lo + i + 5]
+        r6 += x[lo + i + 6]
+        r7 += x[lo + i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += x[lo + i]
+        i += 1
+    return res
+
+
+@njit(**_OPTS)
+def _row_sum(x, n):
+    """numpy's sum of x[:n] along a reduced axis: the first element plus the pairwise sum of the others."""
+    if n == 0:
+        return 0.0
+    return x[0] + _pairwise(x, 1, n - 1)
+
+
+@njit(**_OPTS)
+def _linspace(start, stop, num):
+    """np.linspace(start, stop, num) (endpoint included)."""
+    y = np.empty(num)
+    if num == 1:
+        y[0] = start
+        return y
+    step = (stop - start) / (num - 1)
+    for i in range(num):
+        y[i] = i * step + start
+    y[num - 1] = stop
+    return y
+
+
+@njit(**_OPTS)
+def _geomspace(start, stop, num):
+    """np.geomspace(start, stop, num) for 0 < start, stop."""
+    y = _linspace(math.log10(start), math.log10(stop), num)
+    for i in range(num):
+        y[i] = 10.0 ** y[i]
+    y[0] = start
+    y[num - 1] = stop
+    return y
+
+
+@njit(**_OPTS)
+def _angle(z):
+    return math.atan2(z.imag, z.real)
+
+
+@njit(**_OPTS)
+def _clog(z):
+    """grid.clog: ln|z| + j arg z."""
+    return complex(math.log(cabs(z)), _angle(z))
+
+
+@njit(**_OPTS)
+def _wrapped(d):
+    """np.angle(np.exp(1j * d)): a phase difference wrapped to (-pi, pi]."""
+    return math.atan2(math.sin(d), math.cos(d))
+
+
+@njit(**_OPTS)
+def _dlog(l1, l0):
+    """grid._dlog."""
+    dre = l1.real - l0.real
+    if dre != dre:
+        dre = 0.0
+    return math.hypot(dre, _wrapped(l1.imag - l0.imag))
+
+
+@njit(**_OPTS)
+def _order(x):
+    """A stable argsort of a 1-D array (bottom-up merge sort; NaN-free input): np.argsort(kind="stable")."""
+    n = x.size
+    idx = np.arange(n)
+    tmp = np.empty(n, np.int64)
+    width = 1
+    while width < n:
+        for lo in range(0, n, 2 * width):
+            mid, hi = min(lo + width, n), min(lo + 2 * width, n)
+            i, j, k = lo, mid, lo
+            while i < mid and j < hi:
+                if x[idx[j]] < x[idx[i]]:
+                    tmp[k] = idx[j]
+                    j += 1
+                else:
+                    tmp[k] = idx[i]
+                    i += 1
+                k += 1
+            while i < mid:
+                tmp[k] = idx[i]
+                i += 1
+                k += 1
+            while j < hi:
+                tmp[k] = idx[j]
+                j += 1
+                k += 1
+        idx, tmp = tmp, idx
+        width *= 2
+    return idx
+
+
+@njit(**_OPTS)
+def _bisect(a, x, right):
+    """np.searchsorted(a, x, side="right" if right else "left") on a sorted 1-D array."""
+    lo, hi = 0, a.size
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if a[mid] < x or (right and a[mid] == x):
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@njit(**_OPTS)
+def _unique(x):
+    """np.unique of a 1-D array (sorted, exact duplicates removed)."""
+    s = x[_order(x)]
+    if s.size == 0:
+        return s
+    out = np.empty(s.size, s.dtype)
+    out[0] = s[0]
+    k = 1
+    for i in range(1, s.size):
+        if s[i] != s[i - 1]:
+            out[k] = s[i]
+            k += 1
+    return out[:k]
+
+
+@njit(**_OPTS)
+def _sign(x):
+    if x != x:
+        return x
+    return 1.0 if x > 0 else (-1.0 if x < 0 else 0.0)
+
+
+# ------------------------------------------------------------------------------------------------ G's grid
+
+
+@njit(**_OPTS)
+def _log_variation(rr, sgn, delay, w0, w1, b1, b2, b3, b4):
+    """Plant.log_variation on one interval [w0, w1] (roots rr, signs +1 zeros / -1 poles; b1..b4 work space)."""
+    n = rr.size
+    for k in range(n):
+        x, y = -rr[k].real, rr[k].imag
+        turn = sgn[k] * math.atan2(x * (w1 - w0), x * x + (w0 - y) * (w1 - y))
+        m0 = 0.5 * math.log(x * x + (w0 - y) * (w0 - y))
+        m1 = 0.5 * math.log(x * x + (w1 - y) * (w1 - y))
+        low = math.log(abs(x)) if (w0 < y and y < w1) else _npmin(m0, m1)
+        up, down = m1 - low, m0 - low
+        b1[k] = up if sgn[k] > 0 else down
+        b2[k] = down if sgn[k] > 0 else up
+        b3[k] = turn if turn > 0 else 0.0
+        b4[k] = turn if turn < 0 else 0.0
+    rise, fall = _row_sum(b1, n), _row_sum(b2, n)
+    arg = _npmax(_row_sum(b3, n), -_row_sum(b4, n) + delay * (w1 - w0))
+    return math.hypot(arg, _npmax(rise, fall))
+
+
+@njit(**_OPTS)
+def _resolve_plant(zeros, poles, delay, v):
+    """grid.resolve_plant for a rational G: (nodes, eps per interval, status)."""
+    rr = np.concatenate((zeros, poles))
+    sgn = np.concatenate((np.ones(zeros.size), -np.ones(poles.size)))
+    nr = rr.size
+    b1, b2, b3, b4 = np.empty(nr), np.empty(nr), np.empty(nr), np.empty(nr)
+    out_x = np.empty(2 * v.size + 16)
+    out_e = np.empty(2 * v.size + 16)
+    out_x[0] = v[0]
+    n_out = 1
+    x0, x1 = v[:-1].copy(), v[1:].copy()
+    settled = False
+    for _ in range(_MAX_ROUNDS):
+        m = x0.size
+        if m == 0:
+            settled = True
+            break
+        eps = np.empty(m)
+        split = np.empty(m, np.bool_)
+        n_split = 0
+        for i in range(m):
+            eps[i] = _log_variation(rr, sgn, delay, math.exp(x0[i]), math.exp(x1[i]), b1, b2, b3, b4)
+            split[i] = (eps[i] > _STEP) and (x1[i] - x0[i] > _MIN_WIDTH * (1 + abs(x0[i])))
+            n_split += split[i]
+        if n_out + m > out_x.size:
+            grow = max(2 * out_x.size, n_out + m)
+            ox, oe = np.empty(grow), np.empty(grow)
+            ox[:n_out], oe[:n_out] = out_x[:n_out], out_e[:n_out]
+            out_x, out_e = ox, oe
+        nx0, nx1 = np.empty(2 * n_split), np.empty(2 * n_split)
+        k = 0
+        for i in range(m):
+            if split[i]:
+                xm = 0.5 * (x0[i] + x1[i])
+                nx0[k], nx1[k] = x0[i], xm
+                nx0[n_split + k], nx1[n_split + k] = xm, x1[i]
+                k += 1
+            else:
+                out_x[n_out] = x1[i]
+                out_e[n_out - 1] = eps[i]
+                n_out += 1
+        x0, x1 = nx0, nx1
+        if n_out + x0.size > _MAX_POINTS:
+            return out_x[:1], out_e[:0], 6
+    if not settled:
+        return out_x[:1], out_e[:0], 6
+    order = _order(out_x[1:n_out])
+    nodes = np.empty(n_out)
+    eps = np.empty(n_out - 1)
+    nodes[0] = out_x[0]
+    for i in range(n_out - 1):
+        nodes[i + 1] = out_x[order[i] + 1]
+        eps[i] = out_e[order[i]]
+    return nodes, eps, 0
+
+
+# ------------------------------------------------------------------------------------------------ N's grid
+
+
+@njit(**_OPTS)
+def _turns(l0, lg, lm, l1):
+    """grid._non_monotone of one interval sampled at l0, lg, lm, l1 (complex logs)."""
+    s = (l0, lg, lm, l1)
+    turned = False
+    for part in range(2):
+        up = down = False
+        for k in range(3):
+            if part == 0:
+                d = s[k + 1].real - s[k].real
+            else:
+                d = _wrapped(s[k + 1].imag - s[k].imag)
+            up |= d > 1e-10
+            down |= d < -1e-10
+        turned |= up and down
+    return turned
+
+
+@njit(**_OPTS)
+def _resolve_element(kind, p, x):
+    """grid.resolve_sampled(N, x, monotone=True) for an amplitude-only N: (nodes, N at nodes, eps, n_eval, status)."""
+    m = x.size
+    fx = np.empty(m, np.complex128)
+    for i in range(m):
+        fx[i] = element(kind, p, math.exp(x[i]))
+        if fx[i] != fx[i]:
+            return x[:1], fx[:1], x[:0], m, 7
+    cap = 2 * m + 16
+    out_x, out_f, out_e = np.empty(cap), np.empty(cap, np.complex128), np.empty(cap)
+    out_x[0], out_f[0] = x[0], fx[0]
+    n_out = 1
+    x0, x1 = x[:-1].copy(), x[1:].copy()
+    l0 = np.empty(m - 1, np.complex128)
+    l1 = np.empty(m - 1, np.complex128)
+    for i in range(m - 1):
+        l0[i], l1[i] = _clog(fx[i]), _clog(fx[i + 1])
+    f1 = fx[1:].copy()
+    n_eval = m
+    settled = False
+    for _ in range(_MAX_ROUNDS):
+        k = x0.size
+        if k == 0:
+            settled = True
+            break
+        n_eval += 2 * k
+        xm, fm, lm = np.empty(k), np.empty(k, np.complex128), np.empty(k, np.complex128)
+        eps = np.empty(k)
+        split = np.empty(k, np.bool_)
+        n_split = 0
+        for i in range(k):
+            dx = x1[i] - x0[i]
+            xm[i] = x0[i] + 0.5 * dx
+            xg = x0[i] + _GOLDEN * dx
+            fm[i] = element(kind, p, math.exp(xm[i]))
+            fg = element(kind, p, math.exp(xg))
+            if fm[i] != fm[i] or fg != fg:
+                return out_x[:1], out_f[:1], out_e[:0], n_eval, 7
+            lm[i] = _clog(fm[i])
+            lg = _clog(fg)
+            e = _npmax(_dlog(lm[i], l0[i]) + _dlog(l1[i], lm[i]), _dlog(lg, l0[i]) + _dlog(l1[i], lg))
+            eps[i] = e
+            fin = math.isfinite(e)
+            s = fin and (e > _STEP) and (dx > _MIN_WIDTH * (1 + abs(x0[i])))
+            if not s and fin and dx > _MONOTONE_WIDTH * (1 + abs(x0[i])):
+                s = _turns(l0[i], lg, lm[i], l1[i])
+            split[i] = s
+            n_split += s
+        if n_out + k > out_x.size:
+            grow = max(2 * out_x.size, n_out + k)
+            ox, of, oe = np.empty(grow), np.empty(grow, np.complex128), np.empty(grow)
+            ox[:n_out], of[:n_out], oe[:n_out] = out_x[:n_out], out_f[:n_out], out_e[:n_out]
+            out_x, out_f, out_e = ox, of, oe
+        nx0, nx1 = np.empty(2 * n_split), np.empty(2 * n_split)
+        nl0, nl1 = np.empty(2 * n_split, np.complex128), np.empty(2 * n_split, np.complex128)
+        nf1 = np.empty(2 * n_split, np.complex128)
+        j = 0
+        for i in range(k):
+            if split[i]:
+                nx0[j], nx1[j], nl0[j], nl1[j], nf1[j] = x0[i], xm[i], l0[i], lm[i], fm[i]
+                q = n_split + j
+                nx0[q], nx1[q], nl0[q], nl1[q], nf1[q] = xm[i], x1[i], lm[i], l1[i], f1[i]
+                j += 1
+            else:
+                out_x[n_out], out_f[n_out] = x1[i], f1[i]
+                out_e[n_out - 1] = eps[i]
+                n_out += 1
+        x0, x1, l0, l1, f1 = nx0, nx1, nl0, nl1, nf1
+        if n_out + x0.size > _MAX_POINTS:
+            return out_x[:1], out_f[:1], out_e[:0], n_eval, 6
+    if not settled:
+        return out_x[:1], out_f[:1], out_e[:0], n_eval, 6
+    order = _order(out_x[1:n_out])
+    nodes, vals, eps = np.empty(n_out), np.empty(n_out, np.complex128), np.empty(n_out - 1)
+    nodes[0], vals[0] = out_x[0], out_f[0]
+    for i in range(n_out - 1):
+        nodes[i + 1], vals[i + 1] = out_x[order[i] + 1], out_f[order[i] + 1]
+        eps[i] = out_e[order[i]]
+    return nodes, vals, eps, n_eval, 0
+
+
+# ------------------------------------------------------------------------------------------ default windows
+
+
+@njit(**_OPTS)
+def _reach_index(c, d, half, to_inf):
+    """The index predict._limit_reach reads on its amplitude grid for the bound c / A (to_inf) or c A^2 + d, and
+    the threshold t with: every r with 0.5 r > t (and r <= 2 half) gives the same index; -1: no index (None)."""
+    n = _REACH.size
+    if to_inf:
+        for i in range(n):
+            if c / _REACH[i] < half:
+                return i, c / _REACH[i]
+        return -1, np.inf
+    for i in range(n):
+        A = _REACH[i]
+        if not (c * (A * A) + d < half):
+            if i == 0:
+                return -1, np.inf
+            B = _REACH[i - 1]
+            return i - 1, c * (B * B) + d
+    B = _REACH[n - 1]
+    return -1, c * (B * B) + d
+
+
+@njit(**_OPTS)
+def _fine_value(num, den, delay, n0, vf, slack):
+    """(room / (|G| (1 + slack)), ok) at one fine frequency of predict._limit_reach; ok False where that function
+    gives up (G N_lim not finite, or no room)."""
+    g = plant(num, den, delay, math.exp(vf))
+    P = g * n0
+    if not (math.isfinite(P.real) and math.isfinite(P.imag)):
+        return np.nan, False
+    room = cabs(1 + P) - cabs(P) * slack
+    if not room > 0:
+        return np.nan, False
+    return room / (cabs(g) * (1 + slack)), True
+
+
+@njit(**_OPTS)
+def _limit_reach(num, den, delay, kind, p, v, g, eps_v, to_inf, c, d):
+    """predict._limit_reach: the amplitude beyond (to_inf) or below which no root lies, or NaN (None there).
+
+    The element's bound is c / A (tail, to_inf) or c A^2 + d (head); c NaN: the element states none. The
+    minimum r over the refined frequencies is needed only as far as it moves the index read on the amplitude
+    grid: it is taken on the nodes first (G there is known), then the refined frequencies of an interval are
+    evaluated only where the interval's exact variation bound eps (|ln G(w) - ln G(w_k)| <= eps) cannot keep
+    them above the threshold that would change the index; the result is the one of the full evaluation."""
+    if c != c:
+        return np.nan
+    n0 = element(kind, p, np.inf if to_inf else 0.0)
+    if not (math.isfinite(n0.real) and math.isfinite(n0.imag)) or n0 == 0:
+        return np.nan
+    nv = v.size
+    k = min(max(200_000 // max(nv, 1), 1), 64)
+    step_t = 1.0 / k
+    slack_eps = -np.inf
+    for i in range(eps_v.size):
+        if math.isfinite(eps_v[i]) and eps_v[i] > slack_eps:
+            slack_eps = eps_v[i]
+    slack = math.expm1((slack_eps if slack_eps > -np.inf else _STEP) / k)
+    r = np.inf
+    for i in range(nv):  # the nodes (t = 0 of every interval, and the last node)
+        val, ok = _fine_value(num, den, delay, n0, v[i], slack)
+        if not ok:
+            return np.nan
+        r = _npmin(r, val)
+    idx, thr = _reach_index(c, d, 0.5 * r, to_inf)
+    if idx < 0 and to_inf:
+        return np.nan  # no amplitude of the grid is reached: none for any smaller r either
+    an0 = cabs(n0)
+    for i in range(nv - 1):
+        # value(w) = (|1/G(w) + N_lim| - |N_lim| slack) / (1 + slack), and |1/G(w) - 1/G_i| <= |1/G_i| (e^eps - 1)
+        e = math.exp(eps_v[i]) * (1 + 1e-12)
+        h = cdiv(1.0 + 0j, g[i])
+        lb = (cabs(h + n0) - cabs(h) * (e - 1) - an0 * slack) / (1 + slack) * (1 - 1e-9) - 1e-300
+        if math.isfinite(e) and math.isfinite(lb) and lb > 0 and thr < 0.5 * lb:
+            continue  # no refined frequency of this interval can change the index (nor has no room)
+        for q in range(1, k):
+            val, ok = _fine_value(num, den, delay, n0, v[i] + (v[i + 1] - v[i]) * (q * step_t), slack)
+            if not ok:
+                return np.nan
+            r = _npmin(r, val)
+    idx, thr = _reach_index(c, d, 0.5 * r, to_inf)
+    if idx < 0:
+        return np.nan
+    return _REACH[idx]
+
+
+@njit(**_OPTS)
+def _amplitude_window(num, den, delay, kind, p, v, g, g_abs, eps_v, lo, hi, tail_c, head_c, head_d):
+    """predict._default_amplitude_window for an amplitude-only N: (A_lo, A_hi, case, top, bottom, status);
+    case 0: |G N| can reach 1 there, 1: N's amplitude domain (never reaches 1)."""
+    top = _limit_reach(num, den, delay, kind, p, v, g, eps_v, True, tail_c, 0.0)
+    bottom = _limit_reach(num, den, delay, kind, p, v, g, eps_v, False, head_c, head_d)
+    if lo > 0:
+        cand = lo * (1 + _CAND_ABOVE)
+        if top == top:
+            cand = np.concatenate((cand, _geomspace(lo, _npmax(top, lo * 2), 200)))
+    else:
+        cand = _CAND_ALL.copy()
+    if math.isfinite(hi):
+        cand = np.concatenate((cand, hi * (1 - _CAND_BELOW)))
+    if top == top:
+        keep = cand[cand < top]
+        cand = np.concatenate((keep, np.array([top])))
+    if bottom == bottom:
+        keep = cand[cand > bottom]
+        cand = np.concatenate((np.array([bottom]), keep))
+    cand = _unique(cand[(cand > lo) & (cand < hi)])
+    nc = cand.size
+    if nc < 2:
+        return 0.0, 0.0, 2, top, bottom, 9  # a token window: left to the Python driver
+    n = np.empty(nc, np.complex128)
+    any_n = False
+    for i in range(nc):
+        n[i] = element(kind, p, cand[i])
+        any_n |= n[i] != 0
+    if not any_n:
+        return 0.0, 0.0, 2, top, bottom, 8
+    g_lo, g_hi = np.inf, -np.inf
+    for i in range(g_abs.size):
+        g_lo, g_hi = _npmin(g_lo, g_abs[i]), _npmax(g_hi, g_abs[i])
+    m = np.empty(nc)
+    band = np.empty(nc, np.bool_)
+    for i in range(nc):
+        m[i] = cabs(n[i])
+        band[i] = (m[i] * g_lo <= 2.0) and (m[i] * g_hi >= 0.5)
+    rows = np.zeros(nc, np.bool_)
+    for i in range(nc - 1):
+        cross = (_npmin(m[i + 1], m[i]) * g_lo <= 1.0) and (_npmax(m[i + 1], m[i]) * g_hi >= 1.0)
+        varying = cabs(n[i + 1] - n[i]) > 1e-9 * m[i]
+        if (band[i] or cross) and varying:
+            rows[i] = True
+        if (band[i + 1] or cross) and varying:
+            rows[i + 1] = True
+    i0, i1 = -1, -1
+    for i in range(nc):
+        if rows[i]:
+            if i0 < 0:
+                i0 = i
+            i1 = i
+    if i0 < 0:
+        return cand[0], cand[nc - 1], 1, top, bottom, 0
+    return cand[max(i0 - 2, 0)], cand[min(i1 + 2, nc - 1)], 0, top, bottom, 0
+
+
+# ------------------------------------------------------------------------------------------ cells and windings
+
+
+@njit(**_OPTS)
+def _candidate_cells(ln_n, eps_a, ln_g, eps_v):
+    """_kernels.candidate_cells: sorted flat indices i * n_nodes_v + j of the cells that may hold a root."""
+    na, nv = ln_n.size - 1, ln_g.size - 1
+    if na < 1 or nv < 1:
+        return np.empty(0, np.int64)
+    rg = np.empty(nv)
+    for j in range(nv):
+        rg[j] = ln_g[j].real
+    order = _order(rg)
+    srt = rg[order]
+    emax = -np.inf
+    for j in range(nv):
+        emax = _npmax(emax, eps_v[j])
+    out = np.empty(64, np.int64)
+    n_out = 0
+    for i in range(na):
+        rn = ln_n[i].real
+        reach = eps_a[i] + emax
+        slack = 1e-9 * (abs(rn) + reach)
+        lo, hi = -rn - reach - slack, -rn + reach + slack
+        if lo != lo:
+            lo = -np.inf
+        if hi != hi:
+            hi = np.inf
+        start = _bisect(srt, lo, False)
+        stop = _bisect(srt, hi, True)
+        for q in range(start, stop):
+            j = order[q]
+            re = rn + rg[j]
+            e = eps_a[i] + eps_v[j]
+            im = ln_n[i].imag + ln_g[j].imag - _PI
+            if im > _PI:
+                im -= _TWO_PI
+            elif im < -_PI:
+                im += _TWO_PI
+            if not (abs(re) > e) and re * re + im * im <= e * e:
+                if n_out == out.size:
+                    grow = np.empty(2 * out.size, np.int64)
+                    grow[:n_out] = out[:n_out]
+                    out = grow
+                out[n_out] = i * (nv + 1) + j  # flat index in the node grid
+                n_out += 1
+    out = out[:n_out]
+    return out[_order(out)]
+
+
+@njit(**_OPTS)
+def _edge_phases(num, den, delay, kind, p, continuous, a0, v0, a1, v1, R0, R1):
+    """roots.edge_phases: (phase changes, suspects, discontinuities met, points evaluated, status)."""
+    m = a0.size
+    total = np.zeros(m)
+    seg = np.arange(m)
+    n_sus = n_jump = n_terms = 0
+    for depth in range(_MAX_EDGE_DEPTH + 1):
+        k = a0.size
+        d = np.empty(k)
+        split = np.empty(k, np.bool_)
+        n_split = 0
+        for i in range(k):
+            if R0[i] == 0 or R1[i] == 0:
+                d[i] = 0.0
+                n_sus += 1
+            else:
+                d[i] = _angle(cdiv(R1[i], R0[i]))
+            s = abs(d[i]) > _SPLIT
+            if s and not continuous and max(abs(a1[i] - a0[i]), abs(v1[i] - v0[i])) < _JUMP_LENGTH \
+                    and cabs(R1[i] - R0[i]) > _JUMP_SIZE * (1 + _npmax(cabs(R0[i] - 1), cabs(R1[i] - 1))):
+                am, vm = (a0[i] + a1[i]) / 2, (v0[i] + v1[i]) / 2
+                Rh = 1.0 + plant(num, den, delay, math.exp(vm)) * element(kind, p, math.exp(am))
+                n_terms += 1
+                if _npmax(cabs(Rh - R0[i]), cabs(R1[i] - Rh)) >= _JUMP_KEEP * cabs(R1[i] - R0[i]):
+                    n_jump += 1
+                    s = False
+            split[i] = s
+            n_split += s
+        if depth == _MAX_EDGE_DEPTH and n_split:
+            n_sus += n_split
+            split[:] = False
+            n_split = 0
+        level = np.zeros(m)
+        for i in range(k):
+            if not split[i]:
+                level[seg[i]] += d[i]
+        for i in range(m):
+            total[i] += level[i]
+        if n_split == 0:
+            break
+        if 2 * n_split > _MAX_SEGMENTS:
+            return total, n_sus, n_jump, n_terms, 6
+        na0, nv0, na1, nv1 = np.empty(2 * n_split), np.empty(2 * n_split), np.empty(2 * n_split), np.empty(2 * n_split)
+        nR0, nR1 = np.empty(2 * n_split, np.complex128), np.empty(2 * n_split, np.complex128)
+        nseg = np.empty(2 * n_split, np.int64)
+        j = 0
+        for i in range(k):
+            if split[i]:
+                am, vm = (a0[i] + a1[i]) / 2, (v0[i] + v1[i]) / 2
+                Rm = 1.0 + plant(num, den, delay, math.exp(vm)) * element(kind, p, math.exp(am))
+                n_terms += 1
+                q = n_split + j
+                na0[j], nv0[j], nR0[j], na1[j], nv1[j], nR1[j] = a0[i], v0[i], R0[i], am, vm, Rm
+                na0[q], nv0[q], nR0[q], na1[q], nv1[q], nR1[q] = am, vm, Rm, a1[i], v1[i], R1[i]
+                nseg[j] = nseg[q] = seg[i]
+                j += 1
+        a0, v0, a1, v1, R0, R1, seg = na0, nv0, na1, nv1, nR0, nR1, nseg
+    return total, n_sus, n_jump, n_terms, 0
+
+
+@njit(**_OPTS)
+def _dominant_any(n, g, r0, r1, c0, c1, along_rows):
+    """Whether roots.dominant_steps finds a jump in the patch P[r0:r1, c0:c1] of P = n g (outer product) along
+    axis 0 (along_rows) or 1."""
+    nr, nc = (r1 - r0, c1 - c0) if along_rows else (c1 - c0, r1 - r0)
+    if nr - 1 < 2:
+        return False
+    d = np.empty(nr - 1)
+    for col in range(nc):
+        for k in range(nr - 1):
+            if along_rows:
+                d[k] = cabs(n[r0 + k + 1] * g[c0 + col] - n[r0 + k] * g[c0 + col])
+            else:
+                d[k] = cabs(n[r0 + col] * g[c0 + k + 1] - n[r0 + col] * g[c0 + k])
+        last = nr - 2
+        for k in range(nr - 1):
+            before = d[1] if k == 0 else d[k - 1]
+            after = d[k + 1] if k < last else d[last - 1]
+            if d[k] > _DOMINANCE * _npmax(before, after):
+                return True
+    return False
+
+
+@njit(**_OPTS)
+def _m(P):
+    """_kernels._m: |1 + P|^2 / (1 + |P|^2)."""
+    pr, pi = P.real, P.imag
+    q = pr * pr + pi * pi
+    return (q + 2.0 * pr + 1.0) / (1.0 + q)
+
+
+@njit(**_OPTS)
+def _greedy_unique(a, v, radius):
+    """roots.greedy_unique for points sorted by v: mask of the points kept."""
+    n = a.size
+    keep = np.ones(n, np.bool_)
+    rmax = -np.inf
+    for i in range(n):
+        rmax = _npmax(rmax, radius[i])
+    for k in range(n):
+        reach = (radius[k] + rmax) * (1 + 1e-9)
+        for m in range(k):
+            if keep[m] and abs(v[k] - v[m]) <= reach:
+                if max(abs(a[k] - a[m]), abs(v[k] - v[m])) <= radius[k] + radius[m]:
+                    keep[k] = False
+                    break
+    return keep
+
+
+@njit(**_OPTS)
+def _columns(x, idx):
+    out = np.empty((x.shape[0], idx.size), x.dtype)
+    for k in range(idx.size):
+        out[:, k] = x[:, idx[k]]
+    return out
+
+
+@njit(**_OPTS)
+def _loeb_from(a, v, ra, rv):
+    det_log = ra.real * rv.imag - rv.real * ra.imag
+    scale = cabs(ra) * cabs(rv)
+    cond = det_log / scale if scale > 0 else 0.0
+    return det_log / (math.exp(a) * math.exp(v)), cond
+
+
+@njit(**_OPTS)
+def _s_min(ra, rv):
+    jaa, jvv = cabs(ra) ** 2, cabs(rv) ** 2
+    jav = ra.real * rv.real + ra.imag * rv.imag
+    half_tr, dj = (jaa + jvv) / 2, jaa * jvv - jav ** 2
+    return math.sqrt(_npmax(half_tr - math.sqrt(_npmax(half_tr ** 2 - dj, 0.0)), 0.0)), jaa, jvv, jav
+
+
+# ------------------------------------------------------------------------------------------------ the driver
+
+
+@njit(**_OPTS)
+def _windings(num, den, delay, kind, p, continuous, a, v, n, g, cells):
+    """roots.grid_windings on the candidate cells (flat indices): (cells of winding +-1, status, points evaluated);
+    status 1 for a winding of another size, 3 for a root on an edge."""
+    nc = cells.size
+    nv = v.size
+    n_points = 0
+    # windings of the candidate cells, corners counter-clockwise: (i, j) (i+1, j) (i+1, j+1) (i, j+1)
+    ca, cv = np.empty(4 * nc), np.empty(4 * nc)
+    Pc = np.empty(4 * nc, np.complex128)
+    for c in range(nc):
+        i, j = cells[c] // nv, cells[c] % nv
+        for q in range(4):
+            di, dj = _CORNER_I[q], _CORNER_J[q]
+            ca[q * nc + c], cv[q * nc + c] = a[i + di], v[j + dj]
+            Pc[q * nc + c] = n[i + di] * g[j + dj]
+    d = np.empty(4 * nc)
+    hard = np.zeros(4 * nc, np.bool_)
+    n_hard = 0
+    for e in range(4 * nc):
+        f = e + nc if e < 3 * nc else e - 3 * nc
+        R0, R1 = 1.0 + Pc[e], 1.0 + Pc[f]
+        d[e] = _angle(cdiv(R1, R0))
+        hard[e] = abs(d[e]) > _SPLIT or R0 == 0 or R1 == 0
+        n_hard += hard[e]
+    if n_hard:
+        ha0, hv0, ha1, hv1 = np.empty(n_hard), np.empty(n_hard), np.empty(n_hard), np.empty(n_hard)
+        hR0, hR1 = np.empty(n_hard, np.complex128), np.empty(n_hard, np.complex128)
+        k = 0
+        for e in range(4 * nc):
+            if hard[e]:
+                f = e + nc if e < 3 * nc else e - 3 * nc
+                ha0[k], hv0[k], ha1[k], hv1[k] = ca[e], cv[e], ca[f], cv[f]
+                hR0[k], hR1[k] = 1.0 + Pc[e], 1.0 + Pc[f]
+                k += 1
+        tot, n_sus, _, n_terms, status = _edge_phases(num, den, delay, kind, p, continuous, ha0, hv0, ha1, hv1,
+                                                      hR0, hR1)
+        n_points += n_terms
+        if status:
+            return np.empty(0, np.int64), status, n_points
+        if n_sus:
+            return np.empty(0, np.int64), 3, n_points
+        k = 0
+        for e in range(4 * nc):
+            if hard[e]:
+                d[e] = tot[k]
+                k += 1
+    wind_cells = np.empty(nc, np.int64)
+    n_wind = 0
+    for c in range(nc):
+        w = np.rint((((d[c] + d[nc + c]) + d[2 * nc + c]) + d[3 * nc + c]) / _TWO_PI)
+        if w != 0:
+            if abs(w) != 1:
+                return np.empty(0, np.int64), 1, n_points
+            wind_cells[n_wind] = cells[c]
+            n_wind += 1
+    wind_cells = wind_cells[:n_wind]
+    return wind_cells, 0, n_points
+
+
+
+
+@njit(**_OPTS)
+def _tangent_seeds(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n, g, cells, wind_cells, tol):
+    """The tangent seeds of roots.find_roots and their refinement (with the wider retry next to a jump):
+    (status, points evaluated); status 4 when a seed refines to a root (the Python driver isolates there)."""
+    nc, nv, nA, n_wind = cells.size, v.size, a.size, wind_cells.size
+    n_points = 0
+    # tangent seeds: local minima of m below the threshold among the corners of the candidate cells
+    nodes = np.empty(4 * nc, np.int64)
+    for c in range(nc):
+        i, j = cells[c] // nv, cells[c] % nv
+        nodes[c], nodes[nc + c] = i * nv + j, i * nv + j + 1
+        nodes[2 * nc + c], nodes[3 * nc + c] = (i + 1) * nv + j, (i + 1) * nv + j + 1
+    nodes = _unique(nodes)
+    excl = np.empty(16 * n_wind, np.int64)
+    n_ex = 0
+    for c in range(n_wind):
+        i, j = wind_cells[c] // nv, wind_cells[c] % nv
+        for di in range(-1, 3):
+            for dj in range(-1, 3):
+                x, y = i + di, j + dj
+                if 0 <= x < nA and 0 <= y < nv:
+                    excl[n_ex] = x * nv + y
+                    n_ex += 1
+    excl = excl[:n_ex]
+    excl = excl[_order(excl)]
+    seeds = np.empty(nodes.size, np.int64)
+    n_seed = 0
+    for node in nodes:
+        q = _bisect(excl, node, False)
+        if q < n_ex and excl[q] == node:
+            continue
+        i, j = node // nv, node % nv
+        x = _m(n[i] * g[j])
+        if x >= _TANGENT:
+            continue
+        low = True
+        for di in range(-1, 2):
+            for dj in range(-1, 2):
+                if (di or dj) and 0 <= i + di < nA and 0 <= j + dj < nv:
+                    if _m(n[i + di] * g[j + dj]) < x:
+                        low = False
+        if low:
+            seeds[n_seed] = node
+            n_seed += 1
+    if n_seed > _MAX_SEEDS:
+        return 6, n_points
+    if n_seed:
+        ta, tv = np.empty(n_seed), np.empty(n_seed)
+        b0a, b1a, b0v, b1v = np.empty(n_seed), np.empty(n_seed), np.empty(n_seed), np.empty(n_seed)
+        for s in range(n_seed):
+            i, j = seeds[s] // nv, seeds[s] % nv
+            ta[s], tv[s] = a[i], v[j]
+            b0a[s], b1a[s] = a[max(i - 2, 0)], a[min(i + 2, nA - 1)]
+            b0v[s], b1v[s] = v[max(j - 2, 0)], v[min(j + 2, nv - 1)]
+        xa, xv, tok, _, evaluated = refine(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, ta, tv,
+                                           b0a, b1a, b0v, b1v, tol, False)
+        n_points += evaluated
+        for s in range(n_seed):
+            if tok[s]:
+                return 4, n_points
+        for s in range(n_seed):
+            pinned = xa[s] == b0a[s] or xa[s] == b1a[s] or xv[s] == b0v[s] or xv[s] == b1v[s]
+            if not pinned:
+                continue
+            i, j = seeds[s] // nv, seeds[s] % nv
+            r0, r1, c0, c1 = max(i - 4, 0), min(i + 5, nA), max(j - 4, 0), min(j + 5, nv)
+            near = False
+            for along in (True, False):
+                near |= _dominant_any(n, g, r0, r1, c0, c1, along)
+            if near:
+                wa, wv = np.array([a[i]]), np.array([v[j]])
+                w0a, w1a = np.array([a[max(i - 3, 0)]]), np.array([a[min(i + 3, nA - 1)]])
+                w0v, w1v = np.array([v[max(j - 3, 0)]]), np.array([v[min(j + 3, nv - 1)]])
+                _, _, wok, _, evaluated = refine(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, wa, wv,
+                                                 w0a, w1a, w0v, w1v, tol, False)
+                n_points += evaluated
+                if wok[0]:
+                    return 4, n_points
+    return 0, n_points
+
+
+@njit(**_OPTS)
+def _finish(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, ra, rv, vals, windows, tol, marginal_tol):
+    """The continuum test, roots.merge and predict._build on the refined roots (ra, rv) with their values vals
+    (P, P_a, P_v, G, N): (status, rejected, points evaluated, result rows)."""
+    n_wind = ra.size
+    win_a0, win_a1, win_v0, win_v1 = windows[0], windows[1], windows[2], windows[3]
+    empty = np.empty((0, 10), np.complex128)
+    n_points = 0
+    # the continuum test (refined roots: up to 16 picked, none may be degenerate) ...
+    npick = min(n_wind, 16)
+    pick = _linspace(0.0, n_wind - 1.0, npick)
+    for q in range(npick):
+        k = int(pick[q])
+        da_, dv_ = vals[1, k], vals[2, k]
+        sin = abs(da_.real * dv_.imag - dv_.real * da_.imag) / (cabs(da_) * cabs(dv_))
+        if not math.isfinite(sin):
+            sin = 0.0
+        if sin < _DEGENERATE_SIN:
+            return 5, 0, n_points, empty
+    # ... then roots.merge: sorted by v (then a), same root within 1e-12 plus four position uncertainties
+    order = np.arange(n_wind)
+    for x in range(1, n_wind):  # a stable insertion sort by (v, a): np.lexsort((a, v))
+        y = x
+        while y > 0 and (rv[order[y - 1]] > rv[order[y]]
+                         or (rv[order[y - 1]] == rv[order[y]] and ra[order[y - 1]] > ra[order[y]])):
+            order[y - 1], order[y] = order[y], order[y - 1]
+            y -= 1
+    ma, mv = ra[order], rv[order]
+    mvals = np.empty((5, n_wind), np.complex128)
+    for k in range(n_wind):
+        mvals[:, k] = vals[:, order[k]]
+    if n_wind >= 2:
+        radius = np.empty(n_wind)
+        for k in range(n_wind):
+            s_min = _s_min(mvals[1, k], mvals[2, k])[0]
+            rad = _MERGE_RADIUS + 4 * (cabs(1 + mvals[0, k]) / s_min if s_min > 0 else np.inf)
+            radius[k] = min(rad, 1e-2)
+        idx = np.nonzero(_greedy_unique(ma, mv, radius))[0]
+        ma, mv, mvals = ma[idx], mv[idx], _columns(mvals, idx)
+    # predict._build: the residual bound, then the Loeb labels
+    k_all = ma.size
+    good = np.empty(k_all, np.bool_)
+    rejected = 0
+    for k in range(k_all):
+        good[k] = accepted(mvals[0, k], mvals[1, k], mvals[2, k], ma[k], mv[k], tol)
+        rejected += not good[k]
+    idx = np.nonzero(good)[0]
+    ma, mv, mvals = ma[idx], mv[idx], _columns(mvals, idx)
+    k_all = ma.size
+    det = np.empty(k_all)
+    cond = np.empty(k_all)
+    label = np.empty(k_all, np.int64)
+    dx_, ea_, ev_ = np.empty(k_all), np.empty(k_all), np.empty(k_all)
+    for k in range(k_all):
+        P, ra_, rv_ = mvals[0, k], mvals[1, k], mvals[2, k]
+        det[k], cond[k] = _loeb_from(ma[k], mv[k], ra_, rv_)
+        s_min, jaa, jvv, jav = _s_min(ra_, rv_)
+        dx_[k] = min(4 * cabs(1 + P) / s_min if s_min > 0 else np.inf, 1e-2)
+        ea, ev = jav, s_min ** 2 - jaa
+        if math.hypot(ea, ev) == 0:
+            ea, ev = (1.0, 0.0) if jaa <= jvv else (0.0, 1.0)
+        nrm = math.hypot(ea, ev)
+        ea_[k], ev_[k] = ea / nrm, ev / nrm
+    for k in range(k_all):
+        sd = _sign(det[k])
+        undecided = False
+        for side in range(2):
+            if side == 0:
+                ap, vp = ma[k] + dx_[k] * ea_[k], mv[k] + dx_[k] * ev_[k]
+            else:
+                ap, vp = ma[k] - dx_[k] * ea_[k], mv[k] - dx_[k] * ev_[k]
+            _, pa, pv, _, _ = slopes_at(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, ap, vp)
+            undecided |= _sign(_loeb_from(ap, vp, pa, pv)[0]) != sd
+        n_points += 6
+        if abs(cond[k]) < marginal_tol or undecided:
+            label[k] = MARGINAL
+        else:
+            label[k] = STABLE if det[k] > 0 else UNSTABLE
+    n_marg = 0
+    for k in range(k_all):
+        n_marg += label[k] == MARGINAL
+    keep = np.ones(k_all, np.bool_)
+    if n_marg > 1:  # a double root reached from several seeds: marginal roots within 1e-4 merged
+        idx = np.empty(n_marg, np.int64)
+        q = 0
+        for k in range(k_all):
+            if label[k] == MARGINAL:
+                idx[q] = k
+                q += 1
+        kept = _greedy_unique(ma[idx], mv[idx], np.full(n_marg, 0.5e-4))  # sorted by v since the merge
+        for q in range(n_marg):
+            keep[idx[q]] = kept[q]
+    out = np.empty((int(keep.sum()), 10), np.complex128)
+    rnd = np.empty(k_all)
+    for k in range(k_all):
+        rnd[k] = np.rint(mv[k] * 1e10) / 1e10
+    # np.lexsort((A, round(v, 10))): by rounded frequency, then amplitude (stable)
+    order = np.nonzero(keep)[0]
+    for x in range(1, order.size):
+        y = x
+        before, here = order[y - 1], order[y]
+        while y > 0 and (rnd[before] > rnd[here] or (rnd[before] == rnd[here]
+                                                     and math.exp(ma[before]) > math.exp(ma[here]))):
+            order[y - 1], order[y] = order[y], order[y - 1]
+            y -= 1
+            if y > 0:
+                before, here = order[y - 1], order[y]
+    for q in range(order.size):
+        k = order[q]
+        A, w = math.exp(ma[k]), math.exp(mv[k])
+        gk, nk = mvals[3, k], mvals[4, k]
+        r = 1 + gk * nk
+        edge = (abs(ma[k] - win_a0) <= _EDGE_TOL or abs(ma[k] - win_a1) <= _EDGE_TOL
+                or abs(mv[k] - win_v0) <= _EDGE_TOL or abs(mv[k] - win_v1) <= _EDGE_TOL)
+        res = cabs(r)
+        rel = res / (1 + cabs(gk * nk))
+        for val in (A, w, det[k], cond[k], res):
+            if not math.isfinite(val):
+                return 7, 0, n_points, empty
+        if not (math.isfinite(nk.real) and math.isfinite(nk.imag)):
+            return 9, 0, n_points, empty
+        out[q, 0], out[q, 1], out[q, 2], out[q, 3], out[q, 4] = A, w, det[k], cond[k], label[k]
+        out[q, 5], out[q, 6], out[q, 7], out[q, 8], out[q, 9] = res, rel, gk, nk, edge
+    return 0, rejected, n_points, out
+
+
+@njit(**_OPTS)
+def _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom_lo, dom_hi, tail_c, head_c, head_d, bp,
+           w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit, bytes_per_point):
+    """One loop end to end. Returns (status, floats, ints, roots): floats = (A_lo, A_hi, w_lo, w_hi, top, bottom,
+    max step along w, max step along A, smallest and largest |pole/zero|), ints = (amplitude window case, grid
+    rows, grid columns, jump intervals, candidate cells, evaluations for the grid, points evaluated, rejected,
+    unstable real pole), roots = (k, 10) complex rows (A, w, det, cond, label, |1+GN|, relative residual, G, N,
+    on edge)."""
+    fl = np.full(10, np.nan)
+    it = np.zeros(9, np.int64)
+    empty = np.empty((0, 10), np.complex128)
+    if zeros.size + poles.size > _MAX_PAIRWISE:
+        return 11, fl, it, empty
+    for i in range(poles.size):
+        q = poles[i]
+        if q.real > 0 and abs(q.imag) <= 1e-9 * cabs(q):
+            it[8] = 1
+    mag_lo, mag_hi = np.inf, -np.inf
+    for r in (zeros, poles):
+        for i in range(r.size):
+            x = r[i]
+            if math.isfinite(x.real) and math.isfinite(x.imag):
+                mg = cabs(x)
+                if mg > 0:
+                    mag_lo, mag_hi = min(mag_lo, mg), max(mag_hi, mg)
+    fl[8], fl[9] = mag_lo, mag_hi
+    if w_lo != w_lo:  # default: two decades beyond the poles and zeros
+        if mag_lo == np.inf:
+            w_lo, w_hi = 1e-2, 1e2
+        else:
+            w_lo, w_hi = mag_lo * _WIN_LO, mag_hi * _WIN_HI
+    fl[2], fl[3] = w_lo, w_hi
+    for w in (w_lo, w_hi):
+        g = plant(num, den, delay, w)
+        if not (math.isfinite(g.real) and math.isfinite(g.imag)):
+            return 8, fl, it, empty
+    v = _linspace(math.log(w_lo), math.log(w_hi), nw)
+    v, eps_v, status = _resolve_plant(zeros, poles, delay, v)
+    if status:
+        return status, fl, it, empty
+    nv = v.size
+    g = np.empty(nv, np.complex128)
+    g_abs = np.empty(nv)
+    any_g = False
+    for j in range(nv):
+        g[j] = plant(num, den, delay, math.exp(v[j]))
+        if not (math.isfinite(g[j].real) and math.isfinite(g[j].imag)):
+            return 8, fl, it, empty
+        g_abs[j] = cabs(g[j])
+        any_g |= g[j] != 0
+    if not any_g:
+        return 8, fl, it, empty
+    n_eval = nv
+    if A_lo != A_lo:
+        A_lo, A_hi, case, top, bottom, status = _amplitude_window(num, den, delay, kind, p, v, g, g_abs, eps_v,
+                                                                  dom_lo, dom_hi, tail_c, head_c, head_d)
+        if status:
+            return status, fl, it, empty
+        it[0] = case
+        fl[4], fl[5] = top, bottom
+    fl[0], fl[1] = A_lo, A_hi
+    a = _linspace(math.log(A_lo), math.log(A_hi), na)
+    if bp == bp and A_lo < bp < A_hi:
+        a = _unique(np.concatenate((a, np.array([math.log(bp)]))))
+    a, n, eps_a, n_n, status = _resolve_element(kind, p, a)
+    if status:
+        return status, fl, it, empty
+    n_eval += n_n
+    nA = a.size
+    if bytes_per_point * nA * nv > mem_limit:
+        return 8, fl, it, empty
+    any_n = False
+    for i in range(nA):
+        any_n |= n[i] != 0
+    if not any_n:
+        return 8, fl, it, empty
+    it[1], it[2], it[5] = nA, nv, n_eval
+    big_v = big_a = 0.0
+    jumps = 0
+    for e in eps_v:
+        if e <= _STEP:
+            big_v = max(big_v, e)
+        jumps += e > _STEP
+    for e in eps_a:
+        if e <= _STEP:
+            big_a = max(big_a, e)
+        jumps += e > _STEP
+    fl[6], fl[7], it[3] = big_v, big_a, jumps
+    ln_n = np.empty(nA, np.complex128)
+    ln_g = np.empty(nv, np.complex128)
+    for i in range(nA):
+        ln_n[i] = _clog(n[i])
+    for j in range(nv):
+        ln_g[j] = _clog(g[j])
+    cells = _candidate_cells(ln_n, eps_a, ln_g, eps_v)
+    nc = cells.size
+    it[4] = nc
+    n_points = 0
+    wind_cells, status, n_terms = _windings(num, den, delay, kind, p, continuous, a, v, n, g, cells)
+    n_points += n_terms
+    if status:
+        return status, fl, it, empty
+    n_wind = wind_cells.size
+    # refinement of the single-winding cells from the linear model's root, in the cell grown by half
+    win_a0, win_a1, win_v0, win_v1 = a[0], a[nA - 1], v[0], v[nv - 1]
+    sa, sv = np.empty(n_wind), np.empty(n_wind)
+    lo_a, hi_a, lo_v, hi_v = np.empty(n_wind), np.empty(n_wind), np.empty(n_wind), np.empty(n_wind)
+    for c in range(n_wind):
+        i, j = wind_cells[c] // nv, wind_cells[c] % nv
+        r00, r10 = 1 + n[i] * g[j], 1 + n[i + 1] * g[j]
+        r01, r11 = 1 + n[i] * g[j + 1], 1 + n[i + 1] * g[j + 1]
+        cl_a, ch_a, cl_v, ch_v = a[i], a[i + 1], v[j], v[j + 1]
+        ha, hv = ch_a - cl_a, ch_v - cl_v
+        ja = cdiv(r10 - r00 + r11 - r01, complex(2 * ha, 0.0))
+        jv = cdiv(r01 - r00 + r11 - r10, complex(2 * hv, 0.0))
+        rc = cdiv(r00 + r10 + r01 + r11, complex(4.0, 0.0))
+        det = ja.real * jv.imag - jv.real * ja.imag
+        da = -(jv.imag * rc.real - jv.real * rc.imag) / det
+        dv = -(-ja.imag * rc.real + ja.real * rc.imag) / det
+        if not math.isfinite(da):
+            da = 0.0
+        if not math.isfinite(dv):
+            dv = 0.0
+        sa[c] = min(max((cl_a + ch_a) / 2 + da, cl_a), ch_a)
+        sv[c] = min(max((cl_v + ch_v) / 2 + dv, cl_v), ch_v)
+        ga, gv = ha * 0.5, hv * 0.5
+        lo_a[c], hi_a[c] = _npmax(cl_a - ga, win_a0), _npmin(ch_a + ga, win_a1)
+        lo_v[c], hi_v[c] = _npmax(cl_v - gv, win_v0), _npmin(ch_v + gv, win_v1)
+    ra, rv, ok, vals, evaluated = refine(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, sa, sv, lo_a, hi_a,
+                                         lo_v, hi_v, tol, False)
+    n_points += evaluated
+    for c in range(n_wind):
+        i, j = wind_cells[c] // nv, wind_cells[c] % nv
+        cl_a, ch_a, cl_v, ch_v = a[i], a[i + 1], v[j], v[j + 1]
+        ga, gv = (ch_a - cl_a) * 1e-9, (ch_v - cl_v) * 1e-9
+        inside = (_npmax(cl_a - ga, win_a0) <= ra[c] <= _npmin(ch_a + ga, win_a1)
+                  and _npmax(cl_v - gv, win_v0) <= rv[c] <= _npmin(ch_v + gv, win_v1))
+        if not (ok[c] and inside):
+            return 2, fl, it, empty
+    status, n_seed_points = _tangent_seeds(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n, g, cells,
+                                           wind_cells, tol)
+    n_points += n_seed_points
+    if status:
+        return status, fl, it, empty
+    if n_wind == 0:
+        it[6] = n_points
+        return 0, fl, it, empty
+    status, rejected, n_fin, out = _finish(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, ra, rv, vals,
+                                           np.array([win_a0, win_a1, win_v0, win_v1]), tol, marginal_tol)
+    n_points += n_fin
+    if status:
+        return status, fl, it, empty
+    it[7] = rejected
+    it[6] = n_points
+    return 0, fl, it, out
+
+
+@njit(**_OPTS)
+def _drive_one(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom_lo, dom_hi, tail_c, head_c,
+               head_d, bp, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit, bytes_per_point):
+    return _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom_lo, dom_hi, tail_c, head_c,
+                  head_d, bp, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit, bytes_per_point)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", parallel=True)
+def _drive_many(num, n_num, den, n_den, zeros, n_zeros, poles, n_poles, delay, kind, p, continuous, ln_lo, ln_hi,
+                dom_lo, dom_hi, tail_c, head_c, head_d, bp, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol,
+                mem_limit, bytes_per_point):
+    """_drive over the loops of a batch (rows of the arguments; num, den padded), in parallel."""
+    L = delay.size
+    status = np.zeros(L, np.int64)
+    fl = np.empty((L, 10))
+    it = np.empty((L, 9), np.int64)
+    roots = np.empty((L, MAX_ROOTS, 10), np.complex128)
+    count = np.zeros(L, np.int64)
+    for k in prange(L):
+        s, f, i, r = _drive(num[k, :n_num[k]].copy(), den[k, :n_den[k]].copy(), zeros[k, :n_zeros[k]].copy(),
+                            poles[k, :n_poles[k]].copy(), delay[k], kind[k], p[k].copy(),
+                            continuous[k], ln_lo[k], ln_hi[k], dom_lo[k], dom_hi[k], tail_c[k], head_c[k],
+                            head_d[k], bp[k], w_lo[k], w_hi[k], A_lo[k], A_hi[k], na, nw, tol, marginal_tol,
+                            mem_limit, bytes_per_point)
+        if s == 0 and r.shape[0] > MAX_ROOTS:
+            s = 10
+        status[k] = s
+        fl[k] = f
+        it[k] = i
+        if s == 0:
+            count[k] = r.shape[0]
+            roots[k, :r.shape[0]] = r
+    return status, fl, it, roots, count
+
+
+# ------------------------------------------------------------------------------------------- the Python side
+
+
+def solve_one_dispatcher():
+    """The numba dispatcher of one loop's driver (for the compile announcement)."""
+    return _drive_one
+
+
+def solve_many_dispatcher():
+    """The numba dispatcher of the batch driver (for the compile announcement)."""
+    return _drive_many
+
+
+def solve_one(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol):
+    """The driver on one loop: (status, floats, ints, roots) as :func:`_drive` returns them (windows NaN:
+    the defaults)."""
+    from ..._checks import memory_limit
+    from ..grid import BYTES_PER_POINT
+
+    num, den, zeros, poles, delay = gpart
+    return _drive_one(num, den, zeros, poles, delay, *npart, float(w_lo), float(w_hi), float(A_lo), float(A_hi),
+                      int(na), int(nw), float(tol), float(marginal_tol), float(memory_limit()),
+                      float(BYTES_PER_POINT[False]))
+
+
+def solve_many(parts, windows, na, nw, tol, marginal_tol):
+    """The driver over loops [(gpart, npart), ...] with windows [(w_lo, w_hi, A_lo, A_hi), ...] in one parallel
+    call: arrays (status, floats, ints, roots (L, MAX_ROOTS, 10), root counts)."""
+    from ..._checks import memory_limit
+    from ..grid import BYTES_PER_POINT
+
+    L = len(parts)
+    padded = []
+    for q in range(4):  # num, den, zeros, poles: rows padded to the longest, with their lengths
+        width = max(1, max(len(g[q]) for g, _ in parts))
+        arr = np.zeros((L, width), complex if q >= 2 else float)
+        lengths = np.empty(L, np.int64)
+        for k, (g, _) in enumerate(parts):
+            arr[k, :len(g[q])], lengths[k] = g[q], len(g[q])
+        padded += [arr, lengths]
+    p = np.zeros((L, 4))
+    cols = [np.empty(L) for _ in range(9)]
+    kind = np.empty(L, np.int64)
+    cont = np.empty(L, np.bool_)
+    for k, (g, npart) in enumerate(parts):
+        kind[k], cont[k] = npart[0], npart[2]
+        p[k, :npart[1].size] = npart[1]
+        cols[0][k] = g[4]
+        for q in range(8):
+            cols[1 + q][k] = npart[3 + q]
+    win = np.asarray(windows, float).reshape(L, 4)
+    return _drive_many(*padded, cols[0], kind, p, cont, *cols[1:9], win[:, 0].copy(),
+                       win[:, 1].copy(), win[:, 2].copy(), win[:, 3].copy(), int(na), int(nw), float(tol),
+                       float(marginal_tol), float(memory_limit()), float(BYTES_PER_POINT[False]))

@@ -1,0 +1,113 @@
+"""The arguments of the compiled driver (:mod:`.driver`) for a loop, read from G and N without numba: the
+coefficients of a rational G and the compiled form of the element with the constants of its bounds. None
+wherever the driver does not mirror the Python path (it then runs instead)."""
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+from ...describing.base import DescribingFunction
+from ...describing.static import CubicStiffness, StaticElement
+from ..delay import DelayedSystem
+from ..plant import MAX_ORDER
+from .kinds import KINDS
+
+__all__ = ["plant_part", "element_part"]
+
+
+_CACHE_SIZE = 256  # plants and elements remembered by their contents (repeated calls skip the conversion)
+_PLANTS: dict = {}
+_ELEMENTS: dict = {}
+
+
+def _remember(cache: dict, key, value):
+    if len(cache) >= _CACHE_SIZE:
+        cache.clear()
+    cache[key] = value
+    return value
+
+
+def _roots(p: np.ndarray) -> np.ndarray:
+    """np.roots(p) for p without leading zeros (what :class:`~dfloop.solve.plant.Plant` holds), with the degree-0
+    and degree-1 cases taken without numpy's call overhead: np.roots gives there no root, or the eigenvalue of the
+    1 x 1 companion matrix [-p1 / p0], exactly, followed by the roots at 0 of trailing zeros."""
+    nz = np.flatnonzero(p)
+    core = p[:nz[-1] + 1]
+    if core.size > 2:
+        return np.roots(p)
+    head = np.array([-core[1] / core[0]]) if core.size == 2 else np.empty(0)
+    return np.concatenate([head, np.zeros(p.size - core.size)])
+
+
+def plant_part(G):
+    """(num, den, zeros, poles, delay) of G for the driver: a continuous SISO python-control tf, optionally inside
+    a :class:`~dfloop.solve.delay.DelayedSystem`; None for anything else or anything the Python path would reject
+    (it then says why). Remembered by the coefficients and the delay (the result depends on nothing else)."""
+    ct = sys.modules.get("control")
+    delay = 0.0
+    if isinstance(G, DelayedSystem):
+        G, delay = G.system, float(G.delay)
+    if ct is None or not isinstance(G, ct.TransferFunction):
+        return None
+    if getattr(G, "ninputs", 1) != 1 or getattr(G, "noutputs", 1) != 1 or getattr(G, "dt", 0) not in (0, None):
+        return None
+    num, den = (np.asarray(x, dtype=float) for x in (G.num[0][0], G.den[0][0]))
+    if num.ndim != 1 or den.ndim != 1:
+        return None
+    key = (num.tobytes(), den.tobytes(), delay)
+    hit = _PLANTS.get(key)
+    if hit is not None:
+        return hit
+    if not (np.all(np.isfinite(num)) and np.all(np.isfinite(den))) or max(den.size, num.size) - 1 > MAX_ORDER:
+        return None
+    num, den = (x[np.argmax(x != 0):] if np.any(x) else x[:0] for x in (num, den))
+    if num.size == 0 or den.size == 0 or num.size > den.size:
+        return None
+    zeros, poles = (np.ascontiguousarray(_roots(x), complex) for x in (num, den))  # as Plant has them
+    return _remember(_PLANTS, key, (np.ascontiguousarray(num), np.ascontiguousarray(den), zeros, poles, delay))
+
+
+def element_part(N, form):
+    """The element's arguments for the driver (kind, parameters, continuity, domain and its logs, tail and head
+    bound constants, breakpoint), or None where the driver does not mirror the element's methods."""
+    cls = type(N)
+    try:
+        key = (cls, tuple(vars(N).items()))  # a built-in element is a function of its attributes
+        hash(key)
+    except TypeError:
+        key = None
+    hit = _ELEMENTS.get(key) if key is not None else None
+    if hit is not None:
+        return hit
+    out = _element_part(N, form, cls)
+    return out if key is None or out is None else _remember(_ELEMENTS, key, out)
+
+
+def _element_part(N, form, cls):
+    if cls.validity is not DescribingFunction.validity or cls.error_estimate is not DescribingFunction.error_estimate:
+        return None
+    owner = next(c for c in cls.__mro__ if "compiled_form" in c.__dict__)
+    if any(getattr(cls, m) is not getattr(owner, m) for m in ("tail_bound", "head_bound", "amplitude_domain")):
+        return None
+    kind = KINDS[form[0]]
+    lo, hi = (float(np.asarray(x, float)) for x in N.amplitude_domain())
+    with np.errstate(divide="ignore"):
+        ln_lo, ln_hi = float(np.log(lo)), float(np.log(hi))
+    tail = N.tail_bound(np.ones(1))
+    tail_c = np.nan if tail is None else float(tail[0])
+    head_c = head_d = np.nan
+    if N.head_bound(np.ones(1)) is not None:
+        if not isinstance(N, CubicStiffness):
+            return None
+        head_c, head_d = 0.75 * (1 + 1e-12) * abs(N.k3), float(4 * np.spacing(N.k1))
+    bp = np.nan
+    if isinstance(N, StaticElement):
+        if getattr(N, "step", None) is not None or cls.breakpoints is not owner.breakpoints:
+            return None
+        pts = np.asarray(N.breakpoints(np.inf), float)
+        if pts.size > 1:
+            return None
+        bp = float(pts[0]) if pts.size else np.nan
+    return (kind, np.ascontiguousarray(form[1], float), bool(getattr(N, "continuous", False)), ln_lo, ln_hi, lo, hi,
+            tail_c, head_c, head_d, bp)
