@@ -10,8 +10,9 @@ functions). A third compares exact_cycle on the smooth (DOP853) path with a plai
 (solve_ivp DOP853 + scipy.optimize.root on (s0, T) with the phase condition x(0) = 0, finite-difference
 Jacobian) at the same accuracy, best of 5 runs each.
 
-Run: python benchmarks/bench_exact.py [--repeat N] [--write]   (--write also writes benchmarks/results/bench_exact.md;
+Run: python benchmarks/bench_exact.py [--repeat N] [--write] | --high-order   (--write also writes benchmarks/results/bench_exact.md;
 --repeat N: the cost table takes the best of N runs of each call, steadier on a shared machine; default 1;
+--high-order: only the table of high-order loops (function high_order, printed, not written);
 --cpu: times are this process's CPU time (time.process_time) instead of wall time: on a machine shared with other
 jobs the wall time of a single-threaded call includes the time others run, its CPU time does not)
 """
@@ -150,7 +151,68 @@ def main() -> str:
             "runs each; the last column says both reach the same orbit):\n\n" + smooth_versus_scipy())
 
 
+def _pade(T: float, n: int):
+    num, den = ct.pade(T, n)
+    return ct.tf(num, den)
+
+
+def high_order() -> str:
+    """The high-order loops of tests/test_exact_high_order.py and the issue's order-12 backlash: the flow's
+    realisation (order, ||A'||, its frequency response against python-control's over four decades), and
+    exact_cycle's outcome, path and cost relative to the prediction (one run each after a warm-up); then the
+    order-6 lag chain that keeps python-control's realisation (relative error at 100 rad/s of each)."""
+    from dfloop.hybrid import loop_model, plant_matrices
+    from dfloop.hybrid.realisation import conditioned
+
+    s = ct.tf("s")
+    loops = [
+        ("saturation, pade-8, order 11", 6 * _pade(0.3, 8) / ((s + 1) ** 2 * (0.1 * s + 1)), df.Saturation(1.0)),
+        ("backlash h=1, 5/(s(s+1)) pade-8 lag, order 11", 5 / (s * (s + 1)) * _pade(0.1, 8) / (0.05 * s + 1),
+         df.Backlash(h=1.0)),
+        ("dead zone, 12/(s+1)^3 pade-8, order 11", 12 / (s + 1) ** 3 * _pade(0.1, 8), df.DeadZone(0.5)),
+        ("saturation, zeta 1e-4, poles 1e4 apart, pade-6, order 12",
+         ct.tf([8], [1, 2, 2, 1]) * ct.tf([1], [1e-4, 1]) * ct.tf([100], [1, 2e-4 * 10, 100]) * _pade(0.2, 6),
+         df.Saturation(1.0)),
+        ("backlash h=0.5, 4/(s(s+1)) pade(1, 8) lags, order 12 (the issue's)",
+         ct.tf([4.0], [1, 1, 0]) * _pade(1.0, 8) * ct.tf([1], [0.1, 1]) * ct.tf([1], [0.05, 1]), df.Backlash(h=0.5)),
+    ]
+    exact_cycle(loops[0][1], loops[0][2], df.predict_limit_cycles(loops[0][1], loops[0][2])[0])   # warm-up (JIT)
+    rows = ["| loop | cycle | order, ||A'|| | realisation vs G (max relative, 0.01-100 rad/s) | outcome | path "
+            "| exact_cycle / predict |", "|---|---|---|---|---|---|---|"]
+    for name, G, N in loops:
+        t_pred, cycles = timed(lambda: df.predict_limit_cycles(G, N))
+        for i, c in enumerate(cycles):
+            loop = loop_model(G, N, c.amplitude, c.frequency)
+            A, B = loop.plant
+            C = -loop.x_row[:loop.n]
+            err = max(abs(C @ np.linalg.solve(1j * w * np.eye(loop.n) - A, B) - complex(G(1j * w))) /
+                      abs(complex(G(1j * w))) for w in np.logspace(-2, 2, 40))
+            t_ex, e = timed(lambda: exact_cycle(G, N, c))
+            what = (f"A={e.amplitude:.6g}, w={e.frequency:.6g} ({'stable' if e.stable else 'unstable'}, "
+                    f"|mu| {e.largest_multiplier:.3g})" if e.success else f"no orbit: {e.extra.get('outcome')}")
+            rows.append(f"| {name} | {i} | {loop.n}, {np.linalg.norm(A, 2):.3g} | {err:.1e} | {what} | "
+                        f"{e.extra.get('path', '')} | {t_ex / t_pred:.0f} |")
+    G = ct.tf([1.0], np.poly(-np.array([0.3, 0.5, 0.7, 1.1, 2.0, 4.0])).real)
+    A, B, C = plant_matrices(G)
+    lines = "\n".join(rows)
+    from dfloop.hybrid import realisation
+
+    low, realisation.LOW_ORDER = realisation.LOW_ORDER, 0     # force the balanced realisation for the comparison
+    try:
+        Ab, Bb, Cb, _ = conditioned(A, B, C)
+    finally:
+        realisation.LOW_ORDER = low
+    g = complex(G(100j))
+    kept = abs(C @ np.linalg.solve(100j * np.eye(6) - A, B) - g) / abs(g)
+    dense = abs(Cb @ np.linalg.solve(100j * np.eye(6) - Ab, Bb) - g) / abs(g)
+    return (lines + f"\n\nOrder-6 lag chain, |G(100j)| = {abs(g):.1e}: relative error of C(jw - A)^-1 B "
+            f"{kept:.1e} in python-control's realisation (kept up to order {low}), {dense:.1e} balanced.\n")
+
+
 if __name__ == "__main__":
+    if "--high-order" in sys.argv[1:]:     # the high-order loops only (not part of the results file)
+        print(high_order())
+        sys.exit(0)
     text = main()
     print(text)
     if "--write" in sys.argv[1:]:

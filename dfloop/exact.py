@@ -76,8 +76,12 @@ class ExactCycle:
         Mean of x over the orbit (its bias; 0 up to rounding for a symmetric loop without constant input).
     extra : dict
         Engine details: ``z0`` (augmented state [plant state, element state, 1] at the shooting start, which is
-        not the waveform's t = 0), ``mode0`` (the element's mode there), for re-running the flow, and ``returns``
-        (oscillations per period: 1, or k for a period-k orbit found on the settled motion). On the
+        not the waveform's t = 0, in the loop model's own well-conditioned realisation), ``mode0`` (the element's
+        mode there), for re-running the flow; ``plant_state`` (the plant part of ``z0`` in the realisation
+        :func:`dfloop.hybrid.plant_matrices` gives, python-control's own up to a diagonal balancing); ``returns``
+        (oscillations per period: 1, or k for a period-k orbit found on the settled motion); ``path`` (how
+        Newton reached the orbit: ``"newton"`` from the start, or ``"homotopy"``, the Newton homotopy from the
+        predicted orbit, :func:`dfloop.hybrid.shooting.homotopy_orbit`). On the
         exact delay flow: ``s0`` (plant state), ``mode0``, ``u0`` (plant input), ``queue0`` (pending switches
         [instant (s), level] of the delay line), ``section`` (the switch the return map starts on) and ``delay``;
         after a failed search that was globalised, ``outcome`` and ``motions`` (:mod:`dfloop.hybrid.globalise`).
@@ -158,6 +162,14 @@ class ExactCycle:
                 f"{self.largest_multiplier:.4g}); DF error: amplitude {100 * self.amplitude_error:+.3g} %, "
                 f"frequency {100 * self.frequency_error:+.3g} %; {self.switching_times.size} switches/period, "
                 f"residual {self.residual:.1e}; {self.method})")
+
+
+def _plant_state(loop, z: np.ndarray) -> np.ndarray:
+    """The plant part of an augmented state z in the coordinates of ``plant_matrices(G)`` (python-control's
+    realisation of G, diagonally balanced when badly scaled), not the flow's own (``loop.basis``)."""
+    s = np.asarray(z, float)[:loop.n]
+    basis = getattr(loop, "basis", None)
+    return s.copy() if basis is None else basis @ s
 
 
 def _nontrivial(mu: np.ndarray) -> np.ndarray:
@@ -303,7 +315,7 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
 def _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations, settle_periods, max_events,
                  max_deviation, nodes, m, globalise, constant) -> ExactCycle:
     from .hybrid import ShootingError, delay_orbit, loop_model, periodic_orbit
-    from .hybrid.globalise import shoot_or_globalise
+    from .hybrid.globalise import homotopy_allowed, shoot_or_globalise
 
     A0, w0 = predicted
     r0, load, bias = constant["r0"], constant["load"], constant["bias"]
@@ -326,7 +338,7 @@ def _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations
     try:
         orbit = periodic_orbit(loop, N, A0, w0, tol=tol, max_iterations=max_iterations,
                                settle_periods=loop.settle_periods if settle_periods is None else settle_periods,
-                               nodes=m, max_events=max_events, bias=bias)
+                               nodes=m, max_events=max_events, bias=bias, homotopy=homotopy_allowed())
     except ShootingError as exc:
         return _failure(str(exc), predicted, loop.method, exc.residual, exc.iterations)
     out = _result(loop, orbit, predicted, harmonics, samples)
@@ -422,5 +434,6 @@ def _result(loop, orbit, predicted, harmonics: int, samples: int) -> ExactCycle:
                       y=y, switching_times=switches, harmonics=X, multipliers=mu, stable=stable,
                       amplitude_error=(A0 - A_dom) / A_dom, frequency_error=(w0 - k * w) / (k * w),
                       residual=orbit.residual, iterations=orbit.iterations,
-                      extra={"z0": orbit.z, "mode0": orbit.mode, "returns": k},
+                      extra={"z0": orbit.z, "mode0": orbit.mode, "returns": k, "plant_state": _plant_state(loop, orbit.z),
+                             "path": orbit.path},
                       mean=float(np.mean(x)) if mean is None else mean)

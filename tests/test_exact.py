@@ -182,7 +182,7 @@ def test_saturation_cycle_matches_a_long_event_located_simulation():
     c = df.predict_limit_cycles(G, N)[0]
     e = exact_cycle(G, N, c)
     assert e.success and e.stable
-    s0 = e.extra["z0"][:3] * 1.02                       # start 2 % off the orbit: multiplier 0.21 per period
+    s0 = e.extra["plant_state"] * 1.02                       # start 2 % off the orbit: multiplier 0.21 per period
     w, amp = _simulate(G, "saturation", 1.0, s0, 0.0, 20, e.period)
     assert e.frequency == pytest.approx(w, rel=1e-8)
     assert e.amplitude == pytest.approx(amp, rel=1e-7)
@@ -194,7 +194,7 @@ def test_backlash_servo_outer_cycle_matches_simulation_and_inner_one_has_no_orbi
     e = exact_cycle(G, N, outer)
     assert e.success and e.stable and e.largest_multiplier < 1
     z0 = e.extra["z0"]
-    w, amp = _simulate(G, "play", 1.0, z0[:2] * 1.001, z0[2], 40, e.period)
+    w, amp = _simulate(G, "play", 1.0, e.extra["plant_state"] * 1.001, z0[2], 40, e.period)
     assert e.frequency == pytest.approx(w, rel=1e-8)
     assert e.amplitude == pytest.approx(amp, rel=1e-7)
     # the DF's inner (unstable) cycle has no true orbit: every motion that engages the play grows to the
@@ -254,9 +254,9 @@ def test_unstable_cycle_has_a_multiplier_outside_the_unit_circle_and_repels_at_t
     # independent run (DOP853, no events): an offset along the unstable eigenvector grows by mu per period
     from dfloop.hybrid import loop_model
     loop = loop_model(G, N, e.amplitude, e.frequency)
-    z0 = e.extra["z0"][:3]
+    z0 = e.extra["plant_state"]
     lam, vecs = np.linalg.eig(loop.flow(e.extra["z0"], e.extra["mode0"], e.period, monodromy=True).monodromy[:3, :3])
-    v = np.real(vecs[:, np.argmax(np.abs(lam))])
+    v = loop.basis @ np.real(vecs[:, np.argmax(np.abs(lam))])     # the flow's realisation -> python-control's
     A, B, C = _ss(G)
 
     def rhs(t, s):

@@ -45,7 +45,7 @@ def test_period_two_orbit_of_chua_circuit_is_found_whole():
     e = exact_cycle(G, N, (3.2, 2.65), settle_periods=40, max_deviation=3.0)
     assert e.success and e.extra["returns"] == 2, e.message
     assert "period-2" in e.message and e.stable
-    s0 = e.extra["z0"][:3]
+    s0 = e.extra["plant_state"]
     # independent: the circuit's own flow returns to the start after the period, not after half of it
     _, whole = _maxima(alpha, s0, e.period)
     _, half = _maxima(alpha, s0, 0.5 * e.period)
@@ -72,5 +72,5 @@ def test_period_one_orbit_stays_period_one():
     e = exact_cycle(G, N, (3.2, 2.65), settle_periods=40, max_deviation=3.0)
     assert e.success and e.extra["returns"] == 1, e.message
     tops, _ = _maxima(alpha, [math.copysign(0.1, np.mean(e.x)), 0.0, 0.0], 300.0)
-    orbit_tops, _ = _maxima(alpha, e.extra["z0"][:3], e.period * (1 - 1e-9))
+    orbit_tops, _ = _maxima(alpha, e.extra["plant_state"], e.period * (1 - 1e-9))
     assert orbit_tops.size == 1 and np.max(np.abs(tops[-4:] - orbit_tops[0])) < 1e-6

@@ -4,6 +4,8 @@ Newton's method converges only near an orbit; a prediction that the describing f
 distortion, a Padé chain, a long delay) can leave it stalled although a true, attracting orbit lies close by.
 Before answering "no orbit", :func:`shoot_or_globalise`:
 
+0. (in the first shooting) follows the Newton homotopy from the predicted orbit when Newton from it stalls
+   (:func:`dfloop.hybrid.shooting.homotopy_orbit`; ``extra["path"]`` says which found the orbit);
 1. shoots again from the prediction itself (no settling) with fewer multiple-shooting nodes (1 and 2: a node
    set that straddles a fast switch can stall where single shooting converges);
 2. simulates the loop on the exact flow from the prediction and from starts 0.7 and 1.4 times its amplitude
@@ -34,7 +36,7 @@ from .delay import DelayError, delay_simulation, split_delay
 from .loop import HybridError
 from .model import loop_model, start_on_prediction
 
-__all__ = ["shoot_or_globalise", "inside_search", "RUN_PERIODS", "STARTS"]
+__all__ = ["shoot_or_globalise", "inside_search", "homotopy_allowed", "RUN_PERIODS", "STARTS"]
 
 RUN_PERIODS = 200          # predicted periods per run
 STARTS = (1.0, 0.7, 1.4)   # start amplitudes, relative to the prediction
@@ -45,6 +47,12 @@ _REST = 1e-6               # |x| below this fraction of the start amplitude: res
 _DIVERGED = 1e6
 
 _INSIDE = contextvars.ContextVar("dfloop_exact_cycle_inside", default=False)
+_HOMOTOPY = contextvars.ContextVar("dfloop_exact_cycle_homotopy", default=True)
+
+
+def homotopy_allowed() -> bool:
+    """False in the globalisation's further attempts: the homotopy from the prediction ran in the first one."""
+    return _HOMOTOPY.get()
 
 
 def inside_search() -> bool:
@@ -67,7 +75,11 @@ def shoot_or_globalise(G, N, predicted: tuple, shoot, max_deviation: float, cons
         first = shoot(predicted)
         if first.success:
             return first
-        return _globalise(G, N, predicted, first, shoot, max_deviation, constant or {})
+        quiet = _HOMOTOPY.set(False)
+        try:
+            return _globalise(G, N, predicted, first, shoot, max_deviation, constant or {})
+        finally:
+            _HOMOTOPY.reset(quiet)
     finally:
         _INSIDE.reset(token)
 
@@ -101,14 +113,18 @@ def _simulate(G, N, A: float, w: float, periods: float, r0: float = 0.0, load: f
     try:
         z, mode = start_on_prediction(loop, N, A, w, bias=bias)
         for p in range(int(periods)):
-            fl = loop.flow(z, mode, P, max_events=100_000)
+            fl = loop.flow(z, mode, P, max_events=100_000,
+                           **({"limit": _DIVERGED * A} if getattr(loop, "bounded", False) else {}))
             tk = np.arange(64) * (P / 64)
+            if getattr(fl, "stopped", None) is not None:   # passed the divergence bound within the period
+                tk = tk[tk <= fl.stopped]
+                diverged = True
             xk, yk = loop.signals(fl, tk)
             y_end = float(yk[-1])
             ts.append(p * P + tk)
             xs.append(xk)
             z, mode = fl.z, fl.mode
-            if not np.all(np.isfinite(xk)) or np.max(np.abs(xk - bias)) > _DIVERGED * A:
+            if diverged or not np.all(np.isfinite(xk)) or np.max(np.abs(xk - bias)) > _DIVERGED * A:
                 diverged = True
                 break
     except HybridError:

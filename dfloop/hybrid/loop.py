@@ -14,13 +14,15 @@ before/after), so Floquet multipliers are right for discontinuous elements (rela
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import expm
 
 from ..describing.time_model import OUT_OF_RANGE, PiecewiseAffine
-from ..impact._effects_core import admissible, propagate, rows_on_zero, scan_steps
+from ..impact._effects_core import BEYOND_LIMIT, admissible, propagate, rows_on_zero, scan_steps
+from .realisation import conditioned
 
 __all__ = ["LoopModel", "HybridLoop", "Flow", "HybridError", "plant_matrices", "plant_system", "saltation",
            "piecewise_fourier"]
@@ -154,6 +156,8 @@ class Flow:
     events: list
     dense: object = None     # dense output of an integrator (smooth loops only)
     run: object = None       # the impact engine's run (impact loops only)
+    stopped: float | None = None   # time (s) where the flow stopped at its divergence bound (``limit``), else None
+    span: float | None = None      # the flow's length t_end (s)
 
     @property
     def event_times(self) -> np.ndarray:
@@ -170,6 +174,7 @@ class LoopModel:
     """
 
     batched = False        # flow_many does more than one flow per node
+    bounded = False        # flow accepts ``limit`` (stops where |x| may pass it: a diverging loop)
     delay = 0.0            # the plant's pure delay (s): only a DelayLoop (dfloop.hybrid.delay) has one
     switching = True       # flows switch modes (the shooting keeps its first node away from switches)
 
@@ -190,7 +195,9 @@ class HybridLoop(LoopModel):
     Parameters
     ----------
     A, B, C : ndarray
-        Strictly proper plant (see :func:`plant_matrices`).
+        Strictly proper plant (see :func:`plant_matrices`). The flow runs in the well-conditioned realisation
+        :func:`dfloop.hybrid.realisation.conditioned` makes of it (block-diagonal, balanced): states z hold
+        s' with s = ``basis`` @ s' (``plant`` is that realisation's (A', B')).
     element : PiecewiseAffine
         The element's time model (:meth:`dfloop.describing.base.DescribingFunction.time_model`).
     time_scale : float
@@ -203,11 +210,13 @@ class HybridLoop(LoopModel):
     """
 
     method = "exact (matrix exponential between switches, switches located to rounding level)"
+    bounded = True
     exact = True           # flows carry a monodromy: periodic orbits can be shot
     settle_periods = 0.0   # the predicted sinusoid sets the element's state: no transient needed before shooting
 
     def __init__(self, A, B, C, element: PiecewiseAffine, time_scale: float, *, r0: float = 0.0,
                  load: float = 0.0):
+        A, B, C, self.basis = conditioned(A, B, C)   # the flow's own realisation: s (as given) = basis @ s'
         self.plant = (A, B)
         self.r0, self.load = float(r0), float(load)
         n = A.shape[0]
@@ -217,6 +226,7 @@ class HybridLoop(LoopModel):
         self.x_row = np.zeros(N)
         self.x_row[:n] = -C
         self.x_row[-1] = self.r0
+        self.x_scale = max(float(np.max(np.abs(C), initial=0.0)), 1e-300)   # |x| <~ n x_scale max|s_i|
         one = np.zeros(N)
         one[-1] = 1.0
         e_unit = np.zeros(N)
@@ -224,6 +234,7 @@ class HybridLoop(LoopModel):
             e_unit[n] = 1.0
         self.matrices, self.rows, self.targets, self.resets, self.steps, self.exps = [], [], [], [], [], []
         self.y_rows = []
+        self._sample_exps = {}
         for mode in element.modes:
             y_row = mode.gx * self.x_row + mode.ge * e_unit + mode.g1 * one
             Am = np.zeros((N, N))
@@ -250,6 +261,29 @@ class HybridLoop(LoopModel):
             self.resets.append(resets)
             self.steps.append(dt)
             self.exps.append(expm(Am * dt))
+
+    @property
+    def growth_rate(self) -> float:
+        """The fastest growth rate (1/s) of a perturbation in any mode: the largest real part among the
+        eigenvalues of the modes' matrices (plant and element states; the constant component left out)."""
+        nx = self.size - 1
+        return max(float(np.max(np.linalg.eigvals(Am[:nx, :nx]).real, initial=0.0)) for Am in self.matrices)
+
+    def join(self, flows: list, period: float, *, max_events: int = 10_000) -> Flow:
+        """The flow over one period composed of the converged node flows (segments, events and the monodromy
+        M_{m-1} ... M_0), not re-flowed: a strongly unstable orbit's one-period flow would leave it."""
+        t0s, z0s, modes, events = [], [], [], []
+        M = np.eye(self.size)
+        offset = 0.0
+        for fl in flows:
+            t0s.append(offset + fl.t0)
+            z0s.append(fl.z0)
+            modes.append(fl.modes)
+            events.extend((offset + e[0],) + tuple(e[1:]) for e in fl.events)
+            M = fl.monodromy @ M
+            offset += fl.span
+        return Flow(flows[-1].z, flows[-1].mode, M, np.concatenate(t0s), np.concatenate(z0s),
+                    np.concatenate(modes), events)
 
     # ----------------------------------------------------------------------------------------- helpers
 
@@ -309,8 +343,29 @@ class HybridLoop(LoopModel):
         for seg in np.unique(k):
             m = k == seg
             mode = flow.modes[seg]
-            out[m] = propagate(self.matrices[mode], self.exps[mode], flow.z0[seg], t[m] - flow.t0[seg],
-                               self.steps[mode])
+            s = t[m] - flow.t0[seg]
+            gaps = np.diff(s) if s.size > 1 else np.zeros(1)
+            if s[0] >= 0.0 and np.all(np.abs(gaps - gaps[0]) <= 1e-12 * max(gaps[0], s[-1])):
+                out[m] = self._uniform(mode, flow.z0[seg], s[0], gaps[0], s.size)
+            else:
+                out[m] = propagate(self.matrices[mode], self.exps[mode], flow.z0[seg], s, self.steps[mode])
+        return out
+
+    def _uniform(self, mode: int, z0: np.ndarray, first: float, gap: float, count: int) -> np.ndarray:
+        """exp(A (first + j gap)) z0, j < count: one exponential to the first sample, then exact steps
+        exp(A gap) (cached per mode and gap). :func:`propagate` would step from the segment's start across every
+        scan step, which dominated the sampling of long runs on high-order loops."""
+        A = self.matrices[mode]
+        key = (mode, gap)
+        E = self._sample_exps.get(key)
+        if E is None:
+            if len(self._sample_exps) >= 64:
+                self._sample_exps.clear()
+            E = self._sample_exps[key] = expm(A * gap)
+        out = np.empty((count, z0.size))
+        out[0] = expm(A * first) @ z0 if first > 0.0 else z0
+        for j in range(1, count):
+            out[j] = E @ out[j - 1]
         return out
 
     def fourier(self, flow: Flow, t_end: float, omega: float, harmonics: int) -> np.ndarray:
@@ -322,8 +377,12 @@ class HybridLoop(LoopModel):
     # -------------------------------------------------------------------------------------------- flow
 
     def flow(self, z0: np.ndarray, mode0: int, t_end: float, *, monodromy: bool = False,
-             max_events: int = 10_000) -> Flow:
+             max_events: int = 10_000, limit: float = math.inf) -> Flow:
         """Flow from (z0, mode0) over [0, t_end] (s), switches located to rounding level.
+
+        ``limit``: a bound on |x|; the flow stops (``Flow.stopped``: the time) where a state component passes
+        ``limit`` / max|C'| (x may then have passed it), so a strongly diverging motion ends before its
+        switching surfaces drown in rounding.
 
         Raises
         ------
@@ -346,16 +405,22 @@ class HybridLoop(LoopModel):
             pending.append((0.0, -1, from_mode, mode))
         if t_end == 0.0:
             return Flow(z, mode, np.eye(self.size) if monodromy else None, np.array([0.0]), z[None, :].copy(),
-                        np.array([mode]), [])
+                        np.array([mode]), [], span=0.0)
         t = 0.0
         M = np.eye(self.size) if monodromy else None
         t0s, z0s, modes, events = [0.0], [z.copy()], [mode], pending
         seg_t = 0.0
         leaving = rows_on_zero(self.rows[mode], z)
+        state_limit = limit / self.x_scale
+        stopped = None
         while t < t_end:
             A, E, dt, rows = self.matrices[mode], self.exps[mode], self.steps[mode], self.rows[mode]
             rows_a = rows @ A
-            t, j = scan_steps(A, E, dt, rows, rows_a, rows_a @ A, leaving, z, t, t_end)  # to t_end, or an event
+            t, j = scan_steps(A, E, dt, rows, rows_a, rows_a @ A, leaving, z, t, t_end,  # to t_end, or an event
+                              state_limit)
+            if j == BEYOND_LIMIT:
+                stopped = t
+                break
             if j < 0:
                 leaving[:] = False
                 continue
@@ -391,5 +456,6 @@ class HybridLoop(LoopModel):
             modes.append(mode)
             leaving = rows_on_zero(self.rows[mode], z)
         if M is not None:
-            M = expm(self.matrices[mode] * (t_end - seg_t)) @ M
-        return Flow(z, mode, M, np.array(t0s), np.array(z0s), np.array(modes, dtype=int), events)
+            M = expm(self.matrices[mode] * (t - seg_t)) @ M
+        return Flow(z, mode, M, np.array(t0s), np.array(z0s), np.array(modes, dtype=int), events, stopped=stopped,
+                    span=t_end)

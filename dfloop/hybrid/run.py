@@ -55,16 +55,19 @@ def simulate(loop, z, mode, period: float, periods: float, steps_per_period: int
     for p in range(int(math.ceil(periods))):
         span = min(period, periods * period - p * period)
         try:
-            fl = loop.flow(z, mode, span, max_events=max_events)
+            fl = loop.flow(z, mode, span, max_events=max_events, **({"limit": limit} if getattr(loop, "bounded", False) else {}))
         except HybridError as exc:
             raise RuntimeError(f"the loop cannot be simulated past t = {p * period:.6g} s: {exc}") from None
         tk = np.arange(int(round(span / period * steps_per_period))) * (period / steps_per_period)
+        if getattr(fl, "stopped", None) is not None:   # the state passed the divergence bound within the period
+            tk = tk[tk <= fl.stopped]
+            diverged = True
         x, y = loop.signals(fl, tk)
         ts.append(p * period + tk)
         xs.append(x)
         ys.append(y)
         z, mode = fl.z, fl.mode
-        if not np.all(np.isfinite(z)) or not np.all(np.isfinite(x)) or np.max(np.abs(x), initial=0.0) > limit:
+        if diverged or not np.all(np.isfinite(z)) or not np.all(np.isfinite(x)) or np.max(np.abs(x), initial=0.0) > limit:
             diverged = True
             break
     x = np.concatenate(xs)

@@ -13,6 +13,7 @@ in the middle of the longest segment between switches, so small corrections neve
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -22,9 +23,16 @@ from ..harmonics import upward_crossings
 from .loop import Flow, HybridError
 from .model import start_on_prediction
 
-__all__ = ["Orbit", "ShootingError", "periodic_orbit", "detect_period", "forced_orbit"]
+__all__ = ["Orbit", "ShootingError", "periodic_orbit", "newton_orbit", "homotopy_orbit", "node_count", "detect_period", "forced_orbit"]
 
 LINE_SEARCH = 8    # step halvings per Newton iteration
+NODE_GROWTH = 2.0  # a node interval lets a perturbation grow by at most e^2 at the loop's fastest rate ...
+MAX_NODES = 64     # ... with at most this many nodes per period
+HOMOTOPY_STEP = 0.25         # first step in the homotopy parameter lam (0: the start, 1: the true orbit)
+HOMOTOPY_MIN_STEP = 1.0 / 512
+HOMOTOPY_CORRECTIONS = 4     # Newton corrections per homotopy step
+HOMOTOPY_TOL = 1e-6          # |H| relative to the nodes' size that ends a correction
+HOMOTOPY_SOLVES = 120        # bound on the corrections of one homotopy (each: one flow per node)
 FLOOR = 1e-9       # a residual below this that stops decreasing is the rounding floor: accepted
 _DETECT_PERIODS = 8   # settled periods over which the period is detected
 DIVERGED = 1e6        # |x| beyond this many predicted amplitudes while settling: the motion diverges
@@ -55,6 +63,7 @@ class Orbit:
     residual: float
     iterations: int
     returns: int = 1
+    path: str = "newton"   # "newton": Newton from the start nodes; "homotopy": the Newton homotopy from them
 
 
 def detect_period(t: np.ndarray, x: np.ndarray) -> float | None:
@@ -64,7 +73,8 @@ def detect_period(t: np.ndarray, x: np.ndarray) -> float | None:
 
 
 def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, max_iterations: int,
-                   settle_periods: float, nodes: int, max_events: int, bias: float = 0.0) -> Orbit:
+                   settle_periods: float, nodes: int, max_events: int, bias: float = 0.0,
+                   homotopy: bool = True) -> Orbit:
     """Periodic orbit of ``loop`` near the predicted cycle (amplitude, frequency) by multiple shooting.
 
     Parameters
@@ -87,6 +97,9 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
         Bound on the events of one flow.
     bias : float
         Mean of the predicted input, x ~ bias + amplitude sin(frequency t) (a loop with a constant input).
+    homotopy : bool
+        When Newton from nodes on the predicted orbit (``settle_periods`` 0) fails, follow the Newton homotopy
+        from them (:func:`homotopy_orbit`) before raising.
 
     Raises
     ------
@@ -94,27 +107,93 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
         With the reason (flow failure, no convergence, singular Jacobian, no decreasing step).
     """
     T = 2.0 * math.pi / frequency
-    m = nodes
-    c = np.full(m, 1.0 / m)            # node intervals as fractions of the period
+    m = node_count(loop, T, nodes)
     returns = 1
     try:
         if settle_periods > 0:
             zs, modes, T, c, returns = _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events,
                                                       bias)
-            m = len(zs)
-        else:   # nodes on the predicted sinusoidal orbit itself (right for unstable cycles, which a flow leaves)
-            t_first = 0.0
-            if loop.switching:
-                z, mode = start_on_prediction(loop, N, amplitude, frequency, bias=bias)
-                _, _, t_first = _section_point(loop.flow(z, mode, T, max_events=max_events), T, T)
-            zs, modes = [], []
-            for i in range(m):
-                zi, mi = start_on_prediction(loop, N, amplitude, frequency, t_first + i * T / m, bias)
-                zi, mi = loop.admissible_mode(zi, mi)
-                zs.append(zi)
-                modes.append(mi)
+            return newton_orbit(loop, zs, modes, T, c, tol=tol, max_iterations=max_iterations,
+                                max_events=max_events, returns=returns)
+        # nodes on the predicted sinusoidal orbit itself (right for unstable cycles, which a flow leaves)
+        zs, modes, c = _predicted_nodes(loop, N, amplitude, frequency, m, max_events, bias)
     except HybridError as exc:
         raise ShootingError(f"the flow from the predicted orbit failed: {exc}") from None
+    first = None
+    for shift in (0.0, 0.5):   # Newton's basin depends on where the nodes sit: a second set half a node later
+        try:
+            if shift:
+                zs_s, modes_s, c_s = _predicted_nodes(loop, N, amplitude, frequency, m, max_events, bias, shift)
+            else:
+                zs_s, modes_s, c_s = zs, modes, c
+            return newton_orbit(loop, zs_s, modes_s, T, c_s, tol=tol, max_iterations=max_iterations,
+                                max_events=max_events)
+        except HybridError:
+            continue
+        except ShootingError as exc:
+            first = first or exc
+    if not homotopy:
+        raise first
+    try:   # Newton from the predicted orbit stalled: follow the Newton homotopy from it before giving up
+        return homotopy_orbit(loop, zs, modes, T, c, tol=tol, max_iterations=max_iterations, max_events=max_events)
+    except ShootingError as exc:
+        raise ShootingError(f"{first}; the homotopy from the predicted orbit: {exc}", first.residual,
+                            first.iterations) from None
+
+
+def node_count(loop, period: float, nodes: int) -> int:
+    """Shooting nodes for an orbit of ``period`` (s): at least ``nodes``, and enough that no node interval lets a
+    perturbation grow by more than e^``NODE_GROWTH`` at the loop's fastest growth rate (``loop.growth_rate``: the
+    largest real part among the eigenvalues of its modes; a Floquet-like bound of the orbit's own growth), at
+    most ``MAX_NODES``. A strongly unstable orbit (a one-period flow from near it diverges) is then shot on
+    intervals over which Newton's linearisation holds."""
+    rate = float(getattr(loop, "growth_rate", 0.0))
+    need = math.ceil(rate * period / NODE_GROWTH) if rate > 0.0 else 1
+    return int(min(max(nodes, need), max(nodes, MAX_NODES)))
+
+
+def _predicted_nodes(loop, N, amplitude, frequency, m, max_events, bias, shift: float = 0.0):
+    """m nodes on the predicted orbit x = bias + A sin(w t): (states, modes, intervals as fractions of T); the
+    first node ``shift`` node intervals after the middle of the longest segment.
+
+    Each node flows only its own interval (a strongly unstable orbit's one-period flow diverges); the switches
+    those short flows meet place the first node in the middle of the longest segment between switches and move
+    every other node into the middle half of its segment, so that small corrections never move a switch across a
+    node."""
+    T = 2.0 * math.pi / frequency
+    t = np.arange(m) * (T / m)
+    if loop.switching:
+        switches = []
+        for ti in t:
+            zi, mi = loop.admissible_mode(*start_on_prediction(loop, N, amplitude, frequency, ti, bias))
+            fl = loop.flow(zi, mi, T / m, max_events=max_events)
+            switches.extend(ti + fl.event_times[fl.event_times > 0.0])
+        bounds = np.unique(np.mod(np.asarray(switches, float), T))
+        if bounds.size:
+            gaps = np.diff(np.append(bounds, bounds[0] + T))
+            k = int(np.argmax(gaps))
+            t_first = bounds[k] + 0.5 * gaps[k] + shift * T / m
+            t = t_first + np.arange(m) * (T / m)
+            edges = np.concatenate([bounds - T, bounds, bounds + T, bounds + 2 * T])
+            j = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, edges.size - 2)
+            margin = 0.25 * (edges[j + 1] - edges[j])
+            t[1:] = np.clip(t, edges[j] + margin, edges[j + 1] - margin)[1:]
+            t = np.unique(t)
+    zs, modes = [], []
+    for ti in t:
+        zi, mi = loop.admissible_mode(*start_on_prediction(loop, N, amplitude, frequency, ti, bias))
+        zs.append(zi)
+        modes.append(mi)
+    return zs, modes, np.diff(np.append(t, t[0] + T)) / T
+
+
+def newton_orbit(loop, zs: list, modes: list, T: float, c: np.ndarray, *, tol: float, max_iterations: int,
+                 max_events: int, returns: int = 1) -> Orbit:
+    """Multiple shooting by Newton's method from nodes ``zs`` (modes ``modes``; node i flows c_i T) and period T:
+    the :class:`Orbit`, or ``ShootingError`` with the reason (see :func:`periodic_orbit`)."""
+    m = len(zs)
+    zs = [np.array(z, float) for z in zs]
+    modes = list(modes)
 
     nx = loop.size - 1
     residual, it = math.inf, 0
@@ -151,6 +230,86 @@ def periodic_orbit(loop, N, amplitude: float, frequency: float, *, tol: float, m
     except HybridError as exc:
         raise ShootingError(f"the converged orbit cannot be followed over one period: {exc}", residual, it) from None
     return Orbit(zs[0], modes[0], T, fl, residual, it, returns)
+
+
+def homotopy_orbit(loop, zs: list, modes: list, T: float, c: np.ndarray, *, tol: float, max_iterations: int,
+                   max_events: int) -> Orbit:
+    """Periodic orbit by the Newton (fixed-point) homotopy of the multiple-shooting system from a start u0.
+
+    With F(u) the shooting defects of u = (nodes, period) (:func:`newton_orbit`), the path
+    H(u, lam) = F(u) - (1 - lam) F(u0) = 0 starts at u0 for lam = 0 (the predicted orbit solves it) and reaches
+    the true periodicity condition F(u) = 0 at lam = 1. It is followed by natural-parameter continuation in lam:
+    steps of at first ``HOMOTOPY_STEP``, each corrected by at most ``HOMOTOPY_CORRECTIONS`` Newton iterations
+    (halved on failure down to ``HOMOTOPY_MIN_STEP``, doubled after a success), at most ``HOMOTOPY_SOLVES``
+    corrections in all. Where a Newton step from u0 only shrinks ||F||, the homotopy keeps F's direction, so it
+    follows the orbit's branch through regions where damped Newton stalls (a strongly distorted or strongly
+    unstable orbit). At lam = 1 :func:`newton_orbit` converges the orbit with the caller's ``tol``: an orbit from
+    the homotopy passes exactly the check an orbit from Newton does (``Orbit.path`` = ``"homotopy"``).
+
+    Raises
+    ------
+    ShootingError
+        The path turns back in lam (a fold), a flow fails, or a bound is hit: with lam reached.
+    """
+    m = len(zs)
+    nx = loop.size - 1
+    zs = [np.array(z, float) for z in zs]
+    modes = list(modes)
+    c = np.asarray(c, float)
+
+    def flows_of(nodes, node_modes, period):
+        out, new_modes = [], []
+        for i, (zi, mi) in enumerate(zip(nodes, node_modes)):   # modes follow the flows (hysteretic elements)
+            mi = mi if i == 0 else out[-1].mode
+            zi, mi = loop.admissible_mode(zi, mi)
+            nodes[i] = zi
+            new_modes.append(mi)
+            out.append(loop.flow(zi, mi, period * c[i], monodromy=True, max_events=max_events))
+        return out, new_modes
+
+    try:
+        flows, modes = flows_of(zs, modes, T)
+    except HybridError as exc:
+        raise ShootingError(f"the flow from the start failed: {exc}") from None
+    F0 = _shooting_system(loop, flows, zs, modes, c, nx)[1]
+    scale = max(float(np.linalg.norm(np.concatenate([z[:nx] for z in zs]))), 1e-300)
+    lam, step, solves = 0.0, HOMOTOPY_STEP, 0
+    while lam < 1.0:
+        if solves >= HOMOTOPY_SOLVES:
+            raise ShootingError(f"HOMOTOPY_SOLVES = {HOMOTOPY_SOLVES} corrections used at lam = {lam:.3g} (raise "
+                                "dfloop.hybrid.shooting.HOMOTOPY_SOLVES to follow the path further)")
+        target = min(1.0, lam + step)
+        trial_z, trial_modes, trial_T, trial_flows = list(zs), list(modes), T, flows
+        ok = False
+        try:
+            for _ in range(HOMOTOPY_CORRECTIONS):
+                solves += 1
+                J, F = _shooting_system(loop, trial_flows, trial_z, trial_modes, c, nx)
+                H = F - (1.0 - target) * F0
+                delta = np.linalg.solve(J, -H)
+                trial_T = trial_T + delta[-1]
+                if not trial_T > 0.0:
+                    break
+                trial_z = [z.copy() for z in trial_z]
+                for i in range(m):
+                    trial_z[i][:nx] += delta[i * nx:(i + 1) * nx]
+                trial_flows, trial_modes = flows_of(trial_z, trial_modes, trial_T)
+                H = _shooting_system(loop, trial_flows, trial_z, trial_modes, c, nx)[1] - (1.0 - target) * F0
+                if np.linalg.norm(H) <= HOMOTOPY_TOL * scale:
+                    ok = True
+                    break
+        except (HybridError, np.linalg.LinAlgError):
+            ok = False
+        if ok:
+            lam, zs, modes, T, flows = target, trial_z, trial_modes, trial_T, trial_flows
+            step = min(2.0 * step, 1.0)
+        else:
+            step *= 0.5
+            if step < HOMOTOPY_MIN_STEP:
+                raise ShootingError(f"the homotopy path stops at lam = {lam:.4g} (no corrected step down to "
+                                    f"{HOMOTOPY_MIN_STEP:g}: a fold of the path or a flow that fails)")
+    orbit = newton_orbit(loop, zs, modes, T, c, tol=tol, max_iterations=max_iterations, max_events=max_events)
+    return dataclasses.replace(orbit, path="homotopy")
 
 
 def _settled_nodes(loop, N, amplitude, frequency, settle_periods, m, max_events, bias=0.0):
