@@ -58,6 +58,7 @@ _CACHE = 2048  # loops kept per sweep (the corrector and the labels ask for the 
 _EDGE_IN = 1e-15  # an element edge is approached this far (in ln A, at least 8 ulps) on the branch's side
 _MAX_BREAKPOINTS = 64  # breakpoints of a static element examined as possible edges
 _LIMIT_NEWTON = 40  # Newton iterations for a birth from infinity / zero amplitude
+_LAND_NEWTON = 60  # Newton iterations of the fallback that lands on a given value next to an element edge
 
 
 # ----------------------------------------------------------------------------------------- result objects
@@ -605,6 +606,53 @@ class _Family:
         self.last_failure = "corrector did not converge"
         return None
 
+    def land(self, X0: np.ndarray, q: float, ref: np.ndarray) -> _Point | None:
+        """The curve point at parameter q next to X0, by a Newton in (ln A, ln w) that stays on ``ref``'s side
+        of every element edge; None if it does not converge.
+
+        The fallback of :meth:`correct` where a branch runs close to an element edge: next to a square-root edge
+        (a quantizer's threshold, a dead-zone relay's: dN/dA -> inf there) a full Newton step from the far side
+        lands across the edge, where N is another function, and the plain corrector fails. Here a step that
+        would cross an edge goes 0.9 of the way to it (so the iterates approach a square-root edge from the
+        branch's side, where Newton converges monotonically); one-sided differences in ln A within 4 difference
+        steps of an edge, towards the branch's side."""
+        X = np.array([X0[0], X0[1], q], float)
+        sides = []
+        for edge in self.edges(q):
+            g = self.edge_value(edge, ref)
+            if math.isfinite(g) and g != 0:
+                sides.append((edge, 1 if g > 0 else -1))
+        for edge, s in sides:  # start on ref's side of every edge
+            g = self.edge_value(edge, X)
+            if math.isfinite(g) and s * g <= 0:
+                X[0] = ref[0]
+        for _ in range(_LAND_NEWTON):
+            if not self.admissible(X, 1 if sides else 0):
+                return None
+            near = [s for e, s in sides if abs(self.edge_value(e, X)) < 4 * _FD]
+            side_a = near[0] if near else 0
+            R, J = self.jacobian(X, side_a)
+            try:
+                d = np.linalg.solve(J[:, :2], -np.array([R.real, R.imag]))
+            except np.linalg.LinAlgError:
+                self.last_failure = "singular corrector"
+                return None
+            dx = np.array([d[0], d[1], 0.0])
+            for edge, s in sides:  # fraction to the boundary
+                g0, g1 = self.edge_value(edge, X), self.edge_value(edge, X + dx)
+                if math.isfinite(g0) and math.isfinite(g1) and s * g1 <= 0 < s * g0:
+                    dx *= 0.9 * g0 / (g0 - g1)
+            if not np.all(np.isfinite(dx)):
+                self.last_failure = "corrector did not converge"
+                return None
+            X = X + dx
+            if float(np.max(np.abs(dx))) <= _XTOL:
+                if not self.admissible(X, 1 if sides else 0):
+                    return None
+                return _Point(X, self.jacobian(X, side_a)[1], _MAX_NEWTON)
+        self.last_failure = f"Newton at a given value did not converge in {_LAND_NEWTON} iterations"
+        return None
+
     def _edge_level(self, edge: tuple, X: np.ndarray) -> float:
         """ln of the edge's level at X's (w, q) (the edge of the loop at X's q)."""
         q = min(max(float(X[2]), 0.0), 1.0)
@@ -757,16 +805,45 @@ class _Node:
     detail: str = ""
 
 
+class _Unlanded(Exception):
+    """A traced branch cannot reach a point it must have (a given value, a window edge): it ends at ``point``
+    as ``lost``, with the reason, instead of stopping the sweep."""
+
+    def __init__(self, point: _Point, why: str):
+        super().__init__(why)
+        self.point, self.why = point, why
+
+
 class _Tracer:
     def __init__(self, family: _Family, qs: np.ndarray, max_steps: int):
         self.f, self.qs, self.max_steps = family, qs, max_steps
 
     # -- helpers ---------------------------------------------------------------------------------------
     def _at_q(self, P: _Point, Q: _Point, q: float) -> _Point | None:
-        """The curve point at parameter q between P and Q (q strictly between theirs or equal to Q's)."""
+        """The curve point at parameter q between P and Q (q strictly between theirs or equal to Q's): the
+        corrector from the interpolated point, else the edge-aware Newton (:meth:`_Family.land`) from it and
+        from the nearer end (a branch running into an element edge approaches it tangentially: the
+        interpolation is then off the curve by more than the plain corrector's reach)."""
         dq = Q.X[2] - P.X[2]
         s = (q - P.X[2]) / dq if dq != 0 else 0.5
-        return self.f.correct(P.X + s * (Q.X - P.X), _EQ, q)
+        X0 = P.X + s * (Q.X - P.X)
+        V = self.f.correct(X0, _EQ, q)
+        if V is not None:
+            return V
+        near, far = (P, Q) if s <= 0.5 else (Q, P)
+        for start in (X0, near.X, far.X):
+            V = self.f.land(start, q, P.X)
+            if V is not None and self._on_piece(V, P, Q):
+                return V
+        return None
+
+    @staticmethod
+    def _on_piece(V: _Point, P: _Point, Q: _Point) -> bool:
+        """V lies on the curve piece between P and Q, not on another curve at the same q: within the box of
+        P and Q in (ln A, ln w), widened by the piece's size (the piece is monotone in q and short)."""
+        lo, hi = np.minimum(P.X[:2], Q.X[:2]), np.maximum(P.X[:2], Q.X[:2])
+        pad = float(np.max(hi - lo)) + 1e-9
+        return bool(np.all(V.X[:2] >= lo - pad) and np.all(V.X[:2] <= hi + pad))
 
     def _locate(self, P: _Point, t: np.ndarray, Q: _Point, g: Callable[[_Point], float]) -> tuple:
         """Bracket the sign change of ``g`` between P and Q along t (Illinois regula falsi, bisection when a
@@ -841,8 +918,7 @@ class _Tracer:
         e[i] = 1.0
         E = self.f.correct(P.X + frac * (Q.X - P.X), e, bound)
         if E is None:
-            raise RuntimeError(f"could not locate where a branch crosses {name} near A={math.exp(P.X[0]):.6g}, "
-                               f"omega={math.exp(P.X[1]):.6g} rad/s, p={self.f.value(P.X[2]):.6g}")
+            raise _Unlanded(P, f"could not locate where the branch crosses {name} ({self.f.last_failure})")
         return name, E
 
     def _values_between(self, P: _Point, Q: _Point, out: list) -> None:
@@ -857,9 +933,10 @@ class _Tracer:
                 continue  # an end point lies on the value (it gets the value index)
             V = self._at_q(P, Q, q)
             if V is None:
-                raise RuntimeError(f"continuation could not land on the given value p={self.f.value(q):.9g} "
-                                   f"near A={math.exp(P.X[0]):.6g}, omega={math.exp(P.X[1]):.6g} rad/s")
+                raise _Unlanded(P, f"could not land on the given value p={self.f.value(q):.9g} "
+                                   f"({self.f.last_failure})")
             out.append(_Node(V, "value", k))
+            P = V
 
     def _value_index(self, q: float) -> int:
         hit = np.flatnonzero(np.abs(self.qs - q) <= _SAME_Q)
@@ -867,8 +944,16 @@ class _Tracer:
 
     # -- one direction ---------------------------------------------------------------------------------
     def trace(self, seed: _Point, t0: np.ndarray) -> list[_Node]:
-        """Follow the curve from ``seed`` along ``t0`` until it leaves the range or window, closes, or is lost."""
+        """Follow the curve from ``seed`` along ``t0`` until it leaves the range or window, closes, or is lost
+        (then the last node is ``lost``, with the reason: a sweep never stops on one branch's failure)."""
         out: list[_Node] = []
+        try:
+            return self._trace(seed, t0, out)
+        except _Unlanded as exc:
+            out.append(_Node(exc.point, "lost", -1, exc.why))
+            return out
+
+    def _trace(self, seed: _Point, t0: np.ndarray, out: list) -> list[_Node]:
         P, t, h = seed, t0, _H0
         for _ in range(self.max_steps):
             Xp = P.X + h * t
