@@ -201,15 +201,10 @@ def cycle_confidence(G, N, amplitude: float, frequency: float | None = None, *, 
     x2 = x1 + np.fft.irfft(spectrum, n=S)
     dN = (_fundamentals(response(x2), 1)[0] - Y[0]) / A
 
-    # the solver's residual R = 1 + G N and its Jacobian in (ln A, ln w): R_A = dR/d(ln A) / A, R_w likewise
-    R_A, R_w = _balance_slopes(plant, N, A, w)
-    J = np.array([[R_A.real, R_w.real], [R_A.imag, R_w.imag]])
-    rhs = -Gk[0] * dN
-    try:
-        dA, dw = np.linalg.solve(J, [rhs.real, rhs.imag])
-    except np.linalg.LinAlgError:
-        return Confidence(distortion, np.inf, np.inf, X, True,
-                          "the balance is singular in (A, w) here (a marginal cycle): no error estimate")
+    shift = _balance_shift(plant, N, A, w, -Gk[0] * dN)
+    if shift is None:
+        return Confidence(distortion, np.inf, np.inf, X, True, _SINGULAR)
+    dA, dw = shift
     note = (f"{S} samples per period, {K} harmonics; errors from one two-term harmonic-balance step"
             + ("" if usable.all() else f"; G known for {int(usable.sum())} of {K} harmonics"))
     spread, n_samples = None, None
@@ -247,26 +242,32 @@ def _tabulated_confidence(G, N, A: float, w: float, S: int, K: int) -> Confidenc
     X[0] = A
     distortion = float(np.sqrt(np.sum(np.abs(X[1:]) ** 2)) / A)
     dN = cert["direct"] - cert["table"]
-    R_A, R_w = _balance_slopes(plant, N, A, w)
-    J = np.array([[R_A.real, R_w.real], [R_A.imag, R_w.imag]])
-    rhs = -Gk[0] * dN
-    try:
-        dA, dw = np.linalg.solve(J, [rhs.real, rhs.imag])
-    except np.linalg.LinAlgError:
-        return Confidence(distortion, np.inf, np.inf, X, True, "the balance is singular in (A, w) here (a marginal "
-                          "cycle): no error estimate", table=cert)
+    shift = _balance_shift(plant, N, A, w, -Gk[0] * dN)
+    if shift is None:
+        return Confidence(distortion, np.inf, np.inf, X, True, _SINGULAR, table=cert)
+    dA, dw = shift
     note = (f"{S} samples per period, {K} harmonics of the re-simulated steady motion; errors from the table's "
             f"deviation from it (table value {cert['status']}), no harmonic-balance correction for an impact "
             "element" + ("" if usable.all() else f"; G known for {int(usable.sum())} of {K} harmonics"))
     return Confidence(distortion, float(-dA / (A + dA)), float(-dw / (w + dw)), X, True, note, table=cert)
 
 
-def _balance_slopes(plant, N, A: float, w: float) -> tuple[complex, complex]:
-    """dR/dA and dR/dw of R = 1 + G(jw) N(A, w) at (A, w), from the solver's Jacobian in (ln A, ln w)."""
+_SINGULAR = "the balance is singular in (A, w) here (a marginal cycle): no error estimate"
+
+
+def _balance_shift(plant, N, A: float, w: float, rhs: complex) -> tuple[float, float] | None:
+    """(dA, dw) solving the balance R = 1 + G(jw) N(A, w) linearised at (A, w): R_A dA + R_w dw = rhs, with the
+    solver's Jacobian in (ln A, ln w) (R_A = dR/d(ln A) / A, R_w likewise); None where it is singular."""
     from .roots import Residual
 
     R_a, R_v = Residual(plant, N).jacobian(np.array([np.log(A)]), np.array([np.log(w)]))
-    return complex(R_a[0]) / A, complex(R_v[0]) / w
+    R_A, R_w = complex(R_a[0]) / A, complex(R_v[0]) / w
+    J = np.array([[R_A.real, R_w.real], [R_A.imag, R_w.imag]])
+    try:
+        dA, dw = np.linalg.solve(J, [rhs.real, rhs.imag])
+    except np.linalg.LinAlgError:
+        return None
+    return float(dA), float(dw)
 
 
 def _impact_harmonics(tm, F: float, w: float, S: int, K: int) -> np.ndarray | None:
