@@ -42,11 +42,11 @@ K = _Kernels()
 __all__ = ["CompiledResidual", "compiled_loop", "driver_parts", "element_form", "residual_for", "enabled", "prepare",
            "run_batch", "run_driver", "warmup", "driver_wanted", "COMPILE_SECONDS"]
 
-COMPILE_SECONDS = 70
+COMPILE_SECONDS = 50
 """About how long compiling the driver takes once per installation (s; benchmarks/bench_startup.py)."""
 RESIDUAL_SECONDS = 6
 """About how long compiling the compiled residual's kernels takes (s; benchmarks/bench_startup.py)."""
-BATCH_COMPILE_SECONDS = 30
+BATCH_COMPILE_SECONDS = 20
 """About how long the batch driver (parallel over the cores) adds to it (s; benchmarks/bench_startup.py)."""
 _CHECK_W = np.array([0.37, 1.0, 2.9])  # frequencies (rad/s) where the extracted coefficients are checked
 _MEMO_BATCH, _MEMO_SIZE = 64, 8192  # refined batches remembered (as Residual.slopes does)
