@@ -64,7 +64,7 @@ def main(n: int, write: bool) -> str:
     t1 = rows[1][2]
     lines = ["# Batch of loops: 1 versus 2 Dask workers (dfloop.predict_many)", "",
              f"{n} loops (K p / (s (s+1)(s+p)), random K in [1, 5], p in [1.5, 3]; relay with dead zone, backlash, "
-             f"saturation), {n_cycles} cycles in all; default chunk size (about 64 tasks). One run each; "
+             f"saturation), {n_cycles} cycles in all; default chunk size (about 64 tasks, at least 128 loops or an eighth of the batch each). One run each; "
              f"machine: {os.cpu_count()} cores, shared. Command: `python benchmarks/bench_batch.py --n {n} --write`.",
              "CPU share: CPU time of the process(es) doing the work over (wall time x processes); below 1 the "
              "machine's other load took the rest, which caps the speed-up.",

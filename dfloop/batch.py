@@ -31,6 +31,7 @@ from .solve.compiled import prepare as prepare_compiled
 __all__ = ["predict_many", "run_batch", "solver_options"]
 
 _CHUNKS_PER_BATCH = 64  # default chunk size: about this many tasks per batch
+_EXECUTOR_CHUNK = 128   # predict_many on an executor: loops per task at least this (or an eighth of the batch)
 
 
 def _run_chunk(fn: Callable, start: int, chunk: Sequence, label: str = "batch") -> list:
@@ -252,7 +253,8 @@ def predict_many(loops: Iterable, *, executor: cf.Executor | None = None, chunks
         Where to run: a process or thread pool, or a Dask cluster's ``client.get_executor()``. None runs
         in this process. The results are identical either way (same code, same inputs).
     chunksize : int, optional
-        Loops per task (default: a sequence in about 64 tasks, a stream in tasks of 256 loops).
+        Loops per task (default: a sequence in about 64 tasks of at least 128 loops each, or in 8 tasks when it is
+        smaller than 1024 loops; a stream in tasks of 256 loops).
     progress : bool or None
         Progress bar; None shows it only when the batch takes more than a second.
     timeout : float, optional
@@ -295,4 +297,8 @@ def predict_many(loops: Iterable, *, executor: cf.Executor | None = None, chunks
     for i, loop in enumerate(loops):
         if not (isinstance(loop, (tuple, list)) and len(loop) == 2):
             raise ValueError(f"loops[{i}] must be a pair (G, N); got {type(loop).__name__}")
+    if chunksize is None and executor is not None:
+        # a task runs its loops in one compiled call: at least _EXECUTOR_CHUNK loops (or an eighth of the batch)
+        # per task, so a task's overhead does not dominate (bench_batch.py: 16 loops per task took 1.5-2x longer)
+        chunksize = max(math.ceil(len(loops) / _CHUNKS_PER_BATCH), min(_EXECUTOR_CHUNK, math.ceil(len(loops) / 8)), 1)
     return _batch(chunk_fn, loops, executor, chunksize, progress, "predict_many", timeout, _STREAM_CHUNK)
