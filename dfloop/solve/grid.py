@@ -46,11 +46,12 @@ candidates; a frequency-dependent one works on the whole tensor grid (G N, 1 + G
 windings, tangent seeds)."""
 
 
-def check_memory(na: int, nv: int, frequency_dependent: bool = False) -> None:
+def check_memory(na: int, nv: int, frequency_dependent: bool = False, limit: int | None = None) -> None:
     """Raise ValueError, before anything is allocated, when the work arrays of an na x nv grid exceed the
-    memory bound; the message gives the estimate and the knobs."""
+    memory bound (``limit`` in bytes when already read, else :func:`~dfloop._checks.memory_limit`); the message
+    gives the estimate and the knobs."""
     need = BYTES_PER_POINT[bool(frequency_dependent)] * na * nv
-    limit = memory_limit()
+    limit = memory_limit() if limit is None else limit
     if need > limit:
         kind = "a frequency-dependent" if frequency_dependent else "an amplitude-only"
         raise ValueError(f"grid of {na} x {nv} points would need {need / 1024 ** 3:.1f} GiB of memory (estimate: "

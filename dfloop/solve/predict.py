@@ -8,12 +8,13 @@ import warnings
 
 import numpy as np
 
-from .._checks import finite, integer_at_least, window as checked_window
+from .._checks import finite, integer_at_least, memory_limit, window as checked_window
 from ..describing.base import DescribingFunction
 from ..describing.interop import as_element
 from ..describing.static import StaticElement
 from ._kernels import candidate_cells
-from .compiled import driver_parts, driver_wanted, enabled as compiled_enabled, residual_for, run_batch, run_driver
+from .compiled import (driver_parts, driver_wanted, enabled as compiled_enabled, mode as compiled_mode, residual_for,
+                       run_batch, run_driver)
 from .grid import FD_MIN_WIDTH, STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
 from .plant import as_plant
 from .result import GridReport, JumpCrossing, LimitCycle, LimitCycles
@@ -31,7 +32,13 @@ _PHASE_STEP = np.pi / 3  # max turn of arg(G N) between neighbours (frequency-de
 _NEAR_UNIT = math.log(20.0)  # "near 1": 1/20 <= |G N| <= 20
 
 
-def _grid_size(grid, frequency_dependent: bool) -> tuple[int, int]:
+def _grid_size(grid, frequency_dependent: bool, limit: int | None = None) -> tuple[int, int]:
+    """(n_amplitudes, n_frequencies) of ``grid``, checked (``limit``: the memory bound in bytes, when already read)."""
+    if type(grid) is tuple and len(grid) == 2:  # the common case (two plain ints in range): no conversions
+        na, nw = grid
+        if type(na) is int and type(nw) is int and 2 <= na <= _MAX_GRID and 2 <= nw <= _MAX_GRID:
+            check_memory(na, nw, frequency_dependent, limit)
+            return na, nw
     try:
         pair = tuple(grid)
     except TypeError:
@@ -42,7 +49,7 @@ def _grid_size(grid, frequency_dependent: bool) -> tuple[int, int]:
               enumerate(zip(pair, ("amplitudes", "frequencies"))))  # 2.5, inf, NaN, True: a ValueError
     if na > _MAX_GRID or nw > _MAX_GRID:
         raise ValueError(f"grid sizes must lie in [2, {_MAX_GRID}]; got {grid!r}")
-    check_memory(na, nw, frequency_dependent)
+    check_memory(na, nw, frequency_dependent, limit)
     return na, nw
 
 
@@ -279,9 +286,10 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     marginal_tol = finite("marginal_tol", marginal_tol)
     if not (0 <= marginal_tol < 1):
         raise ValueError(f"marginal_tol must lie in [0, 1); got {marginal_tol}")
-    na, nw = _grid_size(grid, N.frequency_dependent)
+    limit = memory_limit()
+    na, nw = _grid_size(grid, N.frequency_dependent, limit)
     if not exact:  # the common case end to end in one compiled call (solve/compiled/driver.py), where it applies
-        result = _compiled_driver(G, N, omega, amplitude, na, nw, tol, marginal_tol)
+        result = _compiled_driver(G, N, omega, amplitude, na, nw, tol, marginal_tol, limit)
         if result is not None:
             return result
     plant = as_plant(G)
@@ -383,12 +391,11 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
 _LABELS = ("stable", "unstable", "marginal")  # the driver's label codes
 
 
-def _driver_inputs(G, N, omega, amplitude):
+def _driver_inputs(G, N, omega, amplitude, mode: str | None = None):
     """(parts, windows (w_lo, w_hi, A_lo, A_hi), amplitude source) of the loop for the compiled driver
-    (solve/compiled/driver.py; NaN windows: the defaults), or None where it does not apply."""
-    if not compiled_enabled():
-        return None
-    parts = driver_parts(G, N)
+    (solve/compiled/driver.py; NaN windows: the defaults), or None where it does not apply (``mode``: the value
+    of ``DFLOOP_COMPILED`` when already read)."""
+    parts = driver_parts(G, N, mode)
     if parts is None:
         return None
     w_lo = w_hi = A_lo = A_hi = math.nan
@@ -408,14 +415,15 @@ def _driver_inputs(G, N, omega, amplitude):
     return parts, (w_lo, w_hi, A_lo, A_hi), a_src
 
 
-def _compiled_driver(G, N, omega, amplitude, na: int, nw: int, tol: float, marginal_tol: float):
+def _compiled_driver(G, N, omega, amplitude, na: int, nw: int, tol: float, marginal_tol: float, limit: int):
     """The result of the compiled driver where it applies and finishes; None otherwise (then the Python driver
-    runs: the same algorithm, every branch)."""
-    inputs = _driver_inputs(G, N, omega, amplitude)
-    if inputs is None or not driver_wanted():
+    runs: the same algorithm, every branch). ``limit``: the memory bound in bytes."""
+    mode = compiled_mode()  # the environment, read once for the call
+    inputs = _driver_inputs(G, N, omega, amplitude, mode)
+    if inputs is None or not driver_wanted(mode):
         return None
     parts, windows, a_src = inputs
-    raw = run_driver(*parts, *windows, na, nw, tol, marginal_tol)
+    raw = run_driver(*parts, *windows, na, nw, tol, marginal_tol, limit)
     if raw[0] != 0:
         return None
     return _driver_result(G, N, raw[1], raw[2], raw[3], omega is not None, a_src)
@@ -435,7 +443,8 @@ def predict_chunk(loops, *, omega=None, amplitude=None, grid=(64, 256), tol: flo
     out: list = [None] * len(loops)
     fast, where = [], []
     opts = dict(omega=omega, amplitude=amplitude, grid=grid, tol=tol, marginal_tol=marginal_tol, exact=exact)
-    if not exact and isinstance(exact, (bool, np.bool_)) and compiled_enabled():
+    mode = compiled_mode()
+    if not exact and isinstance(exact, (bool, np.bool_)) and compiled_enabled(mode):
         tol_c, mtol_c = finite("tol", tol), finite("marginal_tol", marginal_tol)
         if 0 < tol_c < 1e-3 and 0 <= mtol_c < 1:
             try:
@@ -447,7 +456,7 @@ def predict_chunk(loops, *, omega=None, amplitude=None, grid=(64, 256), tol: flo
                     break
                 try:
                     N = as_element(N)
-                    inputs = _driver_inputs(G, N, omega, amplitude)
+                    inputs = _driver_inputs(G, N, omega, amplitude, mode)
                 except ValueError:
                     inputs = None
                 if inputs is not None:

@@ -32,6 +32,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from ..._checks import memory_limit
+from ..grid import BYTES_PER_POINT
 from .kernels import accepted, cabs, cdiv, element, plant, refine, slopes_at
 
 __all__ = ["solve_one", "solve_many", "solve_one_dispatcher", "solve_many_dispatcher", "FALLBACK", "MAX_ROOTS", "CONSTANTS", "STABLE", "UNSTABLE", "MARGINAL"]
@@ -85,6 +87,8 @@ _OPTS = dict(cache=True, nogil=True, error_model="numpy")
 
 _CORNER_I = np.array([0, 1, 1, 0])
 _CORNER_J = np.array([0, 0, 1, 1])
+
+_BYTES_PER_POINT = float(BYTES_PER_POINT[False])  # the work arrays per grid point (amplitude-only N)
 
 # label codes
 STABLE, UNSTABLE, MARGINAL = 0, 1, 2
@@ -201,9 +205,17 @@ def _dlog(l1, l0):
 
 @njit(**_OPTS)
 def _order(x):
-    """A stable argsort of a 1-D array (bottom-up merge sort; NaN-free input): np.argsort(kind="stable")."""
+    """A stable argsort of a 1-D array (bottom-up merge sort; NaN-free input): np.argsort(kind="stable").
+    Input already in order (most grids): the identity, after one pass."""
     n = x.size
     idx = np.arange(n)
+    ordered = True
+    for i in range(1, n):
+        if x[i] < x[i - 1]:
+            ordered = False
+            break
+    if ordered:
+        return idx
     tmp = np.empty(n, np.int64)
     width = 1
     while width < n:
@@ -271,40 +283,37 @@ def _sign(x):
 
 
 @njit(**_OPTS)
-def _log_variation(rr, sgn, delay, w0, w1, b1, b2, b3, b4):
-    """Plant.log_variation on one interval [w0, w1] (roots rr, signs +1 zeros / -1 poles; b1..b4 work space)."""
-    n = rr.size
-    for k in range(n):
-        x, y = -rr[k].real, rr[k].imag
-        turn = sgn[k] * math.atan2(x * (w1 - w0), x * x + (w0 - y) * (w1 - y))
-        m0 = 0.5 * math.log(x * x + (w0 - y) * (w0 - y))
-        m1 = 0.5 * math.log(x * x + (w1 - y) * (w1 - y))
-        low = math.log(abs(x)) if (w0 < y and y < w1) else _npmin(m0, m1)
-        up, down = m1 - low, m0 - low
-        b1[k] = up if sgn[k] > 0 else down
-        b2[k] = down if sgn[k] > 0 else up
-        b3[k] = turn if turn > 0 else 0.0
-        b4[k] = turn if turn < 0 else 0.0
-    rise, fall = _row_sum(b1, n), _row_sum(b2, n)
-    arg = _npmax(_row_sum(b3, n), -_row_sum(b4, n) + delay * (w1 - w0))
-    return math.hypot(arg, _npmax(rise, fall))
-
-
-@njit(**_OPTS)
 def _resolve_plant(zeros, poles, delay, v):
-    """grid.resolve_plant for a rational G: (nodes, eps per interval, status)."""
+    """grid.resolve_plant for a rational G: (nodes, e^nodes, eps per interval, status).
+
+    The intervals of a round are the ones of the Python version, in its order, each bounded by
+    Plant.log_variation's expressions. Every node (its w = e^x and ln|jw - r| for each root r) is computed once,
+    in a table the intervals index (a split adds its midpoint): the same expression at the same w gives the same
+    value. The loops are written out here, with no call that takes an array (numba does not inline such calls
+    across functions, and each one pays reference counting)."""
     rr = np.concatenate((zeros, poles))
-    sgn = np.concatenate((np.ones(zeros.size), -np.ones(poles.size)))
+    nz = zeros.size
     nr = rr.size
+    xr, yr = np.empty(nr), np.empty(nr)
+    for k in range(nr):
+        xr[k], yr[k] = -rr[k].real, rr[k].imag  # jw - r = x + j (w - y)
     b1, b2, b3, b4 = np.empty(nr), np.empty(nr), np.empty(nr), np.empty(nr)
-    out_x = np.empty(2 * v.size + 16)
+    cap = 2 * v.size + 16
+    tx, tw, tm = np.empty(cap), np.empty(cap), np.empty((cap, nr))  # the node table: x, e^x, ln|jw - r|
+    n_nodes = v.size
+    for i in range(n_nodes):
+        w = math.exp(v[i])
+        tx[i], tw[i] = v[i], w
+        for k in range(nr):
+            tm[i, k] = 0.5 * math.log(xr[k] * xr[k] + (w - yr[k]) * (w - yr[k]))
+    out_n = np.empty(2 * v.size + 16, np.int64)  # the finished nodes (table indices) and intervals
     out_e = np.empty(2 * v.size + 16)
-    out_x[0] = v[0]
+    out_n[0] = 0
     n_out = 1
-    x0, x1 = v[:-1].copy(), v[1:].copy()
+    i0, i1 = np.arange(v.size - 1), np.arange(1, v.size)  # node indices of the live intervals' ends
     settled = False
     for _ in range(_MAX_ROUNDS):
-        m = x0.size
+        m = i0.size
         if m == 0:
             settled = True
             break
@@ -312,39 +321,82 @@ def _resolve_plant(zeros, poles, delay, v):
         split = np.empty(m, np.bool_)
         n_split = 0
         for i in range(m):
-            eps[i] = _log_variation(rr, sgn, delay, math.exp(x0[i]), math.exp(x1[i]), b1, b2, b3, b4)
-            split[i] = (eps[i] > _STEP) and (x1[i] - x0[i] > _MIN_WIDTH * (1 + abs(x0[i])))
+            p, q = i0[i], i1[i]
+            w0, w1 = tw[p], tw[q]
+            for k in range(nr):  # Plant._log_variation, one root at a time (zeros +, poles -)
+                x, y = xr[k], yr[k]
+                turn = math.atan2(x * (w1 - w0), x * x + (w0 - y) * (w1 - y))
+                if k >= nz:
+                    turn = -turn
+                m0, m1 = tm[p, k], tm[q, k]
+                low = math.log(abs(x)) if (w0 < y and y < w1) else _npmin(m0, m1)
+                up, down = m1 - low, m0 - low
+                b1[k] = up if k < nz else down
+                b2[k] = down if k < nz else up
+                b3[k] = turn if turn > 0 else 0.0
+                b4[k] = turn if turn < 0 else 0.0
+            if nr == 0:
+                rise = fall = pos = neg = 0.0
+            elif nr <= 8:  # numpy's sum along the last axis: the first term plus the others in order
+                rise, fall, pos, neg = -0.0, -0.0, -0.0, -0.0
+                for k in range(1, nr):
+                    rise += b1[k]
+                    fall += b2[k]
+                    pos += b3[k]
+                    neg += b4[k]
+                rise, fall, pos, neg = b1[0] + rise, b2[0] + fall, b3[0] + pos, b4[0] + neg
+            else:
+                rise, fall, pos, neg = _row_sum(b1, nr), _row_sum(b2, nr), _row_sum(b3, nr), _row_sum(b4, nr)
+            arg = _npmax(pos, -neg + delay * (w1 - w0))
+            e = math.hypot(arg, _npmax(rise, fall))
+            eps[i] = e
+            split[i] = (e > _STEP) and (tx[q] - tx[p] > _MIN_WIDTH * (1 + abs(tx[p])))
             n_split += split[i]
-        if n_out + m > out_x.size:
-            grow = max(2 * out_x.size, n_out + m)
-            ox, oe = np.empty(grow), np.empty(grow)
-            ox[:n_out], oe[:n_out] = out_x[:n_out], out_e[:n_out]
-            out_x, out_e = ox, oe
-        nx0, nx1 = np.empty(2 * n_split), np.empty(2 * n_split)
+        if n_out + m > out_n.size:
+            grow = max(2 * out_n.size, n_out + m)
+            on, oe = np.empty(grow, np.int64), np.empty(grow)
+            on[:n_out], oe[:n_out] = out_n[:n_out], out_e[:n_out]
+            out_n, out_e = on, oe
+        if n_nodes + n_split > tx.size:
+            grow = max(2 * tx.size, n_nodes + n_split)
+            gx, gw, gm = np.empty(grow), np.empty(grow), np.empty((grow, nr))
+            gx[:n_nodes], gw[:n_nodes], gm[:n_nodes] = tx[:n_nodes], tw[:n_nodes], tm[:n_nodes]
+            tx, tw, tm = gx, gw, gm
+        n0, n1 = np.empty(2 * n_split, np.int64), np.empty(2 * n_split, np.int64)
         k = 0
         for i in range(m):
+            p, q = i0[i], i1[i]
             if split[i]:
-                xm = 0.5 * (x0[i] + x1[i])
-                nx0[k], nx1[k] = x0[i], xm
-                nx0[n_split + k], nx1[n_split + k] = xm, x1[i]
+                xm = 0.5 * (tx[p] + tx[q])
+                w = math.exp(xm)
+                tx[n_nodes], tw[n_nodes] = xm, w
+                for r in range(nr):
+                    tm[n_nodes, r] = 0.5 * math.log(xr[r] * xr[r] + (w - yr[r]) * (w - yr[r]))
+                n0[k], n1[k] = p, n_nodes
+                n0[n_split + k], n1[n_split + k] = n_nodes, q
+                n_nodes += 1
                 k += 1
             else:
-                out_x[n_out] = x1[i]
+                out_n[n_out] = q
                 out_e[n_out - 1] = eps[i]
                 n_out += 1
-        x0, x1 = nx0, nx1
-        if n_out + x0.size > _MAX_POINTS:
-            return out_x[:1], out_e[:0], 6
+        i0, i1 = n0, n1
+        if n_out + i0.size > _MAX_POINTS:
+            return tx[:1], tw[:1], out_e[:0], 6
     if not settled:
-        return out_x[:1], out_e[:0], 6
-    order = _order(out_x[1:n_out])
-    nodes = np.empty(n_out)
-    eps = np.empty(n_out - 1)
-    nodes[0] = out_x[0]
+        return tx[:1], tw[:1], out_e[:0], 6
+    xs = np.empty(n_out - 1)
     for i in range(n_out - 1):
-        nodes[i + 1] = out_x[order[i] + 1]
+        xs[i] = tx[out_n[i + 1]]
+    order = _order(xs)
+    nodes, ws = np.empty(n_out), np.empty(n_out)
+    eps = np.empty(n_out - 1)
+    nodes[0], ws[0] = tx[0], tw[0]
+    for i in range(n_out - 1):
+        q = out_n[order[i] + 1]
+        nodes[i + 1], ws[i + 1] = tx[q], tw[q]
         eps[i] = out_e[order[i]]
-    return nodes, eps, 0
+    return nodes, ws, eps, 0
 
 
 # ------------------------------------------------------------------------------------------------ N's grid
@@ -599,20 +651,29 @@ def _amplitude_window(num, den, delay, kind, p, v, g, g_abs, eps_v, lo, hi, tail
 # ------------------------------------------------------------------------------------------ cells and windings
 
 
+_SCAN_ROWS = 16  # up to this many amplitude intervals the candidate cells are found by a scan of every cell
+
+
 @njit(**_OPTS)
-def _candidate_cells(ln_n, eps_a, ln_g, eps_v):
-    """_kernels.candidate_cells: sorted flat indices i * n_nodes_v + j of the cells that may hold a root."""
-    na, nv = ln_n.size - 1, ln_g.size - 1
+def _candidate_cells(ln_n, eps_a, rg, g, eps_v):
+    """_kernels.candidate_cells: sorted flat indices i * n_nodes_v + j of the cells that may hold a root.
+
+    rg: ln|G| at the frequency nodes (the real part of grid.clog(G)); arg G, its imaginary part, is computed only
+    at the nodes of cells whose real parts pass, once each. Few amplitude intervals (<= _SCAN_ROWS): every cell
+    is scanned for the window [lo, hi] of the sorted search (the same cells, found without a sort)."""
+    na, nv = ln_n.size - 1, rg.size - 1
     if na < 1 or nv < 1:
         return np.empty(0, np.int64)
-    rg = np.empty(nv)
-    for j in range(nv):
-        rg[j] = ln_g[j].real
-    order = _order(rg)
-    srt = rg[order]
     emax = -np.inf
     for j in range(nv):
         emax = _npmax(emax, eps_v[j])
+    scan = na <= _SCAN_ROWS
+    order = np.empty(0, np.int64)
+    srt = rg[:0]
+    if not scan:
+        order = _order(rg[:nv])
+        srt = rg[:nv][order]
+    arg_g = np.full(nv, np.nan)
     out = np.empty(64, np.int64)
     n_out = 0
     for i in range(na):
@@ -624,18 +685,29 @@ def _candidate_cells(ln_n, eps_a, ln_g, eps_v):
             lo = -np.inf
         if hi != hi:
             hi = np.inf
-        start = _bisect(srt, lo, False)
-        stop = _bisect(srt, hi, True)
+        start, stop = 0, nv
+        if not scan:
+            start = _bisect(srt, lo, False)
+            stop = _bisect(srt, hi, True)
         for q in range(start, stop):
-            j = order[q]
+            if scan:
+                j = q
+                if not (lo <= rg[j] and rg[j] <= hi):
+                    continue
+            else:
+                j = order[q]
             re = rn + rg[j]
             e = eps_a[i] + eps_v[j]
-            im = ln_n[i].imag + ln_g[j].imag - _PI
+            if abs(re) > e:
+                continue
+            if arg_g[j] != arg_g[j]:
+                arg_g[j] = _angle(g[j])
+            im = ln_n[i].imag + arg_g[j] - _PI
             if im > _PI:
                 im -= _TWO_PI
             elif im < -_PI:
                 im += _TWO_PI
-            if not (abs(re) > e) and re * re + im * im <= e * e:
+            if re * re + im * im <= e * e:
                 if n_out == out.size:
                     grow = np.empty(2 * out.size, np.int64)
                     grow[:n_out] = out[:n_out]
@@ -643,7 +715,7 @@ def _candidate_cells(ln_n, eps_a, ln_g, eps_v):
                 out[n_out] = i * (nv + 1) + j  # flat index in the node grid
                 n_out += 1
     out = out[:n_out]
-    return out[_order(out)]
+    return out if scan else out[_order(out)]
 
 
 @njit(**_OPTS)
@@ -1089,7 +1161,7 @@ def _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom
         if not (math.isfinite(g.real) and math.isfinite(g.imag)):
             return 8, fl, it, empty
     v = _linspace(math.log(w_lo), math.log(w_hi), nw)
-    v, eps_v, status = _resolve_plant(zeros, poles, delay, v)
+    v, w_nodes, eps_v, status = _resolve_plant(zeros, poles, delay, v)
     if status:
         return status, fl, it, empty
     nv = v.size
@@ -1097,7 +1169,7 @@ def _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom
     g_abs = np.empty(nv)
     any_g = False
     for j in range(nv):
-        g[j] = plant(num, den, delay, math.exp(v[j]))
+        g[j] = plant(num, den, delay, w_nodes[j])
         if not (math.isfinite(g[j].real) and math.isfinite(g[j].imag)):
             return 8, fl, it, empty
         g_abs[j] = cabs(g[j])
@@ -1141,12 +1213,12 @@ def _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom
         jumps += e > _STEP
     fl[6], fl[7], it[3] = big_v, big_a, jumps
     ln_n = np.empty(nA, np.complex128)
-    ln_g = np.empty(nv, np.complex128)
+    rg = np.empty(nv)
     for i in range(nA):
         ln_n[i] = _clog(n[i])
     for j in range(nv):
-        ln_g[j] = _clog(g[j])
-    cells = _candidate_cells(ln_n, eps_a, ln_g, eps_v)
+        rg[j] = math.log(g_abs[j])  # the real part of _clog(g[j])
+    cells = _candidate_cells(ln_n, eps_a, rg, g, eps_v)
     nc = cells.size
     it[4] = nc
     n_points = 0
@@ -1257,24 +1329,18 @@ def solve_many_dispatcher():
     return _drive_many
 
 
-def solve_one(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol):
+def solve_one(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit=None):
     """The driver on one loop: (status, floats, ints, roots) as :func:`_drive` returns them (windows NaN:
-    the defaults)."""
-    from ..._checks import memory_limit
-    from ..grid import BYTES_PER_POINT
-
+    the defaults; ``mem_limit``: the memory bound in bytes, read here when None)."""
     num, den, zeros, poles, delay = gpart
     return _drive_one(num, den, zeros, poles, delay, *npart, float(w_lo), float(w_hi), float(A_lo), float(A_hi),
-                      int(na), int(nw), float(tol), float(marginal_tol), float(memory_limit()),
-                      float(BYTES_PER_POINT[False]))
+                      int(na), int(nw), float(tol), float(marginal_tol),
+                      float(memory_limit() if mem_limit is None else mem_limit), _BYTES_PER_POINT)
 
 
 def solve_many(parts, windows, na, nw, tol, marginal_tol):
     """The driver over loops [(gpart, npart), ...] with windows [(w_lo, w_hi, A_lo, A_hi), ...] in one parallel
     call: arrays (status, floats, ints, roots (L, MAX_ROOTS, 10), root counts)."""
-    from ..._checks import memory_limit
-    from ..grid import BYTES_PER_POINT
-
     L = len(parts)
     padded = []
     for q in range(4):  # num, den, zeros, poles: rows padded to the longest, with their lengths
@@ -1297,4 +1363,4 @@ def solve_many(parts, windows, na, nw, tol, marginal_tol):
     win = np.asarray(windows, float).reshape(L, 4)
     return _drive_many(*padded, cols[0], kind, p, cont, *cols[1:9], win[:, 0].copy(),
                        win[:, 1].copy(), win[:, 2].copy(), win[:, 3].copy(), int(na), int(nw), float(tol),
-                       float(marginal_tol), float(memory_limit()), float(BYTES_PER_POINT[False]))
+                       float(marginal_tol), float(memory_limit()), _BYTES_PER_POINT)

@@ -68,20 +68,28 @@ def plant_part(G):
     return _remember(_PLANTS, key, (np.ascontiguousarray(num), np.ascontiguousarray(den), zeros, poles, delay))
 
 
-def element_part(N, form):
+_NOTHING = object()
+
+
+def element_part(N, form_of):
     """The element's arguments for the driver (kind, parameters, continuity, domain and its logs, tail and head
-    bound constants, breakpoint), or None where the driver does not mirror the element's methods."""
+    bound constants, breakpoint), or None where the driver does not mirror the element's methods or
+    ``form_of(N)`` (:func:`.residual.element_form`) gives it no compiled form. Remembered by the class and the
+    attributes (a built-in element is a function of them; an element whose attributes cannot be hashed is
+    converted every time)."""
     cls = type(N)
     try:
-        key = (cls, tuple(vars(N).items()))  # a built-in element is a function of its attributes
+        key = (cls, tuple(vars(N).items()))
         hash(key)
     except TypeError:
         key = None
-    hit = _ELEMENTS.get(key) if key is not None else None
-    if hit is not None:
-        return hit
-    out = _element_part(N, form, cls)
-    return out if key is None or out is None else _remember(_ELEMENTS, key, out)
+    if key is not None:
+        hit = _ELEMENTS.get(key, _NOTHING)
+        if hit is not _NOTHING:
+            return hit
+    form = form_of(N)
+    out = None if form is None else _element_part(N, form, cls)
+    return out if key is None else _remember(_ELEMENTS, key, out)
 
 
 def _element_part(N, form, cls):
