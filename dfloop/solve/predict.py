@@ -366,7 +366,7 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
                         candidate_cells=n_cand, n_evaluations=int(n_eval),
                         uncertified=tuple((float(np.exp(lo)), float(np.exp(hi))) for lo, hi in uncertified))
     window = (a[0], a[-1], v[0], v[-1])
-    ra, rv, jumps = find_roots(res, a, v, P, tol, cells)
+    ra, rv, jumps = find_roots(res, a, v, P, tol, cells, None if res.frequency_dependent else (eps_a, eps_v))
     cycles, rejected = _build(res, ra, rv, window, marginal_tol, tol)
     report = dataclasses.replace(report, rejected=rejected)
     lost = unresolved_boxes(res, ra, rv)
