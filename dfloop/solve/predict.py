@@ -280,12 +280,14 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     N = as_element(N)
     if not isinstance(exact, (bool, np.bool_)):
         raise ValueError(f"exact must be True or False; got {exact!r}")
-    tol = finite("tol", tol)
-    if not (0 < tol < 1e-3):
-        raise ValueError(f"tol must lie in (0, 1e-3); got {tol}")
-    marginal_tol = finite("marginal_tol", marginal_tol)
-    if not (0 <= marginal_tol < 1):
-        raise ValueError(f"marginal_tol must lie in [0, 1); got {marginal_tol}")
+    if not (type(tol) is float and 0 < tol < 1e-3):  # a plain float in range passes as it is
+        tol = finite("tol", tol)
+        if not (0 < tol < 1e-3):
+            raise ValueError(f"tol must lie in (0, 1e-3); got {tol}")
+    if not (type(marginal_tol) is float and 0 <= marginal_tol < 1):
+        marginal_tol = finite("marginal_tol", marginal_tol)
+        if not (0 <= marginal_tol < 1):
+            raise ValueError(f"marginal_tol must lie in [0, 1); got {marginal_tol}")
     limit = memory_limit()
     na, nw = _grid_size(grid, N.frequency_dependent, limit)
     if not exact:  # the common case end to end in one compiled call (solve/compiled/driver.py), where it applies
@@ -481,6 +483,16 @@ def predict_chunk(loops, *, omega=None, amplitude=None, grid=(64, 256), tol: flo
     return out
 
 
+@functools.lru_cache(maxsize=256)
+def _default_omega_source(mag_lo: float, mag_hi: float) -> str:
+    """How the default frequency window was chosen, from the smallest and largest |pole/zero| (remembered: a
+    plant's text is the same every call)."""
+    if not math.isfinite(mag_lo):
+        return "default: G has no pole or zero off the origin: 0.01-100 rad/s"
+    at = f"{mag_lo:.3g}" if f"{mag_lo:.3g}" == f"{mag_hi:.3g}" else f"{mag_lo:.3g}..{mag_hi:.3g}"
+    return f"default: 2 decades beyond G's poles/zeros at {at} rad/s, where G's phase and slope have settled"
+
+
 def _driver_result(G, N, fl, it, rows, w_given: bool, a_src) -> LimitCycles:
     """LimitCycles from the compiled driver's output (floats fl, ints it, root rows; see driver._drive)."""
     A_lo, A_hi, w_lo, w_hi, top, bottom, step_v, step_a, mag_lo, mag_hi = fl.tolist()
@@ -490,13 +502,7 @@ def _driver_result(G, N, fl, it, rows, w_given: bool, a_src) -> LimitCycles:
         limits += "; no root below A=%.3g by N's limit" % bottom if bottom == bottom else ""
         a_src = (f"default: where |G N| can reach 1 within N's amplitude domain{limits}" if case == 0 else
                  f"default: N's amplitude domain (|G N| never reaches 1){limits}")
-    if w_given:
-        w_src = "given"
-    elif not math.isfinite(mag_lo):
-        w_src = "default: G has no pole or zero off the origin: 0.01-100 rad/s"
-    else:
-        at = f"{mag_lo:.3g}" if f"{mag_lo:.3g}" == f"{mag_hi:.3g}" else f"{mag_lo:.3g}..{mag_hi:.3g}"
-        w_src = f"default: 2 decades beyond G's poles/zeros at {at} rad/s, where G's phase and slope have settled"
+    w_src = "given" if w_given else _default_omega_source(mag_lo, mag_hi)
     cycles = []
     for A, w, det, cond, label, r, rel, g, n, edge in rows.tolist():
         A, w, label = A.real, w.real, _LABELS[int(label.real)]

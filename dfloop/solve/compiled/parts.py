@@ -52,20 +52,24 @@ def plant_part(G):
         return None
     if getattr(G, "ninputs", 1) != 1 or getattr(G, "noutputs", 1) != 1 or getattr(G, "dt", 0) not in (0, None):
         return None
-    num, den = (np.asarray(x, dtype=float) for x in (G.num[0][0], G.den[0][0]))
+    num, den = G.num[0][0], G.den[0][0]
+    key = None
+    if type(num) is np.ndarray and type(den) is np.ndarray and num.ndim == 1 and den.ndim == 1:
+        key = (num.dtype.str, num.tobytes(), den.dtype.str, den.tobytes(), delay)  # as given: no conversion
+        hit = _PLANTS.get(key)
+        if hit is not None:
+            return hit
+    num, den = np.asarray(num, dtype=float), np.asarray(den, dtype=float)
     if num.ndim != 1 or den.ndim != 1:
         return None
-    key = (num.tobytes(), den.tobytes(), delay)
-    hit = _PLANTS.get(key)
-    if hit is not None:
-        return hit
     if not (np.all(np.isfinite(num)) and np.all(np.isfinite(den))) or max(den.size, num.size) - 1 > MAX_ORDER:
         return None
     num, den = (x[np.argmax(x != 0):] if np.any(x) else x[:0] for x in (num, den))
     if num.size == 0 or den.size == 0 or num.size > den.size:
         return None
     zeros, poles = (np.ascontiguousarray(_roots(x), complex) for x in (num, den))  # as Plant has them
-    return _remember(_PLANTS, key, (np.ascontiguousarray(num), np.ascontiguousarray(den), zeros, poles, delay))
+    out = (np.ascontiguousarray(num), np.ascontiguousarray(den), zeros, poles, delay)
+    return out if key is None else _remember(_PLANTS, key, out)
 
 
 _NOTHING = object()
