@@ -1375,6 +1375,17 @@ class _ValleyScan:
         self.evaluations = 0
         self.grain = 1.0 / 32  # lattice (in q) of the searches' first probes: set by roots()
 
+    def on_branch_side(self, X: np.ndarray) -> bool:
+        """X lies where branches live: inside N's amplitude domain and not inside an element's linear range
+        (there 1 + G N = 0 is the linear loop's marginal condition, a continuum, not a cycle)."""
+        q = min(max(float(X[2]), 0.0), 1.0)
+        for edge in self.f.edges(q):
+            if edge[1] != 0:
+                g = self.f.edge_value(edge, X)
+                if math.isfinite(g) and edge[1] * g <= 0:
+                    return False
+        return self.f.admissible(X)
+
     # -- valleys at one q ------------------------------------------------------------------------------
     def _grid(self, q: float) -> tuple[np.ndarray, np.ndarray]:
         """The grid nodes at q: the fixed grid plus the element's edges and the plant's poles and zeros."""
@@ -1759,7 +1770,7 @@ def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=No
     scanned = set()
     with progress_bar(f"sweep of {parameter}: valley scan", 1, enabled=progress) as bar:
         for B in scan.roots(qs):
-            if _on_curves(tracer, curves, B.X):
+            if _on_curves(tracer, curves, B.X) or not scan.on_branch_side(B.X):
                 continue
             P = family.correct(B.X, _EQ, B.X[2])
             if P is None:  # next to a fold (a double root): the settled bottom as the seed, matched more loosely
