@@ -69,6 +69,7 @@ _MAX_VALLEYS = 12  # valleys settled per probe (the deepest)
 _LM = 60  # Newton iterations that settle a valley's bottom
 _SETTLED = 1e-9  # ... settled when a step moves less than this (ln A, ln w): the depth is then exact to ~1e-18
 _SCAN_FD = 1e-4  # difference step (ln A, ln w) of the gradient and Hessian of |R|^2 there
+_SCAN_NEWTON = 0.5  # largest step (ln A, ln w) of the Newton-on-R step tried first
 _SCAN_ESCAPE = 0.05  # first step (ln A, ln w) along a negative curvature of |R|^2 (halved until |R| decreases)
 _ROOT = 1e-10  # a bottom with |R| / (1 + |G N|) below this is a root
 _GOLDEN = 80  # bound on the probes of the search on one valley's depth
@@ -1402,8 +1403,10 @@ class _ValleyScan:
             v = np.unique(np.concatenate([v, [x for x in np.log(mags) if v_lo < x < v_hi]]))
         return a, v
 
-    def valleys(self, q: float) -> list[_Bottom]:
-        """The settled bottoms of the valleys of |R| / (1 + |G N|) at q (the ``_MAX_VALLEYS`` deepest)."""
+    def valleys(self, q: float, known: list = ()) -> list[_Bottom]:
+        """The settled bottoms of the valleys of |R| / (1 + |G N|) at q (the ``_MAX_VALLEYS`` deepest), except
+        those whose grid minimum lies within two grid steps of a ``known`` bottom (followed from the previous
+        probe already)."""
         plant, N = self.f.loop(q)
         a, v = self._grid(q)
         A, w = np.exp(a), np.exp(v)
@@ -1425,11 +1428,14 @@ class _ValleyScan:
         i, j = np.nonzero(mask)
         order = np.argsort(f[i, j], kind="stable")
         out: list[_Bottom] = []
+        da, dv = 2 * (self.a[1] - self.a[0]), 2 * (self.v[1] - self.v[0])
         for k in order:
             if len(out) >= _MAX_VALLEYS:
                 break
+            if any(abs(a[i[k]] - K.X[0]) <= da and abs(v[j[k]] - K.X[1]) <= dv for K in known):
+                continue
             B = self.settle(np.array([a[i[k]], v[j[k]], q]))
-            if B is not None and not any(np.max(np.abs(B.X[:2] - o.X[:2])) < 1e-6 for o in out):
+            if B is not None and not any(np.max(np.abs(B.X[:2] - o.X[:2])) < 1e-6 for o in list(out) + list(known)):
                 out.append(B)
         return out
 
@@ -1459,7 +1465,8 @@ class _ValleyScan:
         return R, grad, H, np.array([ra, rv])
 
     def settle(self, X0: np.ndarray) -> _Bottom | None:
-        """The bottom of the valley of |R| that X0 = (a, v, q) lies in, at X0's q: damped Newton on
+        """The bottom of the valley of |R| that X0 = (a, v, q) lies in, at X0's q: Newton on R = 0 while it
+        halves |R| (towards a root), else damped Newton on
         phi = |R|^2 / 2 in (a, v) (the Hessian shifted to be positive definite, plus a step down a negative
         curvature: a pair's two roots lie either side of a ridge of |R|; a step is taken only when phi
         decreases), kept inside the window; at most ``_LM`` iterations, settled when a step moves less than
@@ -1471,9 +1478,25 @@ class _ValleyScan:
             return None
         mu = 0.0
         for _ in range(_LM):
-            R, grad, H, _ = cur
+            R, grad, H, dR = cur
             if abs(R) <= _ROOT * (1 + abs(R - 1.0)):
                 break
+            Jr = np.array([[dR[0].real, dR[1].real], [dR[0].imag, dR[1].imag]])
+            try:  # Newton on R = 0 first: quadratic towards a root, taken when it halves |R|
+                d = np.linalg.solve(Jr, -np.array([R.real, R.imag]))
+            except np.linalg.LinAlgError:
+                d = np.full(2, np.inf)
+            if np.all(np.isfinite(d)) and np.max(np.abs(d)) <= _SCAN_NEWTON:
+                Y = X.copy()
+                Y[0] = min(max(X[0] + d[0], a_lo), a_hi)
+                Y[1] = min(max(X[1] + d[1], v_lo), v_hi)
+                nxt = self._local(Y)
+                if nxt is not None and abs(nxt[0]) <= 0.5 * abs(R):
+                    moved = float(np.max(np.abs(Y[:2] - X[:2])))
+                    X, cur = Y, nxt
+                    if moved <= _SETTLED:
+                        break
+                    continue
             lams, vecs = np.linalg.eigh(H)
             mu = max(mu, -2 * lams[0], 1e-14 * float(np.trace(np.abs(H))) + 1e-300)
             escape = np.zeros(2)
@@ -1573,34 +1596,30 @@ class _ValleyScan:
         probes.append(float(qs[-1]))
         self.grain = float(np.min(np.abs(np.diff(probes)))) / 32
         given = set(range(0, len(probes), self.probes))
-        valleys = [self.valleys(q) for q in probes]
         found = []
-        for j, vs in enumerate(valleys):
-            if j not in given:
-                found += [b for b in vs if b.root]
+        here = self.valleys(probes[0])
         for j in range(len(probes) - 1):
-            pairs = []
-            for B in valleys[j]:
+            pairs, ahead = [], []
+            for B in here:  # each valley followed to the next probe ...
                 X = B.X.copy()
                 X[2] = probes[j + 1]
                 C = self.settle(X)
                 if C is not None:
                     pairs.append((B, C))
-            ahead = [C.X for _, C in pairs]
-            for C in valleys[j + 1]:
-                if any(np.max(np.abs(C.X[:2] - Y[:2])) <= 1e-6 for Y in ahead):
-                    continue  # the same valley, already followed from probe j
+                    if not any(np.max(np.abs(C.X[:2] - Y.X[:2])) <= 1e-6 for Y in ahead):
+                        ahead.append(C)
+            fresh = self.valleys(probes[j + 1], ahead)
+            for C in fresh:  # ... and the valleys new there followed back
                 X = C.X.copy()
                 X[2] = probes[j]
                 B = self.settle(X)
                 if B is not None:
                     pairs.append((B, C))
+            here = ahead + fresh
+            if (j + 1) not in given:
+                found += [C for C in here if C.root]
             for B, C in pairs:
-                if C.root and (j + 1) not in given:
-                    found.append(C)
-                elif B.root and j not in given:
-                    found.append(B)
-                elif not (B.root or C.root):
+                if not (B.root or C.root):
                     hit = self._search(B, C)
                     if hit is not None:
                         found.append(hit)
