@@ -61,7 +61,7 @@ _MAX_BREAKPOINTS = 64  # breakpoints of a static element examined as possible ed
 _LIMIT_NEWTON = 40  # Newton iterations for a birth from infinity / zero amplitude
 _LAND_NEWTON = 60  # Newton iterations of the fallback that lands on a given value next to an element edge
 # the valley scan (pairs born and dying between two given values; see _ValleyScan)
-_PROBES = 4  # default: sub-intervals scanned per interval between given values
+_PROBES = 3  # default: sub-intervals scanned per interval between given values
 _SCAN_A, _SCAN_V = 48, 96  # least grid nodes in ln A and ln w of the valley grid
 _SCAN_A_DECADE, _SCAN_V_DECADE = 8, 32  # ... and at least this many per decade of the window
 _FLAT = 1 - 1e-9  # grid minima of |R| / (1 + |G N|) at or above this are plateaus (N = 0), not valleys
@@ -1615,7 +1615,7 @@ class _ValleyScan:
                 B = self.settle(X)
                 if B is not None:
                     pairs.append((B, C))
-            here = ahead + fresh
+            here = sorted(ahead + fresh, key=lambda b: b.depth)[:_MAX_VALLEYS]
             if (j + 1) not in given:
                 found += [C for C in here if C.root]
             for B, C in pairs:
