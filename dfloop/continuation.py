@@ -22,7 +22,12 @@ recorded as an event. Labels use the solver's marginal test (:func:`dfloop.solve
 Completeness: :func:`dfloop.predict_limit_cycles` is run at every given value (independently, on any
 executor); every cycle it finds either lies on a traced curve or seeds a new trace, so branches born
 between two values (a pair from a fold, or one entering through the window edge) are traced back to their
-birth. Points of a traced curve that the solver did not report are listed in ``SweepResult.notes``.
+birth. Points of a traced curve that the solver did not report are listed in ``SweepResult.notes``. A curve
+that meets no given value (a pair born and dying between two values: an isola, a short-lived fold pair) is
+found by the valley scan (:class:`_ValleyScan`): the bottoms of the valleys of |1 + G N| over the window are
+followed across each interval and searched where their depth can reach zero; an interval the search cannot
+decide within its bound is listed in ``SweepResult.unresolved``. Two branches that end on an element edge at
+the same point from either side (a quantizer's threshold) are one fold.
 """
 from __future__ import annotations
 
@@ -1375,6 +1380,7 @@ class _ValleyScan:
         self.unresolved: list[UnresolvedInterval] = []
         self.evaluations = 0
         self.grain = 1.0 / 32  # lattice (in q) of the searches' first probes: set by roots()
+        self._minima: list = []  # the grid minima of the last call of valleys()
 
     def on_branch_side(self, X: np.ndarray) -> bool:
         """X lies where branches live: inside N's amplitude domain and not inside an element's linear range
@@ -1405,8 +1411,9 @@ class _ValleyScan:
 
     def valleys(self, q: float, known: list = ()) -> list[_Bottom]:
         """The settled bottoms of the valleys of |R| / (1 + |G N|) at q (the ``_MAX_VALLEYS`` deepest), except
-        those whose grid minimum lies within two grid steps of a ``known`` bottom (followed from the previous
-        probe already)."""
+        those whose grid minimum lies within two grid steps of a ``known`` bottom or of a grid minimum of the
+        previous call (a valley already followed from the previous probe: a long curved valley has several
+        grid minima, all settling to one bottom)."""
         plant, N = self.f.loop(q)
         a, v = self._grid(q)
         A, w = np.exp(a), np.exp(v)
@@ -1429,10 +1436,12 @@ class _ValleyScan:
         order = np.argsort(f[i, j], kind="stable")
         out: list[_Bottom] = []
         da, dv = 2 * (self.a[1] - self.a[0]), 2 * (self.v[1] - self.v[0])
+        seen = [K.X[:2] for K in known] + (self._minima if known else [])
+        self._minima = [np.array([a[i[k]], v[j[k]]]) for k in order]
         for k in order:
             if len(out) >= _MAX_VALLEYS:
                 break
-            if any(abs(a[i[k]] - K.X[0]) <= da and abs(v[j[k]] - K.X[1]) <= dv for K in known):
+            if any(abs(a[i[k]] - x[0]) <= da and abs(v[j[k]] - x[1]) <= dv for x in seen):
                 continue
             B = self.settle(np.array([a[i[k]], v[j[k]], q]))
             if B is not None and not any(np.max(np.abs(B.X[:2] - o.X[:2])) < 1e-6 for o in list(out) + list(known)):
@@ -1497,12 +1506,20 @@ class _ValleyScan:
                     if moved <= _SETTLED:
                         break
                     continue
+            # on the window's edge with the descent pointing out: that coordinate stays (projected Newton)
+            lows, highs = (a_lo, v_lo), (a_hi, v_hi)
+            free = np.array([not ((X[i] <= lows[i] and grad[i] > 0) or (X[i] >= highs[i] and grad[i] < 0))
+                             for i in range(2)])
+            if not free.any():
+                break
+            H = np.where(np.outer(free, free), H, np.diag(np.where(free, 0.0, 1.0)))
+            grad = np.where(free, grad, 0.0)
             lams, vecs = np.linalg.eigh(H)
             mu = max(mu, -2 * lams[0], 1e-14 * float(np.trace(np.abs(H))) + 1e-300)
             escape = np.zeros(2)
             if lams[0] < 0:  # a saddle or a ridge (between the two roots of a pair): go down its negative curvature
                 e = vecs[:, 0] * (-1.0 if vecs[:, 0] @ grad > 0 else 1.0)
-                escape = _SCAN_ESCAPE * e
+                escape = _SCAN_ESCAPE * e * free
             moved = 0.0
             while mu < 1e30:
                 d = np.linalg.solve(H + mu * np.eye(2), -grad) + escape
