@@ -1030,7 +1030,13 @@ class _Tracer:
                         out.append(_Node(P, "lost", -1, self.f.last_failure or "the step size underflowed"))
                         return out
                     continue
-                self._values_between(P, E, out)
+                start = P
+                if (E.X[2] - P.X[2]) * t[2] < 0 and t[2] != 0:  # the branch turned back in p before the edge
+                    F = self._fold(P, t, E)
+                    self._values_between(P, F, out)
+                    out.append(_Node(F, "fold", self._value_index(F.X[2])))
+                    start = F
+                self._values_between(start, E, out)
                 out.append(_Node(E, "edge", self._value_index(E.X[2]), el[0]))
                 return out
             if Q is not None:

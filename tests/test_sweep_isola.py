@@ -139,7 +139,7 @@ def test_brute_force_grid_finds_nothing_the_sweep_misses():
 
         pc_far = min(max(pc, 0.2), 0.8)
         values = [0.0, 1.0] if k < 2 else [0.0, 0.5 + (0.25 if pc_far < 0.5 else -0.25), 1.0]
-        loop = _Loop(M, d, a_of, K2, hysteresis=0.04 * d * k)
+        loop = _Loop(M, d, a_of, K2, hysteresis=0.1 * d * k)
         opts = dict(omega=(0.05, 20.0), amplitude=(0.01, 100.0))
         res = sweep(loop, values, parameter="p", progress=False, **opts)
         assert not res.notes and not res.unresolved
