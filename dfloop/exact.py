@@ -198,8 +198,9 @@ def cycle_argument(cycle, name: str = "cycle") -> tuple[float, float]:
     return scale(f"{name} amplitude", A0), scale(f"{name} frequency", w0)
 
 
-def _failure(message, predicted, method, residual=math.inf, iterations=0) -> ExactCycle:
-    return ExactCycle(False, message, predicted, method, residual=residual, iterations=iterations)
+def _failure(message, predicted, method, residual=math.inf, iterations=0, extra=None) -> ExactCycle:
+    return ExactCycle(False, message, predicted, method, residual=residual, iterations=iterations,
+                      extra=extra or {})
 
 
 @single_threaded_blas
@@ -329,8 +330,11 @@ def _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations
         return outer
     loop = loop_model(G, N, A0 + abs(bias), w0, what="exact_cycle", r0=r0, load=load)
     if loop.delay > 0:   # a pure delay: Newton on the return map of the exact delay flow (dfloop.hybrid.delay)
-        return ExactCycle(**delay_orbit(loop, A0, w0, tol=tol, max_iterations=max_iterations, harmonics=harmonics,
-                                        samples=samples, max_events=max_events, max_deviation=max_deviation, bias=bias))
+        out = delay_orbit(loop, A0, w0, tol=tol, max_iterations=max_iterations, harmonics=harmonics,
+                          samples=samples, max_events=max_events, max_deviation=max_deviation, bias=bias)
+        if "another_orbit" in out.get("extra", {}):   # the orbit Newton found instead, for the globalisation
+            out["extra"]["another_orbit"] = ExactCycle(**out["extra"]["another_orbit"])
+        return ExactCycle(**out)
     if not loop.exact:
         raise ValueError(f"N: {type(N).__name__} is known only through a sampled operator ({loop.method}): "
                          "exact_cycle needs an exact time model (piecewise affine, smooth or impact; implement "
@@ -352,7 +356,7 @@ def _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations
                         f"{'stable' if out.stable else 'unstable'}), farther from the prediction than max_deviation "
                         f"= {max_deviation:g} in log(A) or log(w): the predicted cycle may not exist as a true "
                         "orbit; raise max_deviation to accept it", predicted, loop.method, orbit.residual,
-                        orbit.iterations)
+                        orbit.iterations, extra={"another_orbit": out})
     return out
 
 
