@@ -201,7 +201,7 @@ def _equations(A, B, C, f, delay, kinks, s0: np.ndarray, x: np.ndarray, P: float
     return R, S, dde, (pts, xi)
 
 
-def _jacobian(dde: DelayDDE, x: np.ndarray, data) -> np.ndarray:
+def node_jacobian(dde: DelayDDE, x: np.ndarray, data) -> np.ndarray:
     """d R / d (x, s_0) ((N + n + 1) x (N + n)), exact for the discrete equations at fixed quadrature points:
     the tangent of the steps' recursion, ds_k/dx and ds_k/ds_0, carried along the period."""
     (k, E, idx, w), xi = data
@@ -248,7 +248,7 @@ def periodic_orbit(A, B, C, f, delay, s0: np.ndarray, x0: np.ndarray, P0: float,
             return S[:-1], P, res, it
         res_prev = res
         J = np.zeros((N + n + 1, N + n + 1))
-        J[:, :N + n] = _jacobian(dde, x, data)
+        J[:, :N + n] = node_jacobian(dde, x, data)
         dP = 1e-7 * P
         Rp = _equations(A, B, C, f, delay, kinks, s0, x, P + dP)[0]
         Rm = _equations(A, B, C, f, delay, kinks, s0, x, P - dP)[0]
@@ -274,12 +274,14 @@ def periodic_orbit(A, B, C, f, delay, s0: np.ndarray, x0: np.ndarray, P0: float,
                        "raise max_iterations")
 
 
-def multipliers(A, B, C, f, delay, S: np.ndarray, P: float, kinks=(), count: int = 6) -> np.ndarray:
+def multipliers(A, B, C, f, delay, S: np.ndarray, P: float, kinks=(), count: int = 6,
+                x: np.ndarray | None = None) -> np.ndarray:
     """The ``count`` largest eigenvalues of the monodromy of the discretised history along the orbit S: the
-    time-stepping form of the same scheme (state: s_k and the node values of x the interpolation can reach)."""
+    time-stepping form of the same scheme (state: s_k and the node values of x the interpolation can reach).
+    ``x``: the node values of x when they are not -C s (a forcing added at the summing junction)."""
     N, n = S.shape
     dde = DelayDDE(A, B, C, f, delay, P / N, kinks)
-    x = -(S @ dde.C)
+    x = -(S @ dde.C) if x is None else np.asarray(x, float)
     k, E, idx, w = dde.points(x)
     xi = np.einsum("pj,pj->p", x[idx], w)
     fp = dde.slope(xi)
