@@ -60,10 +60,13 @@ def inside_search() -> bool:
     return _INSIDE.get()
 
 
-def shoot_or_globalise(G, N, predicted: tuple, shoot, max_deviation: float, constant: dict | None = None):
+def shoot_or_globalise(G, N, predicted: tuple, shoot, max_deviation: float, constant: dict | None = None,
+                       counterpart: bool = False):
     """Run ``shoot(cycle, **options)`` (one :func:`dfloop.exact_cycle` call) and globalise when it fails.
 
     ``constant``: the loop's constant input and the predicted bias (``r0``, ``load``, ``bias``), for the runs.
+    ``counterpart``: an orbit farther than ``max_deviation`` is still returned when it is this prediction's own
+    (:func:`_counterpart`).
 
     Returns None when called from inside a shooting started here (the caller then shoots itself), otherwise
     an :class:`~dfloop.exact.ExactCycle`.
@@ -77,7 +80,7 @@ def shoot_or_globalise(G, N, predicted: tuple, shoot, max_deviation: float, cons
             return first
         quiet = _HOMOTOPY.set(False)
         try:
-            return _globalise(G, N, predicted, first, shoot, max_deviation, constant or {})
+            return _globalise(G, N, predicted, first, shoot, max_deviation, constant or {}, counterpart)
         finally:
             _HOMOTOPY.reset(quiet)
     finally:
@@ -235,10 +238,10 @@ def _counterpart(G, N, predicted: tuple, orbit, constant: dict) -> str:
             "this prediction's orbit, the DF misplaces it")
 
 
-def _globalise(G, N, predicted, first, shoot, max_deviation, constant):
+def _globalise(G, N, predicted, first, shoot, max_deviation, constant, counterpart):
     A0, w0 = predicted
     near = first.extra.get("another_orbit")     # Newton converged, but farther than max_deviation
-    claim = _counterpart(G, N, predicted, near, constant) if near is not None else ""
+    claim = _counterpart(G, N, predicted, near, constant) if counterpart and near is not None else ""
     if claim:
         return _rebase(near, predicted, f"shooting from the prediction converged to it; {claim}")
     tried = [f"shooting from the prediction: {first.message}"]
@@ -278,7 +281,7 @@ def _globalise(G, N, predicted, first, shoot, max_deviation, constant):
     evidence = "; ".join(_words(m) for m in motions)
     if others:
         o, how = others[0]
-        claim = _counterpart(G, N, predicted, o, constant)
+        claim = _counterpart(G, N, predicted, o, constant) if counterpart else ""
         if claim:
             return _rebase(o, predicted, f"{how}; {claim}")
         outcome = "another cycle"
