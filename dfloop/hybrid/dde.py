@@ -34,6 +34,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from ..describing.time_model import PiecewiseAffine, Smooth
+from .realisation import conditioned
 from .run import LoopSimulation
 
 __all__ = ["DDELoop", "DelayDDE", "dde_orbit", "dde_simulation", "periodic_orbit", "multipliers", "static_map"]
@@ -85,7 +86,9 @@ class DDELoop:
               "at the element's kinks, cubic history interpolation; 4th order)")
 
     def __init__(self, A, B, C, f, kinks, delay: float, name: str = ""):
-        self.A, self.B, self.C = (np.asarray(a, float) for a in (A, B, C))
+        # the well-conditioned realisation of the exact flows (block-diagonal, balanced, from order 7): only x = -C s
+        # leaves this model, so its states need not be the plant's as given
+        self.A, self.B, self.C, _ = conditioned(*(np.asarray(a, float) for a in (A, B, C)))
         self.n = self.A.shape[0]
         self.f, self.kinks, self.delay, self.name = f, np.asarray(kinks, float), float(delay), name
         self.plant = (self.A, self.B)
@@ -377,14 +380,18 @@ def settled_start(loop: DDELoop, A0: float, w0: float, N: int, plant: tuple, per
     c = np.fft.rfft(x)
     shift = np.angle(1j * c[1])                                      # fundamental turned to a sine at t = 0
     x = np.fft.irfft(c * np.exp(-1j * np.arange(c.size) * shift), n=N)
-    # plant state at node 0: s_k = Phi^k s0 + g_k (g_k the response to the delayed input from s0 = 0), x_k = -C s_k
-    _, G0, dde, _ = _equations(A, B, C, loop.f, loop.delay, loop.kinks, np.zeros(A.shape[0]), x, P)
-    M = np.empty((N, A.shape[0]))
-    row = C.copy()
+    # plant state at node 0: s_k = Phi^k s0 + g_k (g_k the response to the delayed input from s0 = 0), fitted to
+    # x_k = -C s_k and to the periodicity s_N = s_0 together (a fast mode barely seen in x is fixed by the latter)
+    n = A.shape[0]
+    _, G0, dde, _ = _equations(A, B, C, loop.f, loop.delay, loop.kinks, np.zeros(n), x, P)
+    M = np.empty((N, n))
+    Pk = np.eye(n)
     for j in range(N):
-        M[j] = row
-        row = row @ dde.Phi
-    s0 = np.linalg.lstsq(-M, x + G0[:-1] @ C, rcond=None)[0]
+        M[j] = C @ Pk
+        Pk = dde.Phi @ Pk
+    lhs = np.vstack([-M, Pk - np.eye(n)])
+    rhs = np.concatenate([x + G0[:-1] @ C, -G0[-1]])
+    s0 = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
     return x, s0, P
 
 
