@@ -69,10 +69,12 @@ def random_loop(rng, k: int):
     G = ct.tf([1.0], den)
     slow = float(np.min(np.abs(poles[np.abs(poles) > 0]))) if np.any(np.abs(poles) > 0) else 1.0
     G = G * float(np.prod(np.abs(poles[np.abs(poles) > 0])))            # unit gain of the lags
+    factors = [G]
     pade = 0
     if rng.random() < 0.5 and kind != "dead zone":
         pade = int(rng.integers(2, 7))
-        G = G * ct.tf(*ct.pade(float(rng.uniform(0.05, 0.5)) / slow, pade))
+        factors.append(ct.tf(*ct.pade(float(rng.uniform(0.05, 0.5)) / slow, pade)))
+        G = G * factors[-1]
     T = float(rng.uniform(0.05, 5.0)) / slow
     N = {"saturation": df.Saturation(1.0), "dead zone": df.DeadZone(0.3), "backlash": df.Backlash(h=0.5),
          "relay": df.Relay(1.0, hysteresis=float(rng.uniform(0, 0.1)), dead_zone=float(rng.uniform(0, 0.1)))}[kind]
@@ -92,13 +94,15 @@ def random_loop(rng, k: int):
         else:
             raise RuntimeError("no conditionally stable range after 8 halvings of z: change SEED")
         G, n_extra = lead, 3
+        factors.append(ct.tf([1.0, 2 * z, z * z], [1.0, 0.0, 0.0, 0.0]))
     else:
         resp = np.array([complex(G(1j * x)) * np.exp(-1j * x * T) for x in w])
         idx = np.flatnonzero((np.diff(np.sign(resp.imag)) != 0) & (resp.real[:-1] < 0))   # negative real axis
         mag = abs(resp[idx[0]]) if idx.size else abs(resp[0])
         K = float(rng.uniform(0.85, 0.98) if kind == "backlash" else rng.uniform(2.0, 6.0)) / mag
     desc = f"n={len(poles) + pade + n_extra} ({'pade ' + str(pade) if pade else 'no pade'}), T={T * slow:.2f} tau, {kind}"
-    return delayed(K * G, T), N, desc
+    factors[0] = K * factors[0]
+    return delayed(K * G, T), N, desc, factors
 
 
 def stable_linear_loop(G, T: float, K: float, w: np.ndarray) -> bool:
@@ -128,14 +132,16 @@ def _conditional_gain(G, T: float, w: np.ndarray, rng) -> float | None:
     return None
 
 
-def reference(G, N, c):
-    """The orbit a long run from the prediction c settles on: (A, w), or None with the reason."""
+def reference(G, N, c, factors):
+    """The orbit a long run from the prediction c settles on: (A, w), or None with the reason. ``factors``: the
+    plant's factors (lags, Pade chain, lead), realised each on its own and in series for the run (the companion
+    form of the whole product spans 1e11 in its states on a Pade-chain plant, beyond what rtol 1e-12 holds)."""
     if isinstance(N, df.Relay):           # the exact event-located flow, its return map iterated to 1e-13
         out, why = settle(G, N, c.amplitude, c.frequency)
         return (out[0], out[1]) if out else None, why or "settled"
-    ss = ct.ss(G.system)
-    if ss.nstates >= 7:                   # python-control's modal form: the companion form of a Pade chain spans
-        ss = ct.canonical_form(ss, "modal")[0]   # 1e11 in its states, beyond what rtol 1e-12 can hold
+    ss = ct.ss(factors[0])
+    for f in factors[1:]:
+        ss = ct.series(ss, ct.ss(f))
     factor = SLOW if isinstance(N, df.Backlash) else 1
     if isinstance(N, df.Backlash):
         el = backlash_element(N.h)
@@ -157,7 +163,7 @@ def reference(G, N, c):
     return None, f"not settled in {RUN_PERIODS * factor} periods or {RUN_STEPS * factor} steps (change {run.change:.1e})"
 
 
-def run_loop(G, N):
+def run_loop(G, N, factors):
     df.predict_limit_cycles(G, N)                     # warm-up (the first call loads the compiled solver)
     t0 = time.perf_counter()
     cycles = df.predict_limit_cycles(G, N)
@@ -169,7 +175,7 @@ def run_loop(G, N):
         e = df.exact_cycle(G, N, c)
         t_exact.append(time.perf_counter() - t0)
         exacts.append(e)
-        ref, why = reference(G, N, c)
+        ref, why = reference(G, N, c, factors)
         if ref is not None:
             settled.append(ref)
         elif why.startswith("not settled"):
@@ -199,8 +205,8 @@ def main() -> str:
     ratios, errs, ests = [], [], []
     t_all = time.perf_counter()
     for k in range(LOOPS):
-        G, N, desc = random_loop(rng, k)
-        r = run_loop(G, N)
+        G, N, desc, factors = random_loop(rng, k)
+        r = run_loop(G, N, factors)
         for key in ("checked", "found", "settled", "unsettled"):
             total[key] += r[key]
         total["misses"] += len(r["misses"])
