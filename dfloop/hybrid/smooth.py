@@ -123,7 +123,7 @@ class SmoothLoop(LoopModel):
         self._compiled = _compiled_element(form)
         self.compiled = self._compiled is not None    # runs on the compiled integrator (else scipy's solve_ivp)
         self._fields: dict = {}
-        self._samples = None     # (flow, t_end, x samples) of the latest fourier
+        self._samples = None     # (flow, t_end, x samples, their FFT or None) of the latest fourier
 
     def x(self, z) -> np.ndarray:
         return np.asarray(z) @ self.x_row
@@ -212,24 +212,22 @@ class SmoothLoop(LoopModel):
         from . import smooth_compiled as sc
 
         n, m, size = self.n, len(zs), self.size
-        Z0 = np.ones((m, size))
-        for i, z in enumerate(zs):
-            Z0[i, :n] = z[:n]
-        S0 = Z0[:, :n]
+        S0 = np.array([z[:n] for z in zs], float)
         ends = np.full(m, t_end, float) if np.ndim(t_end) == 0 else np.ascontiguousarray(t_end, float)
         if ends.shape != (m,):
             raise ValueError(f"t_end must be one span or one per start state ({m}), got {ends.size}")
-        scale = max(float(np.max(np.abs(S0))), 1e-300)
         kind, params = self._compiled
         if not _ANNOUNCED:
             sc.announce()
             _ANNOUNCED.append(True)
-        end, fields, status, _, rows, starts = sc.flows(self.A, self.B, self.C, self.r0, self.load, kind, params,
-                                                        np.ascontiguousarray(S0), ends, monodromy, RTOL, RTOL * scale,
+        end, fields, status, _, rows, starts = sc.flows(self.A, self.B, self.C, self.r0, self.load, kind, params, S0,
+                                                        ends, monodromy, RTOL, RTOL * max(np.abs(S0).max(), 1e-300),
                                                         self.max_step, sc.MAX_STEPS)
-        bad = np.flatnonzero(status)
-        if bad.size:
-            raise HybridError(f"DOP853 failed on node {int(bad[0])} of {m}: {sc.failure(int(status[bad[0]]))}")
+        if status.any():
+            bad = int(np.flatnonzero(status)[0])
+            raise HybridError(f"DOP853 failed on node {bad} of {m}: {sc.failure(int(status[bad]))}")
+        Z0 = np.ones((m, 1, size))
+        Z0[:, 0, :n] = S0
         Z = np.ones((m, size))
         Z[:, :n] = end[:, :n]
         M = [None] * m
@@ -237,14 +235,15 @@ class SmoothLoop(LoopModel):
             M = np.zeros((m, size, size))
             M[:, :n, :n] = end[:, n:].reshape(m, n, n)
             M[:, n, n] = 1.0
-        self._fields = {}      # the field at every flow's ends, as the integrator computed it (see field)
+        memo = self._fields = {}      # the field at every flow's ends, as the integrator computed it (see field)
         flows = []
-        for i in range(m):
-            fl = Flow(Z[i], 0, M[i], _T0, Z0[i:i + 1], _MODE0, [], dense=_Steps(rows[starts[i]:starts[i + 1]], n, S0[i]),
-                      span=float(ends[i]))
-            self._fields[id(fl.z)] = (fl.z, end[i, :n], fields[i, 1])
-            self._fields[id(zs[i])] = (zs[i], S0[i], fields[i, 0])
-            flows.append(fl)
+        at = starts.tolist()
+        for i, span in enumerate(ends.tolist()):
+            z = Z[i]
+            flows.append(Flow(z, 0, M[i], _T0, Z0[i], _MODE0, [], dense=_Steps(rows[at[i]:at[i + 1]], n, S0[i]),
+                              span=span))
+            memo[id(z)] = (z, end[i, :n], fields[i, 1])
+            memo[id(zs[i])] = (zs[i], S0[i], fields[i, 0])
         return flows
 
     def join(self, flows: list, period: float, *, max_events: int = 0) -> Flow:
@@ -277,15 +276,22 @@ class SmoothLoop(LoopModel):
 
     def fourier(self, flow: Flow, t_end: float, omega: float, harmonics: int) -> np.ndarray:
         """(1/T) int x e^{-j k w t} dt, k = 1..harmonics, from max(1024, 8 harmonics) samples of the dense output
-        (periodic trapezoid: spectral accuracy for the smooth periodic orbit)."""
+        (periodic trapezoid: spectral accuracy for the smooth periodic orbit); one FFT when w T is a whole number
+        of turns (the orbit's own harmonics, w = 0 for the mean)."""
         m = max(1024, 8 * harmonics)
         t = np.arange(m) * (t_end / m)
         seen = self._samples
         if seen is not None and seen[0] is flow and seen[1] == t_end and seen[2].size == m:
-            x = seen[2]                        # the same period sampled again (the mean after the harmonics)
+            x, spectrum = seen[2], seen[3]     # the same period sampled again (the mean after the harmonics)
         else:
-            x = self.x(self.states(flow, t))
-            self._samples = (flow, t_end, x)
+            x, spectrum = self.x(self.states(flow, t)), None
+        turns = omega * t_end / (2.0 * np.pi)
+        p = round(turns)
+        if abs(turns - p) <= 1e-12 * max(1.0, abs(turns)) and 0 <= p * harmonics < m // 2:
+            spectrum = np.fft.rfft(x) / m if spectrum is None else spectrum
+            self._samples = (flow, t_end, x, spectrum)
+            return spectrum[p * np.arange(1, harmonics + 1)]
+        self._samples = (flow, t_end, x, spectrum)
         out = np.empty(harmonics, complex)
         step = np.exp(-1j * omega * t)         # e^{-j k w t} by powers: one complex exponential per sample
         turn = step.copy()
