@@ -138,9 +138,9 @@ class SmoothLoop(LoopModel):
     def field(self, z, mode: int = 0) -> np.ndarray:
         """z' at z; for the start and end states of the latest compiled flows the integrator's own value."""
         out = np.zeros(self.size)
-        s = z[:self.n]
+        s = np.asarray(z, float)[:self.n]
         known = self._fields.get(id(z))
-        if known is not None and known[0] is z and np.array_equal(known[1], s):
+        if known is not None and known[0] is z and known[1] == s.tobytes():   # that array, unchanged since
             out[:self.n] = known[2]
             return out
         out[:self.n] = self.A @ s + self.B * (float(self.f(np.array(self.r0 - self.C @ s))) + self.load)
@@ -242,8 +242,8 @@ class SmoothLoop(LoopModel):
             z = Z[i]
             flows.append(Flow(z, 0, M[i], _T0, Z0[i], _MODE0, [], dense=_Steps(rows[at[i]:at[i + 1]], n, S0[i]),
                               span=span))
-            memo[id(z)] = (z, end[i, :n], fields[i, 1])
-            memo[id(zs[i])] = (zs[i], S0[i], fields[i, 0])
+            memo[id(z)] = (z, end[i, :n].tobytes(), fields[i, 1])
+            memo[id(zs[i])] = (zs[i], S0[i].tobytes(), fields[i, 0])
         return flows
 
     def join(self, flows: list, period: float, *, max_events: int = 0) -> Flow:
