@@ -5,8 +5,9 @@ prediction pipeline encodes it (kind code of :mod:`dfloop.solve.compiled.kinds` 
 element's ``compiled_form()``; the cubic stiffness: kind ``cubic``, parameters (k1, 3 k3 / 4)), integrated by
 DOP853 in numba: the tableau, error estimate (the 5th- and 3rd-order estimates combined as Hairer's DOP853 and
 scipy do), step control (safety 0.9, factors in [0.2, 10], the initial step of Hairer, Norsett & Wanner II.4) and
-7th-order dense output of scipy's ``DOP853``, step for step, with the variational equation
-P' = (A - B f'(x) C) P alongside for the monodromy (P = I at the start, its error controlled with the state's).
+7th-order dense output of scipy's ``DOP853`` (the steps scipy takes on one node's equations, up to rounding), with
+the variational equation P' = (A - B f'(x) C) P alongside for the monodromy (P = I at the start, its error
+controlled with the state's).
 
 Each node of a shooting is its own integration (own steps) within one call (:func:`flows`); every flow keeps its
 dense output (three more stages of the state alone per step), so the period's flow is joined from the node flows
@@ -27,7 +28,7 @@ SMOOTH_KINDS = frozenset({CUBIC})
 """Kind codes (:mod:`dfloop.solve.compiled.kinds`) whose time function is compiled here."""
 MAX_STEPS = 200_000
 """Bound on the accepted steps of one node's flow (a flow reaching it fails with a message naming it)."""
-COMPILE_SECONDS = 6
+COMPILE_SECONDS = 4
 """About how long compiling :func:`flows` and :func:`dense_values` takes once per installation (s; measured by
 ``python benchmarks/bench_exact.py --compile``)."""
 
