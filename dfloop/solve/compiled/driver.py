@@ -200,12 +200,12 @@ def _wrapped(d):
 
 
 @njit(**_OPTS)
-def _dlog(l1, l0):
-    """grid._dlog."""
+def _dlog(l1, l0, wrapped):
+    """grid._dlog, with the wrapped phase difference _wrapped(l1.imag - l0.imag) already computed."""
     dre = l1.real - l0.real
     if dre != dre:
         dre = 0.0
-    return math.hypot(dre, _wrapped(l1.imag - l0.imag))
+    return math.hypot(dre, wrapped)
 
 
 @njit(**_OPTS)
@@ -456,21 +456,21 @@ def _resolve_plant(zeros, poles, delay, v):
 
 
 @njit(**_OPTS)
-def _turns(l0, lg, lm, l1):
-    """grid._non_monotone of one interval sampled at l0, lg, lm, l1 (complex logs)."""
-    s = (l0, lg, lm, l1)
-    turned = False
-    for part in range(2):
-        up = down = False
-        for k in range(3):
-            if part == 0:
-                d = s[k + 1].real - s[k].real
-            else:
-                d = _wrapped(s[k + 1].imag - s[k].imag)
-            up |= d > 1e-10
-            down |= d < -1e-10
-        turned |= up and down
-    return turned
+def _turns(l0, lg, lm, l1, w_g0, w_1m):
+    """grid._non_monotone of one interval sampled at l0, lg, lm, l1 (complex logs); w_g0, w_1m: the wrapped phase
+    differences lg - l0 and l1 - lm (computed for the interval's bound already; the third, lm - lg, only when
+    ln|N| alone does not turn)."""
+    up = down = False
+    for d in (lg.real - l0.real, lm.real - lg.real, l1.real - lm.real):
+        up |= d > 1e-10
+        down |= d < -1e-10
+    if up and down:
+        return True
+    up = down = False
+    for d in (w_g0, _wrapped(lm.imag - lg.imag), w_1m):
+        up |= d > 1e-10
+        down |= d < -1e-10
+    return up and down
 
 
 @njit(**_OPTS)
@@ -514,12 +514,14 @@ def _resolve_element(kind, p, x):
                 return out_x[:1], out_f[:1], out_e[:0], n_eval, 7
             lm[i] = _clog(fm[i])
             lg = _clog(fg)
-            e = _npmax(_dlog(lm[i], l0[i]) + _dlog(l1[i], lm[i]), _dlog(lg, l0[i]) + _dlog(l1[i], lg))
+            w_g0, w_1m = _wrapped(lg.imag - l0[i].imag), _wrapped(l1[i].imag - lm[i].imag)
+            e = _npmax(_dlog(lm[i], l0[i], _wrapped(lm[i].imag - l0[i].imag)) + _dlog(l1[i], lm[i], w_1m),
+                       _dlog(lg, l0[i], w_g0) + _dlog(l1[i], lg, _wrapped(l1[i].imag - lg.imag)))
             eps[i] = e
             fin = math.isfinite(e)
             s = fin and (e > _STEP) and (dx > _MIN_WIDTH * (1 + abs(x0[i])))
             if not s and fin and dx > _MONOTONE_WIDTH * (1 + abs(x0[i])):
-                s = _turns(l0[i], lg, lm[i], l1[i])
+                s = _turns(l0[i], lg, lm[i], l1[i], w_g0, w_1m)
             split[i] = s
             n_split += s
         if n_out + k > out_x.size:
