@@ -163,3 +163,14 @@ def test_a_boundary_between_rest_and_divergence_rules_nothing_out():
     assert not e.success and sorted(kinds) == ["divergence", "divergence", "rest"]
     assert e.extra["outcome"] == "boundary" and "none ruled out" in e.message and "homotopy" in e.message
     assert exact_kind(e) == "not checked"
+
+
+def test_a_start_far_from_every_orbit_is_answered_from_the_motions_without_endless_newton_steps():
+    # a start (0.6 A, 2 w) off the dead zone's unstable cycle of 3/(s(s+1)^2): Newton's steps from it once
+    # asked for periods several times the start's, each flow running to its event bound (minutes); a step
+    # may now change the period by at most PERIOD_STEP, and the answer comes from the motions: all rest
+    # inside the dead band (the unstable cycle, A = 1.85, lies beyond every start)
+    G = ct.tf([3.0], [1.0, 2.0, 1.0, 0.0])
+    e = df.exact_cycle(G, df.DeadZone(0.5), (0.6 * 1.887, 2.0), max_deviation=0.7)
+    assert not e.success and e.extra["outcome"] == "rest", e.message
+    assert all(m["outcome"] == "rest" and abs(m["x_end"]) <= 0.5 for m in e.extra["motions"])
