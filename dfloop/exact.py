@@ -324,7 +324,8 @@ def _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations
                    settle_periods=settle_periods, max_events=max_events, max_deviation=max_deviation, nodes=nodes,
                    **constant)
     outer = None if not globalise else shoot_or_globalise(
-        G, N, predicted, lambda c, **kw: exact_cycle(G, N, c, **{**options, **kw}), max_deviation, constant)
+        G, N, predicted, lambda c, **kw: exact_cycle(G, N, c, **{**options, **kw}), max_deviation, constant,
+        finish=lambda loop, orbit: _result(loop, orbit, predicted, harmonics, samples))
     if outer is not None:
         return outer
     loop = loop_model(G, N, A0 + abs(bias), w0, what="exact_cycle", r0=r0, load=load)
