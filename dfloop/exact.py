@@ -84,7 +84,8 @@ class ExactCycle:
         predicted orbit, :func:`dfloop.hybrid.shooting.homotopy_orbit`). On the
         exact delay flow: ``s0`` (plant state), ``mode0``, ``u0`` (plant input), ``queue0`` (pending switches
         [instant (s), level] of the delay line), ``section`` (the switch the return map starts on) and ``delay``;
-        after a failed search that was globalised, ``outcome`` and ``motions`` (:mod:`dfloop.hybrid.globalise`).
+        after a failed search that was globalised, ``outcome`` and ``motions`` (:mod:`dfloop.hybrid.globalise`), and
+        ``edge`` when the boundary between the motions' fates was followed (:mod:`dfloop.hybrid.edge`).
     """
 
     success: bool

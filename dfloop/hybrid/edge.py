@@ -231,10 +231,10 @@ class _Tracker:
         return za, zb
 
     def slow(self, za, zb, crept) -> _Stop:
-        if self.first is not None:
-            self.boundary = self.first[0] + self.lam * (self.first[1] - self.first[0])
         """The boundary at a rest state: the inside end of the bracket is at rest from its start (an equilibrium),
         and a start between it and the outside end creeps for the whole trial run."""
+        if self.first is not None:
+            self.boundary = self.first[0] + self.lam * (self.first[1] - self.first[0])
         x_rest = float(self.loop.x(za[0]))
         d = self.distance(za[0], zb[0])
         self.x_rest = x_rest
@@ -432,6 +432,8 @@ def edge_track(loop, N, amplitude: float, frequency: float, inside: float, outsi
                    f"converged (residual {found.residual:.1e})")
     except _Stop as stop:
         outcome, message = stop.outcome, stop.message
+    except HybridError as exc:
+        outcome, message = "failed", f"the boundary cannot be followed on the exact flow: {exc}"
     t, x = getattr(tr, "edge", (np.empty(0), np.empty(0)))
     amp = freq = None
     if t.size:
