@@ -27,7 +27,7 @@ from scipy.optimize import brentq
 import dfloop as df
 from dfloop.chart import ChartAxis, design_chart
 from dfloop.continuation import sweep
-from dfloop.scene.plant import DelayedPlant
+from dfloop.solve.delay import delayed
 
 G1 = ct.tf([1], [1, 1, 0])
 G3 = ct.tf([1], [1, 3, 2, 0])
@@ -35,7 +35,7 @@ OMEGA = (0.05, 20.0)
 
 
 def delayed_saturation(K, T):
-    return DelayedPlant(K * G1, T), df.Saturation(1.0)
+    return delayed(K * G1, T), df.Saturation(1.0)
 
 
 def backlash_servo(K, h):

@@ -6,20 +6,27 @@ prediction, the confidence's estimated errors (:func:`dfloop.solve.confidence.cy
 true / estimate, whether the bracket (2x the estimate) holds, and the distortion at the element's input. A
 second table gives the cost of the confidence and of exact_cycle as ratios to the cost of
 predict_limit_cycles for the same loop (one run each, after a warm-up run of all three that compiles the JIT
-functions). A third compares exact_cycle on the smooth (DOP853) path with a plain scipy shooting of the same loop
-(solve_ivp DOP853 + scipy.optimize.root on (s0, T) with the phase condition x(0) = 0, finite-difference
-Jacobian) at the same accuracy, best of 5 runs each.
+functions). A third compares exact_cycle on the smooth (DOP853) path, compiled (dfloop.hybrid.smooth_compiled), with
+the same exact_cycle on scipy's solve_ivp (DFLOOP_COMPILED=0, the path of a user's Python f) and with a plain scipy
+shooting of the same loop (solve_ivp DOP853 + scipy.optimize.root on (s0, T) with the phase condition x(0) = 0,
+finite-difference Jacobian) at the same accuracy, best of 5 runs each.
 
-Run: python benchmarks/bench_exact.py [--repeat N] [--write] | --high-order   (--write also writes benchmarks/results/bench_exact.md;
+Run: python benchmarks/bench_exact.py [--repeat N] [--cpu] [--write] | --high-order | --compile
+(--write also writes benchmarks/results/bench_exact.md;
 --repeat N: the cost table takes the best of N runs of each call, steadier on a shared machine; default 1;
 --high-order: only the table of high-order loops (function high_order, printed, not written);
+--compile: only the compile time of the smooth-loop integrator on a fresh numba cache (CPU seconds of a new process
+that compiles it, less one that loads it; printed, not written: the estimate COMPILE_SECONDS announces);
 --cpu: times are this process's CPU time (time.process_time) instead of wall time: on a machine shared with other
 jobs the wall time of a single-threaded call includes the time others run, its CPU time does not)
 """
 from __future__ import annotations
 
+import os
 import pathlib
+import subprocess
 import sys
+import tempfile
 import time
 
 import control as ct
@@ -90,21 +97,58 @@ def scipy_shooting(G, N, amplitude: float, frequency: float, rtol: float = 1e-12
     return abs(2j * np.mean(x * np.exp(-2j * np.pi * t / T))), 2 * np.pi / T
 
 
+def _python_path(fn):
+    """fn() with DFLOOP_COMPILED=0: the smooth loop on scipy's solve_ivp (and the prediction's Python path)."""
+    old = os.environ.get("DFLOOP_COMPILED")
+    os.environ["DFLOOP_COMPILED"] = "0"
+    try:
+        return fn()
+    finally:
+        if old is None:
+            del os.environ["DFLOOP_COMPILED"]
+        else:
+            os.environ["DFLOOP_COMPILED"] = old
+
+
 def smooth_versus_scipy() -> str:
-    """exact_cycle (DOP853 path) against the plain scipy shooting on the cubic loop, best of 5 each."""
+    """exact_cycle (compiled DOP853) against exact_cycle on scipy's solve_ivp and against the plain scipy shooting
+    on the cubic loop, best of 5 each."""
     name, G, N = LOOPS[-1]
     c = df.predict_limit_cycles(G, N)[0]
     exact_cycle(G, N, c)
+    _python_path(lambda: exact_cycle(G, N, c))
     scipy_shooting(G, N, c.amplitude, c.frequency)
 
     t_pred, _ = timed(lambda: df.predict_limit_cycles(G, N), 5)
     t_ex, e = timed(lambda: exact_cycle(G, N, c), 5)
+    t_py, e_py = _python_path(lambda: timed(lambda: exact_cycle(G, N, c), 5))
     t_sp, (A_sp, w_sp) = timed(lambda: scipy_shooting(G, N, c.amplitude, c.frequency), 5)
-    return ("| loop | predict (ms) | exact_cycle / predict | scipy shooting / predict | exact_cycle / scipy "
-            "| exact A, w | scipy - exact (relative) A, w |\n|---|---|---|---|---|---|---|\n"
-            f"| {name} | {1e3 * t_pred:.1f} | {t_ex / t_pred:.1f} | {t_sp / t_pred:.1f} | {t_ex / t_sp:.2f} | "
-            f"{e.amplitude:.10g}, {e.frequency:.10g} | {(A_sp - e.amplitude) / e.amplitude:.1e}, "
-            f"{(w_sp - e.frequency) / e.frequency:.1e} |\n")
+    mu = np.max(np.abs(e.multipliers - e_py.multipliers))
+    return ("| loop | predict (ms) | exact_cycle / predict | on solve_ivp / predict | scipy shooting / predict "
+            "| exact_cycle / scipy shooting | exact A, w | solve_ivp path - exact: A, w (relative), multipliers "
+            "| scipy shooting - exact (relative) A, w |\n|---|---|---|---|---|---|---|---|---|\n"
+            f"| {name} | {1e3 * t_pred:.2f} | {t_ex / t_pred:.1f} | {t_py / t_pred:.1f} | {t_sp / t_pred:.1f} | "
+            f"{t_ex / t_sp:.3f} | {e.amplitude:.10g}, {e.frequency:.10g} | "
+            f"{(e_py.amplitude - e.amplitude) / e.amplitude:.1e}, {(e_py.frequency - e.frequency) / e.frequency:.1e}, "
+            f"{mu:.1e} | {(A_sp - e.amplitude) / e.amplitude:.1e}, {(w_sp - e.frequency) / e.frequency:.1e} |\n")
+
+
+def compile_seconds() -> str:
+    """CPU seconds that compiling the smooth-loop integrator costs a new process on a fresh numba cache: a process
+    that builds the cubic loop's model and flows it once, timed on an empty cache (it compiles) less the same on
+    that cache (it loads)."""
+    code = ("import time, numpy as np, control as ct, dfloop as df; from dfloop.hybrid import loop_model; "
+            "loop = loop_model(ct.tf([1], [1, 3, 3, 1]), df.CubicStiffness(10.0, -1.0), 1.6, 1.7); "
+            "t = time.process_time(); fl = loop.flow(np.array([0.3, 0.2, 1.0, 1.0]), 0, 0.5, monodromy=True); "
+            "loop.states(fl, np.array([0.1])); print(time.process_time() - t)")
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=str(pathlib.Path(__file__).parents[1]),
+                   DFLOOP_PROGRESS="0")
+        env.pop("DFLOOP_COMPILED", None)
+        fresh, cached = (float(subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                                              check=True).stdout) for _ in range(2))
+    return (f"smooth-loop integrator: {fresh:.1f} s CPU on a fresh numba cache, {cached:.2f} s once cached: "
+            f"compiling costs {fresh - cached:.1f} s")
 
 
 def main() -> str:
@@ -147,8 +191,10 @@ def main() -> str:
             + f"\n\nCost of all cycles of a loop, {'one run' if REPEAT == 1 else f'best of {REPEAT} runs'} each"
             + (" (CPU time)" if CLOCK is time.process_time else "") + ", as ratios to `predict_limit_cycles` on the same loop "
             "(timings on a shared machine vary ~2x between runs):\n\n" + "\n".join(cost) + "\n"
-            + "\nSmooth element (DOP853 path): exact_cycle against a plain scipy shooting of the same loop (best of 5 "
-            "runs each; the last column says both reach the same orbit):\n\n" + smooth_versus_scipy())
+            + "\nSmooth element (DOP853 path): exact_cycle on the compiled integrator against the same exact_cycle on "
+            "scipy's solve_ivp (DFLOOP_COMPILED=0, the path of a user's Python f) and against a plain scipy shooting of "
+            "the same loop (best of 5 runs each" + (", CPU time" if CLOCK is time.process_time else "") + "; the last "
+            "columns say all three reach the same orbit):\n\n" + smooth_versus_scipy())
 
 
 def _pade(T: float, n: int):
@@ -212,6 +258,9 @@ def high_order() -> str:
 if __name__ == "__main__":
     if "--high-order" in sys.argv[1:]:     # the high-order loops only (not part of the results file)
         print(high_order())
+        sys.exit(0)
+    if "--compile" in sys.argv[1:]:        # the smooth-loop integrator's compile time only (not written)
+        print(compile_seconds())
         sys.exit(0)
     text = main()
     print(text)

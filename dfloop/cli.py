@@ -181,8 +181,9 @@ def _warmup() -> int:
     from .solve.compiled import warmup
 
     G, N = ct.tf([5], [1, 1, 0]), df.Backlash(h=1.0)
+    smooth = (ct.tf([1], [1, 3, 3, 1]), df.CubicStiffness(10.0, -1.0), (1.633, 1.7321))   # the smooth-loop integrator
     steps = [("solver kernels (predict_limit_cycles)", warmup),
-             ("exact engines (exact_cycle)", lambda: df.exact_cycle(G, N, (1.0103, 1.5914))),
+             ("exact engines (exact_cycle)", lambda: (df.exact_cycle(G, N, (1.0103, 1.5914)), df.exact_cycle(*smooth))),
              ("simulation (verify_cycle)", lambda: df.verify_cycle(G, N, (1.0103, 1.5914), periods=10)),
              ("impact kernels (DynamicBacklash tables)", _warm_impact)]
     for what, step in steps:

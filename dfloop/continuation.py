@@ -22,11 +22,17 @@ recorded as an event. Labels use the solver's marginal test (:func:`dfloop.solve
 Completeness: :func:`dfloop.predict_limit_cycles` is run at every given value (independently, on any
 executor); every cycle it finds either lies on a traced curve or seeds a new trace, so branches born
 between two values (a pair from a fold, or one entering through the window edge) are traced back to their
-birth. Points of a traced curve that the solver did not report are listed in ``SweepResult.notes``.
+birth. Points of a traced curve that the solver did not report are listed in ``SweepResult.notes``. A curve
+that meets no given value (a pair born and dying between two values: an isola, a short-lived fold pair) is
+found by the valley scan (:class:`_ValleyScan`): the bottoms of the valleys of |1 + G N| over the window are
+followed across each interval and searched where their depth can reach zero; an interval the search cannot
+decide within its bound is listed in ``SweepResult.unresolved``. Two branches that end on an element edge at
+the same point from either side (a quantizer's threshold) are one fold.
 """
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -43,7 +49,7 @@ from .solve import LimitCycles, as_plant, predict_limit_cycles
 from .solve.errors import ContinuumError
 from .solve.stability import MARGINAL_TOL, label_roots
 
-__all__ = ["sweep", "SweepResult", "Branch", "SweepEvent"]
+__all__ = ["sweep", "SweepResult", "Branch", "SweepEvent", "UnresolvedInterval"]
 
 _FD = 1e-6  # central-difference step in ln A, ln w and q (q: the parameter range scaled to [0, 1])
 _XTOL = 1e-11  # Newton converged when the update is below this (max norm)
@@ -59,6 +65,22 @@ _EDGE_IN = 1e-15  # an element edge is approached this far (in ln A, at least 8 
 _MAX_BREAKPOINTS = 64  # breakpoints of a static element examined as possible edges
 _LIMIT_NEWTON = 40  # Newton iterations for a birth from infinity / zero amplitude
 _LAND_NEWTON = 60  # Newton iterations of the fallback that lands on a given value next to an element edge
+# the valley scan (pairs born and dying between two given values; see _ValleyScan)
+_PROBES = 3  # default: sub-intervals scanned per interval between given values
+_SCAN_A, _SCAN_V = 48, 96  # least grid nodes in ln A and ln w of the valley grid
+_SCAN_A_DECADE, _SCAN_V_DECADE = 8, 32  # ... and at least this many per decade of the window
+_FLAT = 1 - 1e-9  # grid minima of |R| / (1 + |G N|) at or above this are plateaus (N = 0), not valleys
+_MAX_VALLEYS = 12  # valleys settled per probe (the deepest)
+_LM = 60  # Newton iterations that settle a valley's bottom
+_SETTLED = 1e-9  # ... settled when a step moves less than this (ln A, ln w): the depth is then exact to ~1e-18
+_SCAN_FD = 1e-4  # difference step (ln A, ln w) of the gradient and Hessian of |R|^2 there
+_SCAN_NEWTON = 0.5  # largest step (ln A, ln w) of the Newton-on-R step tried first
+_SCAN_ESCAPE = 0.05  # first step (ln A, ln w) along a negative curvature of |R|^2 (halved until |R| decreases)
+_ROOT = 1e-10  # a bottom with |R| / (1 + |G N|) below this is a root
+_GOLDEN = 80  # bound on the probes of the search on one valley's depth
+_Q_BRACKET = 1e-12  # ... and on its bracket (in q)
+_DIP = 0.6  # the depth's tangents meeting above this times the smaller end depth: no root between
+_SCANNED = "; found between the given values by the valley scan"
 
 
 # ----------------------------------------------------------------------------------------- result objects
@@ -192,7 +214,12 @@ class SweepResult:
     amplitude_name, amplitude_unit : str
         Name and unit of N's input amplitude (from the element at the first value).
     notes : list of str
-        Anything the reader must know: cycles continuation found that the solver missed at a given value.
+        Anything the reader must know: cycles continuation found that the solver missed at a given value,
+        intervals the valley scan could not decide (also in ``unresolved``).
+    unresolved : list of UnresolvedInterval
+        Parameter intervals where a pair of cycles born and dying between two given values may have escaped:
+        the valley scan came within 1e-9 of a root there and its bound ran out (empty when every interval
+        was decided; see docs/sweep.md, "Pairs born and dying between two values").
     """
 
     values: np.ndarray
@@ -206,6 +233,7 @@ class SweepResult:
     amplitude_name: str = "A"
     amplitude_unit: str = ""
     notes: list = field(default_factory=list)
+    unresolved: list = field(default_factory=list)
 
     def __repr__(self) -> str:
         p = self.parameter + (f" [{self.unit}]" if self.unit else "")
@@ -274,7 +302,8 @@ class SweepResult:
     def to_dict(self) -> dict:
         """Plain data: ``values``, ``branches`` (each: ``index``, ``parameter``, ``amplitude``, ``frequency``,
         ``stability``, ``value_index`` as lists, ``start``, ``end``, ``kind``), ``events`` (their fields), the
-        windows, ``parameter``, ``unit``, ``amplitude_name``, ``amplitude_unit`` and ``notes``. The solver's
+        windows, ``parameter``, ``unit``, ``amplitude_name``, ``amplitude_unit``, ``notes`` and ``unresolved``
+        (their fields). The solver's
         cycles at each value are in ``cycles`` (``[c.to_dict() for c in result.cycles]``)."""
         from dataclasses import asdict
 
@@ -287,7 +316,8 @@ class SweepResult:
                 "events": [plain(asdict(e)) for e in self.events],
                 "amplitude_window": plain(self.amplitude_window), "omega_window": plain(self.omega_window),
                 "parameter": self.parameter, "unit": self.unit, "amplitude_name": self.amplitude_name,
-                "amplitude_unit": self.amplitude_unit, "notes": list(self.notes)}
+                "amplitude_unit": self.amplitude_unit, "notes": list(self.notes),
+                "unresolved": [plain(asdict(u)) for u in self.unresolved]}
 
     def to_csv(self, path) -> None:
         """Write every branch point: branch, parameter, amplitude, frequency (rad/s), stability, and what
@@ -578,7 +608,10 @@ class _Family:
         side = 0 if edge is None else edge[1]
         for it in range(_MAX_NEWTON):
             if edge is not None:  # the edge's level at the current (w, q), and its slopes in ln w and q
-                X[0] = _inside(self._edge_level(edge[0], X), side)
+                level = self._edge_level(edge[0], X)
+                if level is None:
+                    return None
+                X[0] = _inside(level, side)
             if not self.admissible(X, side):
                 return None
             R, J = self.jacobian(X, side)
@@ -586,6 +619,8 @@ class _Family:
                 row, f3 = n, n @ X - g
             else:
                 row, f3 = self._edge_row(edge[0], X), 0.0
+                if row is None:
+                    return None
             F = np.array([R.real, R.imag, f3])
             try:
                 dx = np.linalg.solve(np.vstack([J, row]), -F)
@@ -599,7 +634,10 @@ class _Family:
             X, prev = X + dx, step
             if step <= _XTOL:
                 if edge is not None:
-                    X[0] = _inside(self._edge_level(edge[0], X), side)
+                    level = self._edge_level(edge[0], X)
+                    if level is None:
+                        return None
+                    X[0] = _inside(level, side)
                 if not self.admissible(X, side):
                     return None
                 return _Point(X, self.jacobian(X, side)[1] if edge is not None else J, it + 1)
@@ -653,26 +691,41 @@ class _Family:
         self.last_failure = f"Newton at a given value did not converge in {_LAND_NEWTON} iterations"
         return None
 
-    def _edge_level(self, edge: tuple, X: np.ndarray) -> float:
-        """ln of the edge's level at X's (w, q) (the edge of the loop at X's q)."""
+    def _edge_level(self, edge: tuple, X: np.ndarray) -> float | None:
+        """ln of the edge's level at X's (w, q) (the edge of the loop at X's q), or None (with the reason in
+        ``last_failure``) where the loop at X's q has no such edge (it disappeared: a threshold or hysteresis
+        swept to zero, an edge reached tangentially at the end of its existence) or its level is not a
+        positive finite amplitude there: the corrector then fails and the caller halves its step or ends the
+        branch as ``lost``, instead of stopping the sweep."""
         q = min(max(float(X[2]), 0.0), 1.0)
         kind, side, ref = edge[0], edge[1], edge[2](1.0)
         same = [e for e in self.edges(q) if e[0] == kind and e[1] == side]
         if not same and kind == "jump":  # a jump found by probing N (not a declared breakpoint): fixed level
-            return math.log(edge[2](math.exp(X[1])))
+            same = [edge]
         if not same:
-            raise RuntimeError(f"the element's {kind} edge disappeared at p={self.value(q):.9g}")
-        e = min(same, key=lambda e: abs(math.log(e[2](1.0) / ref)) if ref > 0 else 0.0)  # the same edge, moved
-        return math.log(e[2](math.exp(X[1])))
+            self.last_failure = f"the element's {kind} edge disappeared at p={self.value(q):.9g}"
+            return None
+        if 0 < ref < math.inf:  # the same edge, moved
+            e = min(same, key=lambda e: abs(math.log(e[2](1.0) / ref)) if 0 < e[2](1.0) < math.inf else math.inf)
+        else:
+            e = same[0]
+        level = e[2](math.exp(X[1]))
+        if not 0 < level < math.inf:
+            self.last_failure = (f"the element's {kind} edge has no positive finite level at p={self.value(q):.9g}, "
+                                 f"omega={math.exp(X[1]):.6g} rad/s (got {level!r})")
+            return None
+        return math.log(level)
 
-    def _edge_row(self, edge: tuple, X: np.ndarray) -> np.ndarray:
-        """Gradient of a - ln level(w, q) in (a, v, q) (finite differences; zero for a fixed level)."""
+    def _edge_row(self, edge: tuple, X: np.ndarray) -> np.ndarray | None:
+        """Gradient of a - ln level(w, q) in (a, v, q) (finite differences; zero for a fixed level); None where
+        the level is not defined (see :meth:`_edge_level`)."""
         base = self._edge_level(edge, X)
         h = _FD
-        dv = (self._edge_level(edge, X + [0, h, 0]) - base) / h
         hq = h if X[2] + h <= 1 else -h
-        dq = (self._edge_level(edge, X + [0, 0, hq]) - base) / hq
-        return np.array([1.0, -dv, -dq])
+        up_v, up_q = self._edge_level(edge, X + [0, h, 0]), self._edge_level(edge, X + [0, 0, hq])
+        if base is None or up_v is None or up_q is None:
+            return None
+        return np.array([1.0, -(up_v - base) / h, -(up_q - base) / hq])
 
     def jump_near(self, X: np.ndarray, direction: float):
         """A jump of N in amplitude within 1e-5 (in ln A: a few difference steps, across which the corrector
@@ -977,7 +1030,13 @@ class _Tracer:
                         out.append(_Node(P, "lost", -1, self.f.last_failure or "the step size underflowed"))
                         return out
                     continue
-                self._values_between(P, E, out)
+                start = P
+                if (E.X[2] - P.X[2]) * t[2] < 0 and t[2] != 0:  # the branch turned back in p before the edge
+                    F = self._fold(P, t, E)
+                    self._values_between(P, F, out)
+                    out.append(_Node(F, "fold", self._value_index(F.X[2])))
+                    start = F
+                self._values_between(start, E, out)
                 out.append(_Node(E, "edge", self._value_index(E.X[2]), el[0]))
                 return out
             if Q is not None:
@@ -1145,9 +1204,12 @@ def _limit_event(node: _Node, family: _Family, low: bool, idx: int, name: str):
                              f"(A -> {'inf' if upper else '0'}) is marginal at {name} = {p:.9g}")
 
 
-def _assemble(curves, family: _Family, marginal_tol: float, name: str):
+def _assemble(curves, family: _Family, marginal_tol: float, name: str, scanned=frozenset()):
+    """Branches and events from the traced curves (``scanned``: indices of the curves the valley scan found
+    between the given values; their events say so)."""
     branches, events = [], []
-    for nodes in curves:
+    for c, nodes in enumerate(curves):
+        first_event = len(events)
         pieces, _ = _pieces(nodes)
         ids = []
         for piece in pieces:
@@ -1192,17 +1254,423 @@ def _assemble(curves, family: _Family, marginal_tol: float, name: str):
             if node.tag == "fold":
                 ba, bb = branches[a], branches[b]
                 side = ">" if min(ba.parameter.min(), bb.parameter.min()) >= p - 1e-12 * max(1.0, abs(p)) else "<"
-                detail = (f"a stable and an unstable cycle meet; the pair exists for {name} {side} {p:.9g}"
-                          if {ba.kind, bb.kind} == {"stable", "unstable"} else f"a {ba.kind} and a {bb.kind} cycle meet")
-                events.append(SweepEvent("fold", branches=(a, b), detail=detail, name=name, cause="fold", **where))
+                events.append(SweepEvent("fold", branches=(a, b), detail=_fold_text(ba, bb, side, p, name, family),
+                                         name=name, cause="fold", **where))
             else:
                 events.append(SweepEvent("stability change", branches=(a, b), name=name, cause="branch point",
                                          detail=f"{branches[a].kind} -> {branches[b].kind} (branch point)", **where))
+        if c in scanned:  # say where the curve came from
+            for i in range(first_event, len(events)):
+                events[i] = dataclasses.replace(
+                    events[i], detail=events[i].detail + _SCANNED)
+    branches, events = _edge_folds(branches, events, family, name)
     events.sort(key=lambda e: (e.parameter - family.p0) / family.span)  # in the order of the sweep
     return branches, events
 
 
+def _fold_text(ba: Branch, bb: Branch, side: str, p: float, name: str, family: _Family, where: str = "") -> str:
+    """The fold's sentence: which cycles meet, and whether the pair is born or dies in the order of the sweep."""
+    if {ba.kind, bb.kind} != {"stable", "unstable"}:
+        return f"a {ba.kind} and a {bb.kind} cycle meet{where}"
+    born = (side == ">") == (family.span > 0)
+    return (f"a stable and an unstable cycle {'are born' if born else 'die'} together{where}; the pair exists for "
+            f"{name} {side} {p:.9g}")
+
+
+def _edge_folds(branches: list, events: list, family: _Family, name: str) -> tuple[list, list]:
+    """Two branches that end (or begin) at the same point of an element edge from either side of it are one
+    fold: a stable and an unstable cycle meet there (a quantizer's threshold, where N is continuous with a
+    square-root edge). The two deaths (births) become one ``fold`` event, located where the loop with N at the
+    edge's level is marginal (Newton in (ln w, q), :meth:`_Family.limit_birth`), else midway between the two
+    ends (they lie 1e-15 in ln A on either side of the edge: ~1e-8 apart)."""
+    ends = [i for i, e in enumerate(events) if e.kind in ("birth", "death") and e.cause in _EDGE_TEXT
+            and len(e.branches) == 1]
+    merged, drop = [], set()
+    for x, i in enumerate(ends):
+        for j in ends[x + 1:]:
+            e, f = events[i], events[j]
+            if i in drop or j in drop or e.kind != f.kind or e.cause != f.cause:
+                continue
+            A = e.amplitude
+            if not (abs(f.amplitude - A) <= 1e-9 * A and abs(f.frequency - e.frequency) <= 1e-6 * e.frequency
+                    and abs(f.parameter - e.parameter) <= 1e-6 * abs(family.span)):
+                continue
+            ba, bb = branches[e.branches[0]], branches[f.branches[0]]
+            if np.median(ba.amplitude - A) * np.median(bb.amplitude - A) >= 0:
+                continue  # both on one side of the edge: two branches, not a fold
+            lo, hi = sorted((e.parameter, f.parameter))
+            p, w = 0.5 * (lo + hi), 0.5 * (e.frequency + f.frequency)
+            X = np.array([math.log(A), math.log(w), (p - family.p0) / family.span])
+            hit = family.limit_birth(X, A)
+            if hit is not None:
+                ph = family.value(hit[0])
+                if lo - 1e-6 * abs(family.span) <= ph <= hi + 1e-6 * abs(family.span):
+                    p, w = ph, math.exp(hit[1])
+            born = e.kind == "birth"
+            side = ">" if born == (family.span > 0) else "<"
+            for b in (ba, bb):
+                branches[b.index] = dataclasses.replace(b, **({"start": "fold"} if born else {"end": "fold"}))
+            detail = _fold_text(ba, bb, side, p, name, family, f" on the element's edge at A = {A:.9g} ({e.cause})")
+            merged.append(SweepEvent("fold", parameter=p, amplitude=A, frequency=w, branches=(ba.index, bb.index),
+                                     detail=detail + (_SCANNED if _SCANNED in e.detail else ""),
+                                     cause="element edge", name=name))
+            drop.update((i, j))
+    return branches, [e for k, e in enumerate(events) if k not in drop] + merged
+
+
+# ------------------------------------------------------------------------- pairs born between given values
+
+
+@dataclass(frozen=True)
+class UnresolvedInterval:
+    """A parameter interval where a pair of cycles may be born and die unseen: the valley scan's search on
+    a valley's depth ran out of its bound before it found a root or excluded one.
+
+    Attributes
+    ----------
+    low, high : float
+        The interval (parameter unit), in increasing order.
+    amplitude, frequency : float
+        Where the deepest point of the valley lies (N's input unit; rad/s).
+    depth : float
+        |1 + G N| / (1 + |G N|) there: how close the loop comes to a cycle at the searched points.
+    why : str
+        The bound that ran out, and how to raise it.
+    """
+
+    low: float
+    high: float
+    amplitude: float
+    frequency: float
+    depth: float
+    why: str
+
+    def __str__(self) -> str:
+        return (f"a pair of cycles may exist for p in [{self.low:.9g}, {self.high:.9g}] near A={self.amplitude:.6g}, "
+                f"omega={self.frequency:.6g} rad/s (|1 + G N| comes within {self.depth:.2g} of 0): {self.why}")
+
+
+@dataclass
+class _Bottom:
+    """The bottom of a valley of |R| over the (ln A, ln w) window at one q: ``X`` = (a, v, q), ``depth`` =
+    |R| / (1 + |G N|), ``level`` = |R| and ``slope`` = d|R|/dq along the bottom (= the partial derivative:
+    the bottom's motion does not count at a minimum), ``root`` when the bottom is a root (depth <= 1e-10)."""
+
+    X: np.ndarray
+    depth: float
+    level: float
+    slope: float
+    root: bool
+
+
+class _ValleyScan:
+    """Finds the curves of cycles that meet no given value: an isola, or a pair born at a fold and ending at a
+    fold, an element edge or the window inside one interval between given values.
+
+    Such a pair is born at a double root, where |R| (R = 1 + G N) has a valley over the (A, w) window whose
+    bottom touches zero; just outside the pair's interval that valley's bottom is positive and falls
+    linearly towards zero. The scan finds every valley (local minimum of |R| / (1 + |G N|) on a grid of the
+    window) at the given values and at ``probes - 1`` equally spaced points inside each interval between them,
+    settles each bottom by a damped Newton iteration, follows it to the neighbouring probe and reads the bottom's
+    depth and its slope in p at both. A bottom that is a root at an interior probe seeds a trace; a depth whose
+    slopes point inwards at both ends of a sub-interval is searched (:meth:`_search`): a root, or no root, or
+    the interval reported (:class:`UnresolvedInterval`) when the search's bound runs out."""
+
+    def __init__(self, family: _Family, probes: int):
+        self.f, self.probes = family, probes
+        a_lo, a_hi, v_lo, v_hi = family.log_window
+        na = max(_SCAN_A, int(math.ceil(_SCAN_A_DECADE * (a_hi - a_lo) / math.log(10))))
+        nv = max(_SCAN_V, int(math.ceil(_SCAN_V_DECADE * (v_hi - v_lo) / math.log(10))))
+        self.a = np.linspace(a_lo, a_hi, na)
+        self.v = np.linspace(v_lo, v_hi, nv)
+        self.unresolved: list[UnresolvedInterval] = []
+        self.evaluations = 0
+        self.grain = 1.0 / 32  # lattice (in q) of the searches' first probes: set by roots()
+        self._minima: list = []  # the grid minima of the last call of valleys()
+
+    def on_branch_side(self, X: np.ndarray) -> bool:
+        """X lies where branches live: inside N's amplitude domain and not inside an element's linear range
+        (there 1 + G N = 0 is the linear loop's marginal condition, a continuum, not a cycle)."""
+        q = min(max(float(X[2]), 0.0), 1.0)
+        for edge in self.f.edges(q):
+            if edge[1] != 0:
+                g = self.f.edge_value(edge, X)
+                if math.isfinite(g) and edge[1] * g <= 0:
+                    return False
+        return self.f.admissible(X)
+
+    # -- valleys at one q ------------------------------------------------------------------------------
+    def _grid(self, q: float) -> tuple[np.ndarray, np.ndarray]:
+        """The grid nodes at q: the fixed grid plus the element's edges and the plant's poles and zeros."""
+        a_lo, a_hi, v_lo, v_hi = self.f.log_window
+        plant, N = self.f.loop(q)
+        a, v = self.a, self.v
+        levels = [e[2](1.0) for e in self.f.edges(q)]
+        extra = [math.log(x) + d for x in levels if 0 < x < math.inf for d in (-1e-6, 1e-6)]
+        a = np.unique(np.concatenate([a, [x for x in extra if a_lo < x < a_hi]]))
+        roots = getattr(plant, "roots", None)
+        if roots is not None:
+            mags = np.abs(np.concatenate([np.ravel(r) for r in roots]))
+            mags = mags[(mags > 0) & np.isfinite(mags)]
+            v = np.unique(np.concatenate([v, [x for x in np.log(mags) if v_lo < x < v_hi]]))
+        return a, v
+
+    def valleys(self, q: float, known: list = ()) -> list[_Bottom]:
+        """The settled bottoms of the valleys of |R| / (1 + |G N|) at q (the ``_MAX_VALLEYS`` deepest), except
+        those whose grid minimum lies within two grid steps of a ``known`` bottom or of a grid minimum of the
+        previous call (a valley already followed from the previous probe: a long curved valley has several
+        grid minima, all settling to one bottom)."""
+        plant, N = self.f.loop(q)
+        a, v = self._grid(q)
+        A, w = np.exp(a), np.exp(v)
+        try:
+            g = plant(w)
+            n = N(A[:, None], w[None, :]) if N.frequency_dependent else N(A)[:, None]
+        except ValueError:
+            return []
+        gn = n * g[None, :]
+        self.evaluations += gn.size
+        with np.errstate(invalid="ignore", over="ignore"):
+            f = np.abs(1.0 + gn) / (1.0 + np.abs(gn))
+        f = np.where(np.isfinite(f), f, np.inf)
+        pad = np.pad(f, 1, constant_values=np.inf)
+        nb = np.stack([pad[1 + di:pad.shape[0] - 1 + di, 1 + dj:pad.shape[1] - 1 + dj]
+                       for di in (-1, 0, 1) for dj in (-1, 0, 1) if di or dj])
+        finite_nb = np.where(np.isfinite(nb), nb, -np.inf)
+        mask = (f <= nb.min(axis=0)) & (f < finite_nb.max(axis=0)) & (f < _FLAT)
+        i, j = np.nonzero(mask)
+        order = np.argsort(f[i, j], kind="stable")
+        out: list[_Bottom] = []
+        da, dv = 2 * (self.a[1] - self.a[0]), 2 * (self.v[1] - self.v[0])
+        seen = [K.X[:2] for K in known] + (self._minima if known else [])
+        self._minima = [np.array([a[i[k]], v[j[k]]]) for k in order]
+        for k in order:
+            if len(out) >= _MAX_VALLEYS:
+                break
+            if any(abs(a[i[k]] - x[0]) <= da and abs(v[j[k]] - x[1]) <= dv for x in seen):
+                continue
+            B = self.settle(np.array([a[i[k]], v[j[k]], q]))
+            if B is not None and not any(np.max(np.abs(B.X[:2] - o.X[:2])) < 1e-6 for o in list(out) + list(known)):
+                out.append(B)
+        return out
+
+    def _local(self, X: np.ndarray) -> tuple[complex, np.ndarray, np.ndarray, np.ndarray] | None:
+        """R at X, the gradient and Hessian of phi = |R|^2 / 2 in (a, v) (central differences of step
+        ``_SCAN_FD`` on a 3 x 3 stencil: one evaluation of the loop), and R's derivatives (R_a, R_v)."""
+        h = _SCAN_FD
+        da = np.array([0, h, -h, 0, 0, h, h, -h, -h])
+        dv = np.array([0, 0, 0, h, -h, h, -h, h, -h])
+        try:
+            r = self.f.residual(X[2], X[0] + da, X[1] + dv)
+        except ValueError:
+            return None
+        self.evaluations += 9
+        if not np.all(np.isfinite(r)):
+            return None
+        ra, rv = (r[1] - r[2]) / (2 * h), (r[3] - r[4]) / (2 * h)
+        raa, rvv = (r[1] - 2 * r[0] + r[2]) / h ** 2, (r[3] - 2 * r[0] + r[4]) / h ** 2
+        rav = (r[5] - r[6] - r[7] + r[8]) / (4 * h * h)
+        R = complex(r[0])
+
+        def dot(x, y):  # Re(conj(x) y)
+            return x.real * y.real + x.imag * y.imag
+        grad = np.array([dot(R, ra), dot(R, rv)])
+        H = np.array([[dot(ra, ra) + dot(R, raa), dot(ra, rv) + dot(R, rav)],
+                      [dot(ra, rv) + dot(R, rav), dot(rv, rv) + dot(R, rvv)]])
+        return R, grad, H, np.array([ra, rv])
+
+    def settle(self, X0: np.ndarray) -> _Bottom | None:
+        """The bottom of the valley of |R| that X0 = (a, v, q) lies in, at X0's q: Newton on R = 0 while it
+        halves |R| (towards a root), else damped Newton on
+        phi = |R|^2 / 2 in (a, v) (the Hessian shifted to be positive definite, plus a step down a negative
+        curvature: a pair's two roots lie either side of a ridge of |R|; a step is taken only when phi
+        decreases), kept inside the window; at most ``_LM`` iterations, settled when a step moves less than
+        ``_SETTLED`` or the bottom is a root."""
+        a_lo, a_hi, v_lo, v_hi = self.f.log_window
+        X = np.array(X0, float)
+        cur = self._local(X)
+        if cur is None:
+            return None
+        mu = 0.0
+        for _ in range(_LM):
+            R, grad, H, dR = cur
+            if abs(R) <= _ROOT * (1 + abs(R - 1.0)):
+                break
+            Jr = np.array([[dR[0].real, dR[1].real], [dR[0].imag, dR[1].imag]])
+            try:  # Newton on R = 0 first: quadratic towards a root, taken when it halves |R|
+                d = np.linalg.solve(Jr, -np.array([R.real, R.imag]))
+            except np.linalg.LinAlgError:
+                d = np.full(2, np.inf)
+            if np.all(np.isfinite(d)) and np.max(np.abs(d)) <= _SCAN_NEWTON:
+                Y = X.copy()
+                Y[0] = min(max(X[0] + d[0], a_lo), a_hi)
+                Y[1] = min(max(X[1] + d[1], v_lo), v_hi)
+                nxt = self._local(Y)
+                if nxt is not None and abs(nxt[0]) <= 0.5 * abs(R):
+                    moved = float(np.max(np.abs(Y[:2] - X[:2])))
+                    X, cur = Y, nxt
+                    if moved <= _SETTLED:
+                        break
+                    continue
+            # on the window's edge with the descent pointing out: that coordinate stays (projected Newton)
+            lows, highs = (a_lo, v_lo), (a_hi, v_hi)
+            free = np.array([not ((X[i] <= lows[i] and grad[i] > 0) or (X[i] >= highs[i] and grad[i] < 0))
+                             for i in range(2)])
+            if not free.any():
+                break
+            H = np.where(np.outer(free, free), H, np.diag(np.where(free, 0.0, 1.0)))
+            grad = np.where(free, grad, 0.0)
+            lams, vecs = np.linalg.eigh(H)
+            mu = max(mu, -2 * lams[0], 1e-14 * float(np.trace(np.abs(H))) + 1e-300)
+            escape = np.zeros(2)
+            if lams[0] < 0:  # a saddle or a ridge (between the two roots of a pair): go down its negative curvature
+                e = vecs[:, 0] * (-1.0 if vecs[:, 0] @ grad > 0 else 1.0)
+                escape = _SCAN_ESCAPE * e * free
+            moved = 0.0
+            while mu < 1e30:
+                d = np.linalg.solve(H + mu * np.eye(2), -grad) + escape
+                escape = 0.5 * escape
+                Y = X.copy()
+                Y[0] = min(max(X[0] + d[0], a_lo), a_hi)
+                Y[1] = min(max(X[1] + d[1], v_lo), v_hi)
+                moved = float(np.max(np.abs(Y[:2] - X[:2])))
+                if moved <= _SETTLED:
+                    break
+                nxt = self._local(Y)
+                if nxt is not None and abs(nxt[0]) < abs(R):
+                    X, cur, mu = Y, nxt, mu / 10
+                    break
+                mu = max(10 * mu, 1e-8 * float(np.trace(np.abs(H))))
+            if moved <= _SETTLED or mu >= 1e30:
+                break
+        R = cur[0]
+        hq = _FD if X[2] + _FD <= 1 else -_FD
+        try:
+            Rq = (complex(self.f.residual(X[2] + hq, X[0], X[1])[()]) - R) / hq
+        except ValueError:
+            return None
+        depth = abs(R) / (1 + abs(R - 1.0))
+        slope = (R.real * Rq.real + R.imag * Rq.imag) / abs(R) if abs(R) > 0 else 0.0
+        return _Bottom(X, float(depth), abs(R), float(slope), depth <= _ROOT)
+
+    # -- one valley between two probes ------------------------------------------------------------------
+    @staticmethod
+    def _tangents(lo: _Bottom, hi: _Bottom) -> tuple[float, float] | None:
+        """Where the depth's tangent lines at lo and hi (lo before hi in q) meet, (q, depth), when the slopes
+        point inwards at both (the depth has a minimum between them); else None."""
+        s0, s1 = lo.slope, hi.slope
+        if not (s0 < 0 < s1):
+            return None
+        q0, q1 = lo.X[2], hi.X[2]
+        qx = (hi.level - lo.level + s0 * q0 - s1 * q1) / (s0 - s1)
+        qx = min(max(qx, q0), q1)
+        return qx, max(lo.level + s0 * (qx - q0), hi.level + s1 * (qx - q1))
+
+    def _search(self, B0: _Bottom, B1: _Bottom) -> _Bottom | None:
+        """A root of the valley between the bottoms B0 and B1 (at two probes), or None.
+
+        The depth d(q) of a valley that holds a pair for q in (q1, q2) falls linearly to zero at q1 and rises
+        linearly from q2: the tangent lines at two points either side meet at depth <= 0 (exactly at the dip
+        for a V). So the search probes where the tangents meet (kept 1 % of the bracket from its ends),
+        replaces the end with the same slope sign, and stops at a root; it concludes there is none when the
+        tangents meet above ``_DIP`` times the smaller end depth (a convex depth stays above its tangents; the
+        slack admits d ~ |q - q*|^0.4). A search that reaches ``_GOLDEN`` probes or a bracket of ``_Q_BRACKET``
+        (in q) undecided records the interval (:class:`UnresolvedInterval`)."""
+        lo, hi = (B0, B1) if B0.X[2] < B1.X[2] else (B1, B0)
+        why = f"the search on the valley's depth reached its bound of {_GOLDEN} probes"
+        for _ in range(_GOLDEN):
+            meet = self._tangents(lo, hi)
+            if meet is None or meet[1] > _DIP * min(lo.level, hi.level):
+                return None
+            width = hi.X[2] - lo.X[2]
+            if width <= _Q_BRACKET:
+                why = f"the search on the valley's depth narrowed to a bracket of {_Q_BRACKET:g} (q) undecided"
+                break
+            X = (lo if meet[0] - lo.X[2] <= hi.X[2] - meet[0] else hi).X.copy()
+            q = min(max(meet[0], lo.X[2] + 0.01 * width), hi.X[2] - 0.01 * width)
+            if width > 8 * self.grain:  # on a lattice while the bracket is wide: searches share their loops
+                snapped = round(q / self.grain) * self.grain
+                q = snapped if lo.X[2] + 0.01 * width <= snapped <= hi.X[2] - 0.01 * width else q
+            X[2] = q
+            B = self.settle(X)
+            if B is None:
+                why = f"a valley bottom could not be settled at p={self.f.value(X[2]):.9g}"
+                break
+            if B.root:
+                return B
+            if B.slope < 0:
+                lo = B
+            elif B.slope > 0:
+                hi = B
+            else:
+                return None
+        best = min((lo, hi), key=lambda b: b.depth)
+        p0, p1 = sorted((self.f.value(lo.X[2]), self.f.value(hi.X[2])))
+        self.unresolved.append(UnresolvedInterval(p0, p1, math.exp(best.X[0]), math.exp(best.X[1]), best.depth,
+                                                  why + "; add given values inside the interval to decide"))
+        return None
+
+    # -- the whole range ---------------------------------------------------------------------------------
+    def roots(self, qs: np.ndarray) -> list[_Bottom]:
+        """Roots found inside the intervals between the given values (each a bottom with ``root``)."""
+        probes = []
+        for k in range(qs.size - 1):
+            probes += [qs[k] + (qs[k + 1] - qs[k]) * j / self.probes for j in range(self.probes)]
+        probes.append(float(qs[-1]))
+        self.grain = float(np.min(np.abs(np.diff(probes)))) / 32
+        given = set(range(0, len(probes), self.probes))
+        found = []
+        here = self.valleys(probes[0])
+        for j in range(len(probes) - 1):
+            pairs, ahead = [], []
+            for B in here:  # each valley followed to the next probe ...
+                X = B.X.copy()
+                X[2] = probes[j + 1]
+                C = self.settle(X)
+                if C is not None:
+                    pairs.append((B, C))
+                    if not any(np.max(np.abs(C.X[:2] - Y.X[:2])) <= 1e-6 for Y in ahead):
+                        ahead.append(C)
+            fresh = self.valleys(probes[j + 1], ahead)
+            for C in fresh:  # ... and the valleys new there followed back
+                X = C.X.copy()
+                X[2] = probes[j]
+                B = self.settle(X)
+                if B is not None:
+                    pairs.append((B, C))
+            here = sorted(ahead + fresh, key=lambda b: b.depth)[:_MAX_VALLEYS]
+            if (j + 1) not in given:
+                found += [C for C in here if C.root]
+            for B, C in pairs:
+                if not (B.root or C.root):
+                    hit = self._search(B, C)
+                    if hit is not None:
+                        found.append(hit)
+        return found
+
+
 # ------------------------------------------------------------------------------------------------ sweep
+
+
+def _on_curves(tracer: _Tracer, curves: list, X: np.ndarray, tol: float = _MATCH) -> bool:
+    """X = (ln A, ln w, q) lies on one of the traced curves (within ``tol`` in ln A, ln w): the curve's point at
+    X's q on each monotone piece between two nodes that spans it (:meth:`_Tracer._at_q`)."""
+    q = float(X[2])
+    for nodes in curves:
+        for n0, n1 in zip(nodes[:-1], nodes[1:]):
+            P, Q = n0.point, n1.point
+            if np.max(np.abs(P.X - X)) <= tol or np.max(np.abs(Q.X - X)) <= tol:
+                return True
+            if not min(P.X[2], Q.X[2]) < q < max(P.X[2], Q.X[2]):
+                continue
+            lo, hi = np.minimum(P.X[:2], Q.X[:2]), np.maximum(P.X[:2], Q.X[:2])
+            pad = float(np.max(hi - lo)) + 1e-6
+            if np.any(X[:2] < lo - pad) or np.any(X[:2] > hi + pad):
+                continue
+            V = tracer._at_q(P, Q, q)
+            if V is not None and np.max(np.abs(V.X[:2] - X[:2])) <= tol:
+                return True
+    return False
 
 
 def _predict_at(value: float, loop_at: Callable, options: dict) -> LimitCycles | ContinuumAt:
@@ -1231,7 +1699,7 @@ def _check_values(values) -> np.ndarray:
 
 def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=None, executor=None,
           progress: bool | None = None, parameter: str = "parameter", unit: str = "", max_steps: int = 20_000,
-          **solver_options) -> SweepResult:
+          probes: int = _PROBES, **solver_options) -> SweepResult:
     """Follow every limit cycle of a one-parameter family of loops across a range of the parameter.
 
     Parameters
@@ -1254,6 +1722,10 @@ def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=No
         Name and unit of the parameter, for the report, the CSV and the plot labels.
     max_steps : int
         Bound on continuation steps per branch direction; exceeding it raises RuntimeError.
+    probes : int
+        The valley scan looks at ``probes - 1`` equally spaced points inside each interval between given
+        values as well as at the values (>= 1): it finds the pairs of cycles born and dying between two values
+        (docs/sweep.md), or lists the interval in ``unresolved``.
     **solver_options
         Passed to :func:`~dfloop.predict_limit_cycles` (``grid``, ``tol``, ``marginal_tol``). The branch points'
         stability labels use the solver's marginal test (:func:`dfloop.solve.stability.label_roots`) with the
@@ -1278,6 +1750,7 @@ def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=No
     """
     vals = _check_values(values)
     max_steps = _checks.integer_at_least("max_steps", max_steps, 1)
+    probes = _checks.integer_at_least("probes", probes, 1)
     batch_solver_options(solver_options, exclude=("omega", "amplitude"))  # before any solve
     parameter, unit = _checks.text("parameter", parameter), _checks.text("unit", unit)
     progress = _checks.flag("progress", progress, none=True)
@@ -1334,7 +1807,23 @@ def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=No
                     covered[j] = True
                     bar.update(1)
 
-    branches, events = _assemble(curves, family, marginal_tol, parameter)
+    # pairs of cycles born and dying between two given values: the valley scan finds a root on each such curve
+    scan = _ValleyScan(family, probes)
+    scanned = set()
+    with progress_bar(f"sweep of {parameter}: valley scan", 1, enabled=progress) as bar:
+        for B in scan.roots(qs):
+            if _on_curves(tracer, curves, B.X) or not scan.on_branch_side(B.X):
+                continue
+            P = family.correct(B.X, _EQ, B.X[2])
+            if P is None:  # next to a fold (a double root): the settled bottom as the seed, matched more loosely
+                P = _Point(B.X, family.jacobian(B.X)[1])
+            if _on_curves(tracer, curves, P.X, _MATCH if P.iterations else _MATCH_MARGINAL):
+                continue
+            scanned.add(len(curves))
+            curves.append(tracer.curve(P, tracer._value_index(P.X[2])))
+        bar.update(1)
+
+    branches, events = _assemble(curves, family, marginal_tol, parameter, scanned)
     for k, c in enumerate(cycles):  # isolated values where the loop has a whole curve of solutions
         if isinstance(c, ContinuumAt):
             (a0, a1), (w0, w1) = c.amplitude_range, c.omega_range
@@ -1355,6 +1844,9 @@ def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=No
                 notes.append(f"at {parameter}={vals[k]:.9g} the solver did not report the cycle at "
                              f"A={b.amplitude[j]:.6g}, omega={b.frequency[j]:.6g} rad/s that continuation found "
                              f"(branch {b.index})")
+    for u in scan.unresolved:
+        notes.append(str(u).replace("for p in", f"for {parameter} in"))
+        warnings.warn(f"sweep: {notes[-1]}", stacklevel=2)
     for e in events:
         if e.kind == "lost":
             warnings.warn(f"sweep: a branch was lost at {parameter}={e.parameter:.6g} (A={e.amplitude:.6g}, "
@@ -1363,4 +1855,4 @@ def sweep(loop_at: Callable[[float], tuple], values, *, omega=None, amplitude=No
     return SweepResult(values=vals, branches=branches, events=events, cycles=cycles, amplitude_window=a_win,
                        omega_window=w_win, parameter=parameter, unit=unit,
                        amplitude_name=getattr(N0, "input_name", "A"), amplitude_unit=getattr(N0, "input_unit", ""),
-                       notes=notes)
+                       notes=notes, unresolved=list(scan.unresolved))

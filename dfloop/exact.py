@@ -25,6 +25,7 @@ import numpy as np
 from ._blas import single_threaded_blas
 from ._checks import integer_at_least, positive, scale
 from .describing.interop import as_element
+from .solve.engines import register_exact_engine
 
 __all__ = ["ExactCycle", "exact_cycle", "table_certificate"]
 
@@ -199,14 +200,15 @@ def cycle_argument(cycle, name: str = "cycle") -> tuple[float, float]:
     return scale(f"{name} amplitude", A0), scale(f"{name} frequency", w0)
 
 
-def _failure(message, predicted, method, residual=math.inf, iterations=0) -> ExactCycle:
-    return ExactCycle(False, message, predicted, method, residual=residual, iterations=iterations)
+def _failure(message, predicted, method, residual=math.inf, iterations=0, extra=None) -> ExactCycle:
+    return ExactCycle(False, message, predicted, method, residual=residual, iterations=iterations,
+                      extra=extra or {})
 
 
 @single_threaded_blas
 def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, tol: float = 1e-11,
                 max_iterations: int = 40, settle_periods: float | None = None, max_events: int = 10_000,
-                max_deviation: float = 0.5, nodes: int = 8, globalise: bool = True, r0: float = 0.0,
+                max_deviation: float | None = None, nodes: int = 8, globalise: bool = True, r0: float = 0.0,
                 load: float = 0.0, bias: float | None = None) -> ExactCycle:
     """Find the true periodic orbit near a predicted limit cycle, its Floquet multipliers and the DF's errors.
 
@@ -247,9 +249,12 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
         Multiple-shooting nodes per period (1: single shooting). Several nodes keep Newton's corrections
         small on strongly unstable cycles, whose flow leaves the prediction within a period. Not used on the
         exact delay flow (Newton on the return map to one switch).
-    max_deviation : float
+    max_deviation : float or None
         An orbit whose amplitude or frequency differs from the prediction by more than this in log scale
         (0.5: a factor 1.65) is reported as another orbit (``success`` False, its numbers in the message).
+        None (default): 0.5, except for an orbit that is this prediction's own although farther (no other DF
+        prediction of the loop is nearer to it and its stability agrees: docs/exact.md), which is returned
+        with its distance in the message.
     globalise : bool
         When shooting from the prediction fails, look further before answering (default; see Returns). False
         answers from the shooting alone (its failure is then "not checked", never "no orbit"): for callers that
@@ -289,7 +294,8 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
     max_iterations = int(in_closed_interval("max_iterations", max_iterations, 1, 10_000))
     if settle_periods is not None:
         settle_periods = in_closed_interval("settle_periods", settle_periods, 0.0, 1000.0)
-    max_deviation = positive("max_deviation", max_deviation)
+    counterpart = max_deviation is None          # the default: a misplaced cycle's own orbit is still returned
+    max_deviation = 0.5 if counterpart else positive("max_deviation", max_deviation)
     max_events = integer_at_least("max_events", max_events, 1)  # 2.5 is refused, not truncated
     max_events = int(in_closed_interval("max_events", max_events, 1, 10**9))
     m = int(in_closed_interval("nodes", nodes, 1, 1000))
@@ -304,17 +310,17 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
 
     if globalise and not inside_search():   # the caller's own call, not a shooting the globalisation started
         out = _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations, settle_periods,
-                           max_events, max_deviation, nodes, m, globalise, constant)
+                           max_events, max_deviation, nodes, m, globalise, constant, counterpart)
         cert = table_certificate(G, N, A0, w0)
         if cert is not None:     # a tabulated N: certified at the point of use (the verdict reads it)
             out = dataclasses.replace(out, extra={**out.extra, "table": cert})
         return out
     return _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations, settle_periods, max_events,
-                        max_deviation, nodes, m, globalise, constant)
+                        max_deviation, nodes, m, globalise, constant, counterpart)
 
 
 def _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations, settle_periods, max_events,
-                 max_deviation, nodes, m, globalise, constant) -> ExactCycle:
+                 max_deviation, nodes, m, globalise, constant, counterpart) -> ExactCycle:
     from .hybrid import ShootingError, delay_orbit, loop_model, periodic_orbit
     from .hybrid.globalise import homotopy_allowed, shoot_or_globalise
 
@@ -326,13 +332,16 @@ def _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations
                    **constant)
     outer = None if not globalise else shoot_or_globalise(
         G, N, predicted, lambda c, **kw: exact_cycle(G, N, c, **{**options, **kw}), max_deviation, constant,
-        finish=lambda loop, orbit: _result(loop, orbit, predicted, harmonics, samples))
+        finish=lambda loop, orbit: _result(loop, orbit, predicted, harmonics, samples), counterpart=counterpart)
     if outer is not None:
         return outer
     loop = loop_model(G, N, A0 + abs(bias), w0, what="exact_cycle", r0=r0, load=load)
     if loop.delay > 0:   # a pure delay: Newton on the return map of the exact delay flow (dfloop.hybrid.delay)
-        return ExactCycle(**delay_orbit(loop, A0, w0, tol=tol, max_iterations=max_iterations, harmonics=harmonics,
-                                        samples=samples, max_events=max_events, max_deviation=max_deviation, bias=bias))
+        out = delay_orbit(loop, A0, w0, tol=tol, max_iterations=max_iterations, harmonics=harmonics,
+                          samples=samples, max_events=max_events, max_deviation=max_deviation, bias=bias)
+        if "another_orbit" in out.get("extra", {}):   # the orbit Newton found instead, for the globalisation
+            out["extra"]["another_orbit"] = ExactCycle(**out["extra"]["another_orbit"])
+        return ExactCycle(**out)
     if not loop.exact:
         raise ValueError(f"N: {type(N).__name__} is known only through a sampled operator ({loop.method}): "
                          "exact_cycle needs an exact time model (piecewise affine, smooth or impact; implement "
@@ -354,7 +363,7 @@ def _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations
                         f"{'stable' if out.stable else 'unstable'}), farther from the prediction than max_deviation "
                         f"= {max_deviation:g} in log(A) or log(w): the predicted cycle may not exist as a true "
                         "orbit; raise max_deviation to accept it", predicted, loop.method, orbit.residual,
-                        orbit.iterations)
+                        orbit.iterations, extra={"another_orbit": out})
     return out
 
 
@@ -439,3 +448,10 @@ def _result(loop, orbit, predicted, harmonics: int, samples: int) -> ExactCycle:
                       extra={"z0": orbit.z, "mode0": orbit.mode, "returns": k, "plant_state": _plant_state(loop, orbit.z),
                              "path": orbit.path},
                       mean=float(np.mean(x)) if mean is None else mean)
+
+
+def _not_checked(message: str, predicted: tuple) -> ExactCycle:
+    return ExactCycle(False, message, predicted, "none", extra={"outcome": "not checked"})
+
+
+register_exact_engine(exact_cycle, _not_checked)

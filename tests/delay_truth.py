@@ -169,7 +169,7 @@ class DelayTruth:
         t = 0.0
         atol = self.rtol * 1e-2 * max(float(np.max(np.abs(s))), 1e-300)
         self.starts, self.pieces = [], []
-        ups = []                                   # upward zero crossings of x
+        ups = self.ups = []                        # upward zero crossings of x
         evals = [0]
 
         def rhs(t, s):
@@ -233,6 +233,26 @@ class DelayTruth:
                      max(abs(a / amps[0] - 1) for a in amps[1:]))
         return Settled(amps[0], 2 * math.pi / per[-1], change, len(ups) - 1, ups[-1], change < settle,
                        "settled" if change < settle else "bound")
+
+    def limit(self, periods: int = 40):
+        """(A, w, correction) of the run's last ``periods`` periods extrapolated to their limit. A motion that
+        converges slowly (multiplier r near 1) has successive periods agreeing long before it reaches its limit: the
+        distance left is the change times r / (1 - r). The per-period amplitudes and periods are fitted by
+        L + c r^k (one r for both, scanned on a fine grid; L and c by linear least squares for each r);
+        ``correction`` is the larger relative |L - last value|."""
+        ups = self.ups[-(periods + 1):]
+        P = np.diff(ups)
+        A = np.array([self.fundamental(a, b) for a, b in zip(ups[:-1], ups[1:])])
+        k = np.arange(P.size, dtype=float)
+        best = (math.inf, A[-1], P[-1])
+        for r in np.concatenate([np.linspace(0.05, 0.95, 91), 1 - np.logspace(-1.3, -3, 60)]):
+            M = np.stack([np.ones_like(k), r ** (k - k[-1])], axis=1)
+            fit = [np.linalg.lstsq(M, y / y[-1], rcond=None) for y in (A, P)]
+            res = sum(float(np.sum((M @ f[0] - y / y[-1]) ** 2)) for f, y in zip(fit, (A, P)))
+            if res < best[0]:
+                best = (res, fit[0][0][0] * A[-1], fit[1][0][0] * P[-1])
+        _, A_lim, P_lim = best
+        return A_lim, 2 * math.pi / P_lim, max(abs(A_lim / A[-1] - 1), abs(P_lim / P[-1] - 1))
 
     def fundamental(self, a, b):
         """|2/P int_a^b x e^{-iwt} dt| over one period [a, b]: 8-point Gauss-Legendre on every solver step."""

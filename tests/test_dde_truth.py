@@ -4,6 +4,8 @@ dde_memory) against an independent truth: a long DOP853 simulation (rtol 1e-12) 
 located as events, every input kink an integration boundary), started on the prediction and run until
 successive periods agree to 1e-10. Its settled A and w must equal exact_cycle's to 1e-8, and exact_cycle's
 stated error estimate must bound the difference (plus the run's own ~1e-10)."""
+import math
+
 import control as ct
 import numpy as np
 import pytest
@@ -54,3 +56,24 @@ def test_exact_cycle_equals_a_long_exact_delay_simulation_to_1e8(name):
     assert err[0] <= est[0] + 2e-10 and err[1] <= est[1] + 2e-10, (err, est)
     # and the DF's prediction is off by far more than that: the comparison is not trivial
     assert abs(c.amplitude / run.amplitude - 1) > 1e-4
+
+
+def test_a_strongly_distorted_orbit_is_found_where_the_df_misplaces_it():
+    # A dead zone barely exceeded around a conditionally stable plant with a triple integrator: the orbit is a
+    # train of short pulses, far from the DF's sinusoid (the DF's frequency is 75 % off), and its plant states reach
+    # 1e8 times x. Newton from the sinusoid fails; the orbit must still be found (from the settled motion), to
+    # 1e-8 of a long exact-delay run, and reported as this prediction's orbit: the loop has no other prediction.
+    G0 = 5.714e-3 * ct.tf([1.0, 0.0056, 0.0028 ** 2], [1.0, 0.266, 0.0, 0.0, 0.0])
+    T = 14.26
+    G = delayed(G0, T)
+    c = df.predict_limit_cycles(G, df.DeadZone(0.3))
+    assert len(c) == 1 and c[0].stable
+    e = df.exact_cycle(G, df.DeadZone(0.3), c[0])
+    assert e.success and e.stable, e.message
+    assert "no other DF prediction" in e.message
+    ss = ct.ss(G0)
+    run = DelayTruth(ss.A, ss.B, ss.C, T, DZ).run(c[0].amplitude, c[0].frequency, settle=1e-10, max_periods=60)
+    assert run.settled, run
+    err = (abs(e.amplitude / run.amplitude - 1), abs(e.frequency / run.frequency - 1))
+    assert max(err) < 1e-8, err
+    assert abs(math.log(c[0].frequency / run.frequency)) > 0.5     # beyond the default max_deviation

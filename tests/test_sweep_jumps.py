@@ -62,11 +62,16 @@ def test_digital_quantizer_delay_sweep_lands_on_every_value():
     res = sweep(loop_at, values, omega=scene.omega, amplitude=scene.amplitude, parameter="delay T", unit="s",
                 progress=False)
     _assert_cycles_are_the_solvers(res, loop_at, values, scene.omega, scene.amplitude)
-    # the branches through 0.3 end on the threshold 0.075 (between 0.3 and 0.35), reported as deaths there
-    ends = [e for e in res.events if e.kind == "death" and e.cause == "jump" and abs(e.amplitude - 0.075) < 1e-12]
-    assert len(ends) == 2 and all(0.3 < e.parameter < 0.35 for e in ends)
-    for e in ends:
-        assert any(b.end == "dies where N jumps" and b.parameter[-1] == e.parameter for b in res.branches)
+    # the branches through 0.3 end on the threshold 0.075 (between 0.3 and 0.35), a stable one from below and an
+    # unstable one from above: one fold on the edge (before: two deaths 8e-8 apart)
+    ends = [e for e in res.events if abs(e.amplitude - 0.075) < 1e-12]
+    assert len(ends) == 1 and 0.3 < ends[0].parameter < 0.35
+    (e,) = ends
+    assert e.kind == "fold" and e.cause == "element edge" and "die together" in e.detail
+    pair = [res.branches[i] for i in e.branches]
+    assert {b.kind for b in pair} == {"stable", "unstable"} and all(b.end == "fold" for b in pair)
+    assert all(abs(b.parameter[-1] - e.parameter) < 1e-6 for b in pair)
+    assert not [x for x in res.events if x.kind in ("birth", "death")]  # every end here is such a fold
 
 
 def _N_at_threshold(c):
@@ -86,8 +91,12 @@ def test_delayed_quantizer_sweep_ends_at_the_closed_form_thresholds():
     amplitude = (0.026, 1.0)
     res = sweep(loop_at, values, amplitude=amplitude, parameter="delay T", unit="s", progress=False)
     _assert_cycles_are_the_solvers(res, loop_at, values, res.omega_window, amplitude)
-    ends = [e for e in res.events if e.cause == "jump"]
+    ends = [e for e in res.events if e.cause in ("jump", "element edge")]
     assert len(ends) >= 10
+    # a stable and an unstable branch reach a threshold from either side at the same point: one fold there
+    assert not [e for e in res.events if e.kind in ("birth", "death") and any(
+        f.kind == e.kind and f is not e and abs(f.amplitude - e.amplitude) < 1e-12
+        and abs(f.parameter - e.parameter) < 1e-6 for f in res.events)]
     for e in ends:
         i = round(e.amplitude / STEP + 0.5)
         c = (i - 0.5) * STEP

@@ -482,9 +482,12 @@ class CubicStiffness(StaticElement):
             return x * (self.k1 + self.k3 * (x * x))
 
     def time_model(self, amplitude: float):
-        """Smooth, with its exact slope k1 + 3 k3 x^2 for the variational equation."""
+        """Smooth, with its exact slope k1 + 3 k3 x^2 for the variational equation, and its compiled form (the
+        compiled integrator evaluates f itself) unless a subclass computes its own output."""
         k1, k3 = self.k1, self.k3
-        return Smooth(type(self).__name__, self.output, lambda x: k1 + 3.0 * k3 * (x * x))
+        own = type(self).output is CubicStiffness.output
+        return Smooth(type(self).__name__, self.output, lambda x: k1 + 3.0 * k3 * (x * x),
+                      form=self.compiled_form() if own else None)
 
     def _evaluate(self, A, omega):
         with np.errstate(over="ignore"):  # beyond ~1e154 m: +/-inf, the rounded value of the true N

@@ -77,11 +77,14 @@ class PiecewiseAffine:
 
 @dataclass
 class Smooth:
-    """A static element y = f(x) with a smooth f (vectorised over x); ``slope`` f'(x), if known."""
+    """A static element y = f(x) with a smooth f (vectorised over x); ``slope`` f'(x), if known; ``form`` the
+    element's compiled form (kind name, parameters: its ``compiled_form()``) when f is a built-in one that the
+    compiled integrator (:mod:`dfloop.hybrid.smooth_compiled`) evaluates itself, else None."""
 
     name: str
     f: Callable = field(repr=False)
     slope: Callable | None = field(default=None, repr=False)
+    form: tuple | None = field(default=None, repr=False)
 
     def response(self, x: np.ndarray) -> np.ndarray:
         return np.asarray(self.f(x), dtype=float)

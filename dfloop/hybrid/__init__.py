@@ -6,7 +6,8 @@ that time model into a loop model:
 
 - piecewise affine -> :class:`HybridLoop`: z' = A_m z per mode, matrix exponentials, switches located to
   rounding level (relays, saturation, dead zone, backlash, quantizer, ...);
-- smooth -> :class:`SmoothLoop`: DOP853 with the variational equation (cubic stiffness, a user's f);
+- smooth -> :class:`SmoothLoop`: DOP853 with the variational equation (cubic stiffness: compiled,
+  :mod:`.smooth_compiled`; a user's f: scipy's solve_ivp);
 - impact -> :class:`ImpactLoop`: the compiled linear-mode impact engine (dynamic backlash);
 - sampled -> :class:`SampledLoop`: fixed step (an element with only an operator; not exact);
 - a plant with a pure delay (:func:`dfloop.solve.delay.delayed`) and a piecewise-constant element ->

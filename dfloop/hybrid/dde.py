@@ -34,6 +34,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from ..describing.time_model import PiecewiseAffine, Smooth
+from .realisation import conditioned
 from .run import LoopSimulation
 
 __all__ = ["DDELoop", "DelayDDE", "dde_orbit", "dde_simulation", "periodic_orbit", "multipliers", "static_map"]
@@ -85,7 +86,9 @@ class DDELoop:
               "at the element's kinks, cubic history interpolation; 4th order)")
 
     def __init__(self, A, B, C, f, kinks, delay: float, name: str = ""):
-        self.A, self.B, self.C = (np.asarray(a, float) for a in (A, B, C))
+        # the well-conditioned realisation of the exact flows (block-diagonal, balanced, from order 7): only x = -C s
+        # leaves this model, so its states need not be the plant's as given
+        self.A, self.B, self.C, _ = conditioned(*(np.asarray(a, float) for a in (A, B, C)))
         self.n = self.A.shape[0]
         self.f, self.kinks, self.delay, self.name = f, np.asarray(kinks, float), float(delay), name
         self.plant = (self.A, self.B)
@@ -201,7 +204,7 @@ def _equations(A, B, C, f, delay, kinks, s0: np.ndarray, x: np.ndarray, P: float
     return R, S, dde, (pts, xi)
 
 
-def _jacobian(dde: DelayDDE, x: np.ndarray, data) -> np.ndarray:
+def node_jacobian(dde: DelayDDE, x: np.ndarray, data) -> np.ndarray:
     """d R / d (x, s_0) ((N + n + 1) x (N + n)), exact for the discrete equations at fixed quadrature points:
     the tangent of the steps' recursion, ds_k/dx and ds_k/ds_0, carried along the period."""
     (k, E, idx, w), xi = data
@@ -248,7 +251,7 @@ def periodic_orbit(A, B, C, f, delay, s0: np.ndarray, x0: np.ndarray, P0: float,
             return S[:-1], P, res, it
         res_prev = res
         J = np.zeros((N + n + 1, N + n + 1))
-        J[:, :N + n] = _jacobian(dde, x, data)
+        J[:, :N + n] = node_jacobian(dde, x, data)
         dP = 1e-7 * P
         Rp = _equations(A, B, C, f, delay, kinks, s0, x, P + dP)[0]
         Rm = _equations(A, B, C, f, delay, kinks, s0, x, P - dP)[0]
@@ -274,12 +277,14 @@ def periodic_orbit(A, B, C, f, delay, s0: np.ndarray, x0: np.ndarray, P0: float,
                        "raise max_iterations")
 
 
-def multipliers(A, B, C, f, delay, S: np.ndarray, P: float, kinks=(), count: int = 6) -> np.ndarray:
+def multipliers(A, B, C, f, delay, S: np.ndarray, P: float, kinks=(), count: int = 6,
+                x: np.ndarray | None = None) -> np.ndarray:
     """The ``count`` largest eigenvalues of the monodromy of the discretised history along the orbit S: the
-    time-stepping form of the same scheme (state: s_k and the node values of x the interpolation can reach)."""
+    time-stepping form of the same scheme (state: s_k and the node values of x the interpolation can reach).
+    ``x``: the node values of x when they are not -C s (a forcing added at the summing junction)."""
     N, n = S.shape
     dde = DelayDDE(A, B, C, f, delay, P / N, kinks)
-    x = -(S @ dde.C)
+    x = -(S @ dde.C) if x is None else np.asarray(x, float)
     k, E, idx, w = dde.points(x)
     xi = np.einsum("pj,pj->p", x[idx], w)
     fp = dde.slope(xi)
@@ -317,6 +322,79 @@ def _start(A, B, C, f, delay, A0, w0, N):
     return (X[None, :] * np.exp(1j * w0 * (t[:, None] - delay))).imag
 
 
+def balanced_states(A, B, C, S):
+    """The plant in states scaled to the size of x on the start orbit S (node states, rows): s = D s' with D the
+    diagonal of each state's largest value over the size of x. An exact change of coordinates (x = -C s and the
+    multipliers are unchanged) that puts the periodicity equations s_N - s_0 in the units of x: with integrators
+    or slow poles the companion states of an orbit reach 1e8 times x, and Newton's residual was then the states'
+    rounding. Returns (A', B', C', S')."""
+    size = max(float(np.max(np.abs(S @ C))), 1e-300)
+    d = np.max(np.abs(S), axis=0) / size
+    d = np.where(d > 0, d, 1.0)
+    return A * d[None, :] / d[:, None], B / d, C * d, S / d
+
+
+SETTLE_PERIODS = 80    # periods of the prediction run before the second start (when Newton from the sinusoid fails)
+_SETTLED = 1e-4        # the last two periods of that run agree to this (relative): a start for Newton
+
+
+def settled_start(loop: DDELoop, A0: float, w0: float, N: int, plant: tuple, periods: int = SETTLE_PERIODS):
+    """A start for Newton from the motion itself, when the DF's sinusoid is too far from the orbit (a strongly
+    distorted orbit, e.g. a dead zone barely exceeded): run the loop ``periods`` periods of the prediction
+    (:func:`dde_simulation`, same scheme), and when its last two periods (between upward crossings of x's
+    mean) agree to 1e-4, sample the last one at N nodes with x's fundamental a sine at t = 0 (the phase
+    condition; more nodes when the period is longer than predicted, so that the step stays below a third of the
+    delay); the plant state at the first node is the least-squares fit of the discrete recursion to those
+    samples. ``plant``: (A, B, C) in the coordinates Newton uses. Returns (x, s0, P) or None (the run diverged,
+    came to rest or did not settle)."""
+    A, B, C = plant
+    T = loop.delay
+    try:
+        sim = dde_simulation(loop, A0, w0, periods, N)
+    except ValueError:
+        return None
+    if sim.diverged or sim.x.size < 4 * N:
+        return None
+    h = float(sim.t[1] - sim.t[0])
+    tail = sim.x[-3 * N:]
+    mean = float(np.mean(tail))
+    if float(np.max(np.abs(tail - mean))) <= 1e-9 * A0:
+        return None                                                  # at rest
+    d = sim.x - mean
+    k = np.flatnonzero((d[:-1] < 0) & (d[1:] >= 0))
+    if k.size < 3:
+        return None
+    ups = sim.t[k] + h * d[k] / (d[k] - d[k + 1])                   # upward crossings (linear between samples)
+    p1, p2 = ups[-1] - ups[-2], ups[-2] - ups[-3]
+    if abs(p1 / p2 - 1) > _SETTLED:
+        return None
+    P = float(p1)
+    N = max(N, int(math.ceil(3 * P / T)) + 1)                         # at least 3 steps per delay
+    tq = ups[-2] + P * np.arange(N) / N                               # the last period at N nodes (cubic)
+    pos = tq / h
+    o = np.clip(np.floor(pos).astype(int), 1, sim.x.size - 3)
+    th = pos - o
+    wts = np.stack([-th * (th - 1) * (th - 2) / 6, (th + 1) * (th - 1) * (th - 2) / 2,
+                    -(th + 1) * th * (th - 2) / 2, (th + 1) * th * (th - 1) / 6], axis=-1)
+    x = np.einsum("pj,pj->p", sim.x[o[:, None] - 1 + np.arange(4)], wts)
+    c = np.fft.rfft(x)
+    shift = np.angle(1j * c[1])                                      # fundamental turned to a sine at t = 0
+    x = np.fft.irfft(c * np.exp(-1j * np.arange(c.size) * shift), n=N)
+    # plant state at node 0: s_k = Phi^k s0 + g_k (g_k the response to the delayed input from s0 = 0), fitted to
+    # x_k = -C s_k and to the periodicity s_N = s_0 together (a fast mode barely seen in x is fixed by the latter)
+    n = A.shape[0]
+    _, G0, dde, _ = _equations(A, B, C, loop.f, loop.delay, loop.kinks, np.zeros(n), x, P)
+    M = np.empty((N, n))
+    Pk = np.eye(n)
+    for j in range(N):
+        M[j] = C @ Pk
+        Pk = dde.Phi @ Pk
+    lhs = np.vstack([-M, Pk - np.eye(n)])
+    rhs = np.concatenate([x + G0[:-1] @ C, -G0[-1]])
+    s0 = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
+    return x, s0, P
+
+
 TARGET = 1e-8          # the change of A and w between the last two resolutions must fall below this (relative)
 MAX_NODES = 4096       # the finest resolution dde_orbit tries (nodes per period)
 
@@ -344,6 +422,7 @@ def dde_orbit(loop: DDELoop, A0: float, w0: float, *, nodes: int = 128, target: 
     nodes = max(int(nodes), int(math.ceil(3 * P0 / T)) + 1)       # h <= T / 3: the history is in the past
     max_nodes = max(int(max_nodes), 2 * nodes)
     S = _start(A, B, C, f, T, A0, w0, nodes)
+    A, B, C, S = balanced_states(A, B, C, S)
     x, s0, P = -(S @ C), S[0], P0
     levels = []                     # (nodes, A, w, S, P, residual, iterations, X)
     mus = []
@@ -352,8 +431,23 @@ def dde_orbit(loop: DDELoop, A0: float, w0: float, *, nodes: int = 128, target: 
         try:
             S, P, res, it = periodic_orbit(A, B, C, f, T, s0, x, P, kinks=kinks, tol=tol)
         except RuntimeError as exc:
-            return dict(success=False, message=f"{Nn} nodes: {exc}", method=_method(levels, Nn))
+            start = settled_start(loop, A0, w0, Nn, (A, B, C)) if not levels else None
+            if start is None:
+                return dict(success=False, message=f"{Nn} nodes: {exc}", method=_method(levels, Nn))
+            x, s0, P = start          # Newton from the sinusoid failed: once more from the settled motion
+            Nn = x.size
+            try:
+                S, P, res, it = periodic_orbit(A, B, C, f, T, s0, x, P, kinks=kinks, tol=tol)
+            except RuntimeError as exc2:
+                return dict(success=False, message=f"{Nn} nodes: from the prediction: {exc}; from the motion "
+                                                   f"settled after {SETTLE_PERIODS} periods: {exc2}",
+                            method=_method(levels, Nn))
         x = -(S @ C)
+        if P / Nn > T / 3:            # the period grew past 3 steps per delay: solve again on a finer grid
+            fine = int(math.ceil(3 * P / T)) + 1
+            x, s0 = np.fft.irfft(np.fft.rfft(x), n=fine) * (fine / Nn), S[0]
+            Nn = fine
+            continue
         X = 2j * np.fft.rfft(x)[1:harmonics + 1] / Nn
         levels.append((Nn, abs(X[0]), 2 * math.pi / P, S, P, res, it, X))
         if len(mus) < 2:

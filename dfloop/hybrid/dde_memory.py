@@ -39,6 +39,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from ..describing.time_model import OUT_OF_RANGE, PiecewiseAffine
+from .realisation import conditioned
 from .run import LoopSimulation
 
 __all__ = ["MemoryDDELoop", "memory_orbit", "memory_simulation", "DelayMemoryError"]
@@ -69,7 +70,8 @@ class MemoryDDELoop:
               "flow, element switches located exactly on the cubic history, Gauss-Legendre input; 4th order)")
 
     def __init__(self, A, B, C, element: PiecewiseAffine, delay: float, name: str = ""):
-        self.A, self.B, self.C = (np.asarray(a, float) for a in (A, B, C))
+        # the exact flows' well-conditioned realisation from order 7 (only x = -C s leaves this model)
+        self.A, self.B, self.C, _ = conditioned(*(np.asarray(a, float) for a in (A, B, C)))
         self.n = self.A.shape[0]
         self.plant = (self.A, self.B)
         self.element, self.delay, self.name = element, float(delay), name or element.name

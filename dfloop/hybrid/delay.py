@@ -581,7 +581,7 @@ def delay_orbit(loop: DelayLoop | DDELoop | MemoryDDELoop, A0: float, w0: float,
     deviation = max(abs(math.log(A / A0)), abs(math.log(w / w0)))
     if deviation > max_deviation:
         return dict(success=False, predicted=(A0, w0), method=out["method"], residual=out["residual"],
-                    iterations=out["iterations"],
+                    iterations=out["iterations"], extra={"another_orbit": out},
                     message=f"Newton converged to another orbit (A={A:.6g}, w={w:.6g} rad/s, "
                             f"{'stable' if out['stable'] else 'unstable'}), farther from the prediction than "
                             f"max_deviation = {max_deviation:g} in log(A) or log(w): the predicted cycle may not "

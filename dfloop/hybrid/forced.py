@@ -22,6 +22,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .dde import DDELoop
+from .delay import split_delay
+from .forced_delay import forced_dde_orbit
 from .loop import HybridError
 from .model import HISTORY_SAMPLES, loop_model
 from .shooting import ShootingError, forced_orbit
@@ -159,8 +162,11 @@ def exact_forced_point(G, N, R: float, omega: float, amplitude: float, *, nodes:
 
     Parameters
     ----------
-    G : python-control tf or ss
-        Strictly proper SISO plant (no delay).
+    G : python-control tf or ss, or ``delayed(G, T)``
+        Strictly proper SISO plant. With a pure delay the element must be static (sloped pieces or smooth):
+        the orbit is the delay equation's at the forcing period (:mod:`dfloop.hybrid.forced_delay`; its error
+        estimate in ``extra``), and no run is made when it is not found (``kind`` "failed", the reason in
+        ``message``).
     N : DescribingFunction
         The element (with a piecewise-affine or smooth time model).
     R, omega : float
@@ -191,6 +197,8 @@ def exact_forced_point(G, N, R: float, omega: float, amplitude: float, *, nodes:
 
     R, w, A0 = scale("R", R), scale("omega", omega), scale("amplitude", amplitude)
     m = int(in_closed_interval("nodes", nodes, 1, 1000))
+    if split_delay(G)[1] > 0:
+        return _delayed_point(G, N, R, w, A0, max_iterations)
     T = 2 * math.pi / w
     loop, free, n = _driven(G, N, R, w, A0 + R)
     if not loop.exact:
@@ -214,6 +222,25 @@ def exact_forced_point(G, N, R: float, omega: float, amplitude: float, *, nodes:
     kind = {"subharmonic": "subharmonic", "failed": "failed"}.get(seen["observed"], "not periodic")
     return ExactForcedPoint(w, A0, kind, order=seen.get("order"), observed=seen["observed"],
                             message=f"{seen['words']}{first}")
+
+
+def _delayed_point(G, N, R: float, w: float, A0: float, max_iterations: int) -> ExactForcedPoint:
+    """The forced response of a delayed plant: the delay equation at the forcing period
+    (:mod:`dfloop.hybrid.forced_delay`), for static elements (sloped pieces or smooth)."""
+    loop = loop_model(G, N, A0 + R, w, what="the exact forced response")
+    if not isinstance(loop, DDELoop):
+        raise ValueError(f"G: a pure delay in the exact forced response is supported for static elements with "
+                         f"sloped pieces or smooth ones (saturation, dead zone, cubic stiffness, ...), not for "
+                         f"{type(N).__name__} ({loop.method}); use delayed(G, T).pade(n) for an approximation")
+    out = forced_dde_orbit(loop, lambda a: N(a), R, w, A0, max_iterations=max_iterations)
+    if not out["success"]:
+        return ExactForcedPoint(w, A0, "failed", observed="failed",
+                                message=f"no orbit at the forcing period found from the DF solution: {out['message']}")
+    X1 = out["X1"]
+    mu = out["multipliers"]
+    return ExactForcedPoint(w, A0, "periodic", amplitude=float(abs(X1)), output_amplitude=float(abs(R - X1)),
+                            multipliers=mu, stable=out["stable"], message=out["message"], residual=out["residual"],
+                            extra={k: out[k] for k in ("nodes", "error_estimate", "target_met", "multipliers_coarse")})
 
 
 def _observe(loop, G, N, R, w, A0, n, m, free, options) -> dict:

@@ -62,12 +62,14 @@ def inside_search() -> bool:
 
 
 def shoot_or_globalise(G, N, predicted: tuple, shoot, max_deviation: float, constant: dict | None = None,
-                       finish=None):
+                       finish=None, counterpart: bool = False):
     """Run ``shoot(cycle, **options)`` (one :func:`dfloop.exact_cycle` call) and globalise when it fails.
 
     ``constant``: the loop's constant input and the predicted bias (``r0``, ``load``, ``bias``), for the runs.
     ``finish(loop, orbit)``: the :class:`~dfloop.exact.ExactCycle` of an orbit the edge tracking converged (None:
     no edge tracking).
+    ``counterpart``: an orbit farther than ``max_deviation`` is still returned when it is this prediction's own
+    (:func:`_counterpart`).
 
     Returns None when called from inside a shooting started here (the caller then shoots itself), otherwise
     an :class:`~dfloop.exact.ExactCycle`.
@@ -81,7 +83,7 @@ def shoot_or_globalise(G, N, predicted: tuple, shoot, max_deviation: float, cons
             return first
         quiet = _HOMOTOPY.set(False)
         try:
-            return _globalise(G, N, predicted, first, shoot, max_deviation, constant or {}, finish)
+            return _globalise(G, N, predicted, first, shoot, max_deviation, constant or {}, finish, counterpart)
         finally:
             _HOMOTOPY.reset(quiet)
     finally:
@@ -264,8 +266,43 @@ def _edge(G, N, predicted, motions, orbits, constant):
                       periods=EDGE_PERIODS)
 
 
-def _globalise(G, N, predicted, first, shoot, max_deviation, constant, finish=None):
+def _counterpart(G, N, predicted: tuple, orbit, constant: dict) -> str:
+    """Why the exact ``orbit`` the motions from the prediction settle on, though farther than ``max_deviation``, is
+    this prediction's own counterpart, or ``""`` when it is not: the DF's predictions of the loop in a window
+    around both (:func:`dfloop.predict_limit_cycles`) include this one, with the orbit's stability, and no other
+    prediction is nearer to the orbit (in max |ln A|, |ln w|). A DF that misplaces a strongly distorted cycle (a dead
+    zone barely exceeded) is then answered with the true orbit and its distance, not with "another cycle"."""
+    from ..solve.predict import predict_limit_cycles
+
+    if any(constant.get(k, 0.0) for k in ("r0", "load", "bias")):
+        return ""
+    (A0, w0), A, w = predicted, orbit.amplitude, orbit.frequency
+    try:
+        cycles = predict_limit_cycles(G, N, amplitude=(min(A0, A) / 4, 4 * max(A0, A)),
+                                      omega=(min(w0, w) / 4, 4 * max(w0, w)))
+    except ValueError:
+        return ""
+
+    def far(c, a, f):
+        return max(abs(math.log(c.amplitude / a)), abs(math.log(c.frequency / f)))
+    own = [c for c in cycles if far(c, A0, w0) < 1e-6]
+    if not own or own[0].stability != ("stable" if orbit.stable else "unstable"):
+        return ""
+    nearest = min(far(c, A, w) for c in cycles)
+    if far(own[0], A, w) > nearest:
+        return ""
+    return (f"the orbit is {far(own[0], A, w):.3g} away in log(A) or log(w), beyond max_deviation, but no other "
+            f"DF prediction of the loop ({len(cycles)} in A {min(A0, A) / 4:.3g}-{4 * max(A0, A):.3g}, w "
+            f"{min(w0, w) / 4:.3g}-{4 * max(w0, w):.3g} rad/s) is nearer to it and its stability agrees: it is "
+            "this prediction's orbit, the DF misplaces it")
+
+
+def _globalise(G, N, predicted, first, shoot, max_deviation, constant, finish=None, counterpart=False):
     A0, w0 = predicted
+    near = first.extra.get("another_orbit")     # Newton converged, but farther than max_deviation
+    claim = _counterpart(G, N, predicted, near, constant) if counterpart and near is not None else ""
+    if claim:
+        return _rebase(near, predicted, f"shooting from the prediction converged to it; {claim}")
     tried = [f"shooting from the prediction: {first.message}"]
     delayed = split_delay(G)[1] > 0
     if not delayed:
@@ -298,7 +335,7 @@ def _globalise(G, N, predicted, first, shoot, max_deviation, constant, finish=No
                f"w={m['frequency']:.6g} rad/s; shooting from there converged")
         if deviation <= max_deviation:
             return _rebase(r, predicted, how)
-        others.append(r)
+        others.append((r, how))
         orbits[-1] = r
     if all(m["outcome"] == "no simulation" for m in motions):
         return first      # no time-domain model to globalise with: the first answer stands
@@ -318,12 +355,15 @@ def _globalise(G, N, predicted, first, shoot, max_deviation, constant, finish=No
                 if deviation <= max_deviation:
                     out = _rebase(r, predicted, how)
                     return dataclasses.replace(out, extra={**out.extra, "edge": edge.to_dict()})
-                others.insert(0, r)
+                others.insert(0, (r, how))
                 edge_orbit = r
     elif isinstance(edge, str):
         evidence += f"; {edge}"
     if others:
-        o = others[0]
+        o, how = others[0]
+        claim = _counterpart(G, N, predicted, o, constant) if counterpart else ""
+        if claim:
+            return _rebase(o, predicted, f"{how}; {claim}")
         outcome = "another cycle"
         where = ("the motion on the boundary between the fates of the starts around it (edge tracking) settles on "
                  "another cycle" if o is edge_orbit else "the motions started on and around it go to another cycle")

@@ -83,7 +83,7 @@ def loop_model(G, N, amplitude: float, frequency: float, *, steps_per_period: in
         if isinstance(tm, PiecewiseAffine):
             model = HybridLoop(A, B, C, tm, time_scale, **constant)
         elif isinstance(tm, Smooth):
-            model = SmoothLoop(A, B, C, tm.f, tm.name, time_scale, tm.slope, **constant)
+            model = SmoothLoop(A, B, C, tm.f, tm.name, time_scale, tm.slope, form=tm.form, **constant)
         elif isinstance(tm, Sampled):
             model = SampledLoop(A, B, C, tm, time_scale / steps_per_period, steps_per_period)
         else:

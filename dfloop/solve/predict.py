@@ -538,14 +538,14 @@ def _open_loop_label(plant, cycles: list[LimitCycle]) -> list[LimitCycle]:
 
 def _attach_confidence(G, N, cycles: list[LimitCycle], exact: bool) -> list[LimitCycle]:
     """Every cycle with its confidence (computed on first access) and, when asked, its exact orbit."""
-    from ..exact import ExactCycle, exact_cycle
+    from .engines import exact_engine
 
     def checked(c):   # a loop without an exact engine: the cycle is "not checked", with the reason
+        exact_cycle, not_checked = exact_engine()
         try:
             return exact_cycle(G, N, c)
         except ValueError as exc:
-            return ExactCycle(False, f"not checked: {exc}", (c.amplitude, c.frequency), "none",
-                              extra={"outcome": "not checked"})
+            return not_checked(f"not checked: {exc}", (c.amplitude, c.frequency))
 
     return [dataclasses.replace(c, _confidence=functools.partial(_confidence, G, N, c.amplitude, c.frequency),
                                 exact=checked(c) if exact else None) for c in cycles]
