@@ -6,7 +6,8 @@ Python path (DFLOOP_COMPILED=0) and the compiled path; and the *floor*: evaluati
 grid with numpy (G by python-control's frequency response, N by the element, one outer product), the least any
 grid solver spends; and whether the compiled driver answered the call or left it to the Python driver (and
 why). Then a batch of sampled servo loops (examples/monte_carlo_servo.py) through predict_many in this process
-(chunks of loops through the compiled driver in parallel over the cores): microseconds per loop per core, its floor (G and N once on each loop's 64 x 256 grid), and the
+(chunks of loops through the compiled driver in parallel over the cores): microseconds per loop per core (and how
+many of them the example's generator spends building the loops in python-control, timed alone), its floor (G and N once on each loop's 64 x 256 grid), and the
 peak traced memory of the streamed batch (tracemalloc, results kept as one float per loop).
 
 Run: python benchmarks/bench_compiled.py [--batch N] [--write]   (default N = 2000 loops; --write also writes
@@ -86,6 +87,10 @@ def main() -> str:
     t0, c0 = time.perf_counter(), time.process_time()
     amps = predict_many(sample(BATCH, 1), keep=stable_amplitude, progress=False)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    c0 = time.process_time()
+    for _ in sample(BATCH, 1):  # the loops alone: python-control's tf arithmetic in the example's generator
+        pass
+    gen = time.process_time() - c0
     n_mem = min(BATCH, 500)  # memory of the stream, traced on its first loops (tracemalloc slows Python 2-3x)
     tracemalloc.start()
     predict_many(sample(n_mem, 1), keep=stable_amplitude, progress=False)
@@ -105,7 +110,9 @@ def main() -> str:
     rows += ["", f"Batch: {BATCH} sampled servo loops (examples/monte_carlo_servo.py: K e^(-s tau)/(s(0.5s+1)) with "
              f"backlash) through predict_many(keep=...) in this process (the compiled driver on chunks of 256 loops, "
              f"in parallel over the cores): {cpu / BATCH * 1e6:.0f} us "
-             f"CPU per loop per core ({wall / BATCH * 1e6:.0f} us wall); floor (G and N once on a 64 x 256 grid) "
+             f"CPU per loop per core ({wall / BATCH * 1e6:.0f} us wall), of which {gen / BATCH * 1e6:.0f} us generate "
+             f"the loops (the example's K * G0 in python-control) and {(cpu - gen) / BATCH * 1e6:.0f} us are "
+             f"dfloop's; floor (G and N once on a 64 x 256 grid) "
              f"{t_floor * 1e6:.0f} us, ratio {cpu / BATCH / t_floor:.0f}x; peak traced memory "
              f"{peak / 2**20:.1f} MiB for "
              f"{n_mem} loops (streamed in chunks of 256: independent of the number of loops but for one float kept "

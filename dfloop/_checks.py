@@ -133,8 +133,15 @@ def integer_at_least(name: str, value, minimum: int) -> int:
     return int(x)
 
 
+_FLOAT_TYPES = (float, np.float64)  # window ends taken as they are (a subclass or any other type is converted)
+
+
 def window(name: str, value) -> tuple[float, float]:
     """A window (lo, hi) of positive finite floats with lo < hi (frequencies in rad/s, amplitudes)."""
+    if type(value) is tuple and len(value) == 2:  # the common case, two floats in order: no conversion
+        lo, hi = value
+        if type(lo) in _FLOAT_TYPES and type(hi) in _FLOAT_TYPES and 0 < lo < hi < math.inf:
+            return float(lo), float(hi)
     try:
         pair = tuple(value)
     except TypeError:

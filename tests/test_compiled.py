@@ -198,13 +198,14 @@ def test_driver_constants_are_the_python_drivers():
     from dfloop.solve.compiled.driver import CONSTANTS as C
 
     assert (C["STEP"], C["GOLDEN"], C["MONOTONE_WIDTH"], C["MAX_ROUNDS"], C["MIN_WIDTH"], C["MAX_POINTS"]) == (
-        grid.STEP, grid._GOLDEN, grid._MONOTONE_WIDTH, grid._MAX_ROUNDS, grid._MIN_WIDTH, grid._MAX_POINTS)
+        grid.STEP, grid._GOLDEN, grid.MONOTONE_WIDTH, grid._MAX_ROUNDS, grid._MIN_WIDTH, grid._MAX_POINTS)
     assert (C["SPLIT_PHASE"], C["MAX_EDGE_DEPTH"], C["MAX_SEGMENTS"], C["JUMP_LENGTH"], C["JUMP_SIZE"],
             C["JUMP_KEEP"], C["TANGENT_THRESHOLD"], C["MAX_TANGENT_SEEDS"], C["MERGE_RADIUS"], C["JUMP_DOMINANCE"],
-            C["DEGENERATE_SIN"]) == (roots._SPLIT_PHASE, roots._MAX_EDGE_DEPTH, roots._MAX_SEGMENTS,
-                                     roots._JUMP_LENGTH, roots._JUMP_SIZE, roots._JUMP_KEEP, roots._TANGENT_THRESHOLD,
-                                     roots._MAX_TANGENT_SEEDS, roots._MERGE_RADIUS, roots._JUMP_DOMINANCE,
-                                     roots._DEGENERATE_SIN)
+            C["DEGENERATE_SIN"], C["SEED_MARGIN"], C["SEED_SPLITS"], C["SEED_TESTS"]) == (
+                roots._SPLIT_PHASE, roots._MAX_EDGE_DEPTH, roots._MAX_SEGMENTS, roots._JUMP_LENGTH, roots._JUMP_SIZE,
+                roots._JUMP_KEEP, roots._TANGENT_THRESHOLD, roots._MAX_TANGENT_SEEDS, roots._MERGE_RADIUS,
+                roots._JUMP_DOMINANCE, roots._DEGENERATE_SIN, roots._SEED_MARGIN, roots._SEED_SPLITS,
+                roots._SEED_TESTS)
     from dfloop.solve import plant
 
     assert C["DECADES"] == plant._DECADES_BEYOND_FEATURES

@@ -25,14 +25,14 @@ import numpy as np
 from .._checks import memory_limit
 from .plant import Plant
 
-__all__ = ["STEP", "FD_MIN_WIDTH", "BYTES_PER_POINT", "resolve_plant", "resolve_sampled", "check_memory", "clog",
+__all__ = ["STEP", "FD_MIN_WIDTH", "MONOTONE_WIDTH", "BYTES_PER_POINT", "resolve_plant", "resolve_sampled", "check_memory", "clog",
            "largest_step"]
 
 STEP = 0.35
 """Largest change of the complex log of G (or N) allowed within one grid interval (|d ln| = |d ln|f|| + phase)."""
 _GOLDEN = 0.3819660112501051
 _SLOPE_H = 1e-7  # log step of the slope samples (relative 1e-7 in w): |d ln G/d ln w| up to ~1e7 is seen
-_MONOTONE_WIDTH = 1e-9  # intervals are split for monotonicity down to this width (relative)
+MONOTONE_WIDTH = 1e-9  # intervals are split for monotonicity down to this width (relative)
 _MAX_ROUNDS = 64  # halvings of an interval; with the minimum width below, never reached on finite windows
 _MIN_WIDTH = 1e-13  # intervals narrower than this (log units, relative to 1 + |x|) are not split (a jump)
 FD_MIN_WIDTH = 1e-6  # the same for a frequency-dependent N, whose jumps move with the amplitude
@@ -46,11 +46,12 @@ candidates; a frequency-dependent one works on the whole tensor grid (G N, 1 + G
 windings, tangent seeds)."""
 
 
-def check_memory(na: int, nv: int, frequency_dependent: bool = False) -> None:
+def check_memory(na: int, nv: int, frequency_dependent: bool = False, limit: int | None = None) -> None:
     """Raise ValueError, before anything is allocated, when the work arrays of an na x nv grid exceed the
-    memory bound; the message gives the estimate and the knobs."""
+    memory bound (``limit`` in bytes when already read, else :func:`~dfloop._checks.memory_limit`); the message
+    gives the estimate and the knobs."""
     need = BYTES_PER_POINT[bool(frequency_dependent)] * na * nv
-    limit = memory_limit()
+    limit = memory_limit() if limit is None else limit
     if need > limit:
         kind = "a frequency-dependent" if frequency_dependent else "an amplitude-only"
         raise ValueError(f"grid of {na} x {nv} points would need {need / 1024 ** 3:.1f} GiB of memory (estimate: "
@@ -159,7 +160,7 @@ def resolve_sampled(f: Callable[[np.ndarray], np.ndarray], x: np.ndarray, name: 
             turns = _non_monotone([l0, lg, lm, l1])
             if turns.ndim > 1:
                 turns = turns.any(axis=1)
-            split |= turns & np.isfinite(eps) & (dx > _MONOTONE_WIDTH * (1 + np.abs(x0)))
+            split |= turns & np.isfinite(eps) & (dx > MONOTONE_WIDTH * (1 + np.abs(x0)))
         keep = ~split
         if slopes:  # kept above the step: a discontinuity, or a feature the sampling cannot follow
             stuck = keep & (eps > step)

@@ -8,12 +8,13 @@ import warnings
 
 import numpy as np
 
-from .._checks import finite, integer_at_least, window as checked_window
+from .._checks import finite, integer_at_least, memory_limit, window as checked_window
 from ..describing.base import DescribingFunction
 from ..describing.interop import as_element
 from ..describing.static import StaticElement
 from ._kernels import candidate_cells
-from .compiled import driver_parts, driver_wanted, enabled as compiled_enabled, residual_for, run_batch, run_driver
+from .compiled import (driver_parts, driver_wanted, enabled as compiled_enabled, mode as compiled_mode, residual_for,
+                       run_batch, run_driver)
 from .grid import FD_MIN_WIDTH, STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
 from .plant import as_plant
 from .result import GridReport, JumpCrossing, LimitCycle, LimitCycles
@@ -31,7 +32,13 @@ _PHASE_STEP = np.pi / 3  # max turn of arg(G N) between neighbours (frequency-de
 _NEAR_UNIT = math.log(20.0)  # "near 1": 1/20 <= |G N| <= 20
 
 
-def _grid_size(grid, frequency_dependent: bool) -> tuple[int, int]:
+def _grid_size(grid, frequency_dependent: bool, limit: int | None = None) -> tuple[int, int]:
+    """(n_amplitudes, n_frequencies) of ``grid``, checked (``limit``: the memory bound in bytes, when already read)."""
+    if type(grid) is tuple and len(grid) == 2:  # the common case (two plain ints in range): no conversions
+        na, nw = grid
+        if type(na) is int and type(nw) is int and 2 <= na <= _MAX_GRID and 2 <= nw <= _MAX_GRID:
+            check_memory(na, nw, frequency_dependent, limit)
+            return na, nw
     try:
         pair = tuple(grid)
     except TypeError:
@@ -42,7 +49,7 @@ def _grid_size(grid, frequency_dependent: bool) -> tuple[int, int]:
               enumerate(zip(pair, ("amplitudes", "frequencies"))))  # 2.5, inf, NaN, True: a ValueError
     if na > _MAX_GRID or nw > _MAX_GRID:
         raise ValueError(f"grid sizes must lie in [2, {_MAX_GRID}]; got {grid!r}")
-    check_memory(na, nw, frequency_dependent)
+    check_memory(na, nw, frequency_dependent, limit)
     return na, nw
 
 
@@ -273,15 +280,18 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
     N = as_element(N)
     if not isinstance(exact, (bool, np.bool_)):
         raise ValueError(f"exact must be True or False; got {exact!r}")
-    tol = finite("tol", tol)
-    if not (0 < tol < 1e-3):
-        raise ValueError(f"tol must lie in (0, 1e-3); got {tol}")
-    marginal_tol = finite("marginal_tol", marginal_tol)
-    if not (0 <= marginal_tol < 1):
-        raise ValueError(f"marginal_tol must lie in [0, 1); got {marginal_tol}")
-    na, nw = _grid_size(grid, N.frequency_dependent)
+    if not (type(tol) is float and 0 < tol < 1e-3):  # a plain float in range passes as it is
+        tol = finite("tol", tol)
+        if not (0 < tol < 1e-3):
+            raise ValueError(f"tol must lie in (0, 1e-3); got {tol}")
+    if not (type(marginal_tol) is float and 0 <= marginal_tol < 1):
+        marginal_tol = finite("marginal_tol", marginal_tol)
+        if not (0 <= marginal_tol < 1):
+            raise ValueError(f"marginal_tol must lie in [0, 1); got {marginal_tol}")
+    limit = memory_limit()
+    na, nw = _grid_size(grid, N.frequency_dependent, limit)
     if not exact:  # the common case end to end in one compiled call (solve/compiled/driver.py), where it applies
-        result = _compiled_driver(G, N, omega, amplitude, na, nw, tol, marginal_tol)
+        result = _compiled_driver(G, N, omega, amplitude, na, nw, tol, marginal_tol, limit)
         if result is not None:
             return result
     plant = as_plant(G)
@@ -358,7 +368,7 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
                         candidate_cells=n_cand, n_evaluations=int(n_eval),
                         uncertified=tuple((float(np.exp(lo)), float(np.exp(hi))) for lo, hi in uncertified))
     window = (a[0], a[-1], v[0], v[-1])
-    ra, rv, jumps = find_roots(res, a, v, P, tol, cells)
+    ra, rv, jumps = find_roots(res, a, v, P, tol, cells, None if res.frequency_dependent else (eps_a, eps_v))
     cycles, rejected = _build(res, ra, rv, window, marginal_tol, tol)
     report = dataclasses.replace(report, rejected=rejected)
     lost = unresolved_boxes(res, ra, rv)
@@ -383,12 +393,11 @@ def predict_limit_cycles(G, N, *, omega=None, amplitude=None, grid=(64, 256), to
 _LABELS = ("stable", "unstable", "marginal")  # the driver's label codes
 
 
-def _driver_inputs(G, N, omega, amplitude):
+def _driver_inputs(G, N, omega, amplitude, mode: str | None = None):
     """(parts, windows (w_lo, w_hi, A_lo, A_hi), amplitude source) of the loop for the compiled driver
-    (solve/compiled/driver.py; NaN windows: the defaults), or None where it does not apply."""
-    if not compiled_enabled():
-        return None
-    parts = driver_parts(G, N)
+    (solve/compiled/driver.py; NaN windows: the defaults), or None where it does not apply (``mode``: the value
+    of ``DFLOOP_COMPILED`` when already read)."""
+    parts = driver_parts(G, N, mode)
     if parts is None:
         return None
     w_lo = w_hi = A_lo = A_hi = math.nan
@@ -408,14 +417,15 @@ def _driver_inputs(G, N, omega, amplitude):
     return parts, (w_lo, w_hi, A_lo, A_hi), a_src
 
 
-def _compiled_driver(G, N, omega, amplitude, na: int, nw: int, tol: float, marginal_tol: float):
+def _compiled_driver(G, N, omega, amplitude, na: int, nw: int, tol: float, marginal_tol: float, limit: int):
     """The result of the compiled driver where it applies and finishes; None otherwise (then the Python driver
-    runs: the same algorithm, every branch)."""
-    inputs = _driver_inputs(G, N, omega, amplitude)
-    if inputs is None or not driver_wanted():
+    runs: the same algorithm, every branch). ``limit``: the memory bound in bytes."""
+    mode = compiled_mode()  # the environment, read once for the call
+    inputs = _driver_inputs(G, N, omega, amplitude, mode)
+    if inputs is None or not driver_wanted(mode):
         return None
     parts, windows, a_src = inputs
-    raw = run_driver(*parts, *windows, na, nw, tol, marginal_tol)
+    raw = run_driver(*parts, *windows, na, nw, tol, marginal_tol, limit)
     if raw[0] != 0:
         return None
     return _driver_result(G, N, raw[1], raw[2], raw[3], omega is not None, a_src)
@@ -435,7 +445,8 @@ def predict_chunk(loops, *, omega=None, amplitude=None, grid=(64, 256), tol: flo
     out: list = [None] * len(loops)
     fast, where = [], []
     opts = dict(omega=omega, amplitude=amplitude, grid=grid, tol=tol, marginal_tol=marginal_tol, exact=exact)
-    if not exact and isinstance(exact, (bool, np.bool_)) and compiled_enabled():
+    mode = compiled_mode()
+    if not exact and isinstance(exact, (bool, np.bool_)) and compiled_enabled(mode):
         tol_c, mtol_c = finite("tol", tol), finite("marginal_tol", marginal_tol)
         if 0 < tol_c < 1e-3 and 0 <= mtol_c < 1:
             try:
@@ -447,7 +458,7 @@ def predict_chunk(loops, *, omega=None, amplitude=None, grid=(64, 256), tol: flo
                     break
                 try:
                     N = as_element(N)
-                    inputs = _driver_inputs(G, N, omega, amplitude)
+                    inputs = _driver_inputs(G, N, omega, amplitude, mode)
                 except ValueError:
                     inputs = None
                 if inputs is not None:
@@ -472,6 +483,16 @@ def predict_chunk(loops, *, omega=None, amplitude=None, grid=(64, 256), tol: flo
     return out
 
 
+@functools.lru_cache(maxsize=256)
+def _default_omega_source(mag_lo: float, mag_hi: float) -> str:
+    """How the default frequency window was chosen, from the smallest and largest |pole/zero| (remembered: a
+    plant's text is the same every call)."""
+    if not math.isfinite(mag_lo):
+        return "default: G has no pole or zero off the origin: 0.01-100 rad/s"
+    at = f"{mag_lo:.3g}" if f"{mag_lo:.3g}" == f"{mag_hi:.3g}" else f"{mag_lo:.3g}..{mag_hi:.3g}"
+    return f"default: 2 decades beyond G's poles/zeros at {at} rad/s, where G's phase and slope have settled"
+
+
 def _driver_result(G, N, fl, it, rows, w_given: bool, a_src) -> LimitCycles:
     """LimitCycles from the compiled driver's output (floats fl, ints it, root rows; see driver._drive)."""
     A_lo, A_hi, w_lo, w_hi, top, bottom, step_v, step_a, mag_lo, mag_hi = fl.tolist()
@@ -481,13 +502,7 @@ def _driver_result(G, N, fl, it, rows, w_given: bool, a_src) -> LimitCycles:
         limits += "; no root below A=%.3g by N's limit" % bottom if bottom == bottom else ""
         a_src = (f"default: where |G N| can reach 1 within N's amplitude domain{limits}" if case == 0 else
                  f"default: N's amplitude domain (|G N| never reaches 1){limits}")
-    if w_given:
-        w_src = "given"
-    elif not math.isfinite(mag_lo):
-        w_src = "default: G has no pole or zero off the origin: 0.01-100 rad/s"
-    else:
-        at = f"{mag_lo:.3g}" if f"{mag_lo:.3g}" == f"{mag_hi:.3g}" else f"{mag_lo:.3g}..{mag_hi:.3g}"
-        w_src = f"default: 2 decades beyond G's poles/zeros at {at} rad/s, where G's phase and slope have settled"
+    w_src = "given" if w_given else _default_omega_source(mag_lo, mag_hi)
     cycles = []
     for A, w, det, cond, label, r, rel, g, n, edge in rows.tolist():
         A, w, label = A.real, w.real, _LABELS[int(label.real)]

@@ -16,15 +16,18 @@ through the gap of a -1/N jump, and is reported as such instead of being refined
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..describing.base import DescribingFunction
 from .errors import ContinuumError
 from ._kernels import edge_steps, nonzero_windings, tangent_seeds
+from .grid import MONOTONE_WIDTH, STEP, clog
 from .plant import Plant
 
 __all__ = ["Residual", "Box", "OuterProduct", "find_roots", "dominant_steps", "greedy_unique", "accepted", "residual_bound",
-           "unresolved_boxes"]
+           "unresolved_boxes", "seed_excluded"]
 
 _SPLIT_PHASE = np.pi / 2  # an edge step whose phase change exceeds this is bisected
 _MAX_EDGE_DEPTH = 50  # bisection levels along an edge (2**-50 of its length)
@@ -38,6 +41,9 @@ _EARLY_CONTINUUM_CHECK = 64  # edge zeros + multiple windings on the grid beyond
 _MERGE_RADIUS = 1e-12  # refined points closer than this (log units) plus their uncertainty are one root
 _TANGENT_THRESHOLD = 0.1  # local minima of |R|^2 / (1 + |GN|^2) below this are searched for hidden roots
 _MAX_TANGENT_SEEDS = 5000
+_SEED_MARGIN = 0.005  # a tangent seed's box where |ln(G N) - j pi| >= this provably everywhere is not refined ...
+_SEED_SPLITS = 64  # ... proved with at most this many halvings of the pieces covering ln N and ln G ...
+_SEED_TESTS = 4096  # ... and this many tests of a pair of pieces
 # live boxes crowding in a region this small (log units) are one multiple root: a double root is located only to
 # about sqrt(rounding) (1.5e-8) along its degenerate direction, where Re R or Im R stays at rounding level and zeros
 # appear on many box edges; distinct simple roots are isolated by winding long before their boxes number thousands
@@ -745,11 +751,160 @@ def _node_boxes(a: np.ndarray, v: np.ndarray, i: np.ndarray, j: np.ndarray, n: i
                v[np.maximum(j - n, 0)], v[np.minimum(j + n, v.size - 1)])
 
 
-def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: float, cells=None):
+def _wrap(d: float) -> float:
+    """d wrapped to [-pi, pi) (d within (-5 pi, 5 pi): sums and differences of two args and pi)."""
+    for _ in range(2):
+        if d >= math.pi:
+            d -= 2 * math.pi
+        elif d < -math.pi:
+            d += 2 * math.pi
+    return d
+
+
+def _gap(l0: complex, l1: complex, t: complex, e: float) -> float:
+    """How far (log units, arg modulo 2 pi) the rectangle spanned by l0, l1 (ln N at the ends of a piece where
+    ln|N| and arg N are monotone and arg N turns by less than pi) lies from the disc of radius e around t
+    (j pi - ln G at the left end of a piece of G, e the exact bound on ln G's change over it)."""
+    x0, x1 = min(l0.real, l1.real), max(l0.real, l1.real)
+    dy = _wrap(l1.imag - l0.imag)
+    yc, hy = l0.imag + 0.5 * dy, 0.5 * abs(dy)
+    dx = max(x0 - t.real, t.real - x1, 0.0)
+    dd = max(abs(_wrap(t.imag - yc)) - hy, 0.0)
+    return math.sqrt(dx * dx + dd * dd) - e
+
+
+def _log(x: float) -> float:
+    """ln x, -inf at 0 (as numpy)."""
+    return math.log(x) if x > 0 else -math.inf
+
+
+def _variation(plant: Plant, w0: float, w1: float) -> float:
+    """:meth:`Plant.log_variation` on one interval [w0, w1], in scalar arithmetic (the same bound)."""
+    rise = fall = pos = neg = 0.0
+    zeros, poles = plant.roots
+    for sg, roots in ((1.0, zeros), (-1.0, poles)):
+        for r in roots.tolist():
+            x, y = -r.real, r.imag
+            turn = sg * math.atan2(x * (w1 - w0), x * x + (w0 - y) * (w1 - y))
+            m0, m1 = 0.5 * _log(x * x + (w0 - y) ** 2), 0.5 * _log(x * x + (w1 - y) ** 2)
+            low = _log(abs(x)) if w0 < y < w1 else min(m0, m1)
+            rise += (m1 - low) if sg > 0 else (m0 - low)
+            fall += (m0 - low) if sg > 0 else (m1 - low)
+            pos += max(turn, 0.0)
+            neg += min(turn, 0.0)
+    return math.hypot(max(pos, -neg + float(plant.delay) * (w1 - w0)), max(rise, fall))
+
+
+def _clog1(z: complex) -> complex:
+    return complex(math.log(abs(z)), math.atan2(z.imag, z.real))
+
+
+def seed_excluded(res: Residual, a: np.ndarray, v: np.ndarray, ln_n: np.ndarray, eps_a: np.ndarray, ln_g: np.ndarray,
+                  eps_v: np.ndarray, i0: int, i1: int, j0: int, j1: int) -> bool:
+    """Whether the box a[i0]..a[i1] x v[j0]..v[j1] provably holds no point where |1 + G N| is within 0.125 % of
+    1 + |G N|: no root, and nothing :func:`refine` could accept there (tol < 1e-3).
+
+    A root needs ln N(a) = j pi - ln G(v) (mod 2 pi j): the curve ln N over the box's amplitudes must meet the
+    curve j pi - ln G over its frequencies. On each interval of N's grid ln|N| and arg N are monotone (the
+    monotone rule of :func:`~dfloop.solve.grid.resolve_sampled`, the promise the candidate cells rest on), so ln N
+    there stays in the rectangle its ends span; j pi - ln G stays within :meth:`Plant.log_variation` of its value
+    at either end of an interval (the exact bound, rational G). Every pair of an N piece and a G piece closer
+    than ``_SEED_MARGIN`` is replaced by the pairs of its larger piece's halves (N or G evaluated at the midpoint
+    the first time a piece is halved), with at most ``_SEED_SPLITS`` halvings and ``_SEED_TESTS`` pair tests.
+    When all pairs are ``_SEED_MARGIN`` apart, |ln(G N) - j pi| >= 0.005 throughout the box, so |1 + G N| / (1 + |G N|) >= 0.00125 > tol (the relative
+    residual is sqrt(sinh^2(x/2) + sin^2(y/2)) / cosh(x/2) at ln(G N) - j pi = x + j y). Intervals N cannot be
+    bounded on (a jump, N = 0 at an end, a turn left at the monotone width) and plants without poles and zeros
+    are never excluded. ln_n, ln_g: complex logs of N and G at the grid nodes; eps_a, eps_v: the grid's bounds.
+    """
+    plant = res.plant
+    if not plant.exact or plant.frequency_map is not None or res.frequency_dependent:
+        return False
+    npc = []  # N pieces: [a0, a1, ln N(a0), ln N(a1)]
+    for i in range(i0, i1):
+        if not (eps_a[i] <= STEP and a[i + 1] - a[i] > MONOTONE_WIDTH * (1 + abs(a[i]))):
+            return False
+        if not (math.isfinite(ln_n[i].real) and math.isfinite(ln_n[i + 1].real)):
+            return False
+        npc.append([a[i], a[i + 1], complex(ln_n[i]), complex(ln_n[i + 1])])
+    gpc = []  # G pieces: [v0, v1, j pi - ln G(v0), j pi - ln G(v1), bound]
+    for j in range(j0, j1):
+        if not (math.isfinite(eps_v[j]) and math.isfinite(ln_g[j].real) and math.isfinite(ln_g[j + 1].real)):
+            return False
+        gpc.append([v[j], v[j + 1], complex(-ln_g[j].real, math.pi - ln_g[j].imag),
+                    complex(-ln_g[j + 1].real, math.pi - ln_g[j + 1].imag), float(eps_v[j])])
+    pairs = [(p, q) for p in range(len(npc)) for q in range(len(gpc))]
+    n_child, g_child = [-1] * len(npc), [-1] * len(gpc)  # the pieces are binary trees: halves made once, shared
+    splits = tests = 0
+    while pairs:
+        p, q = pairs.pop()
+        xa0, xa1, l0, l1 = npc[p]
+        xv0, xv1, t0, t1, e = gpc[q]
+        tests += 1
+        if max(_gap(l0, l1, t0, e), _gap(l0, l1, t1, e)) >= _SEED_MARGIN:
+            continue
+        if tests > _SEED_TESTS:
+            return False
+        if math.hypot(l1.real - l0.real, _wrap(l1.imag - l0.imag)) >= e:  # the N piece's halves
+            if n_child[p] < 0:
+                splits += 1
+                if splits > _SEED_SPLITS:
+                    return False
+                xm = 0.5 * (xa0 + xa1)
+                nm = complex(np.asarray(res.N(np.array([math.exp(xm)])), complex).ravel()[0])
+                if not (math.isfinite(nm.real) and math.isfinite(nm.imag)) or nm == 0:
+                    return False
+                lm = _clog1(nm)
+                n_child[p] = len(npc)
+                npc += [[xa0, xm, l0, lm], [xm, xa1, lm, l1]]
+                n_child += [-1, -1]
+            pairs += [(n_child[p], q), (n_child[p] + 1, q)]
+        else:  # the G piece's halves
+            if g_child[q] < 0:
+                splits += 1
+                if splits > _SEED_SPLITS:
+                    return False
+                xm = 0.5 * (xv0 + xv1)
+                w0, wm, w1 = math.exp(xv0), math.exp(xm), math.exp(xv1)
+                gm = complex(plant(np.array([wm]))[0])
+                if not (math.isfinite(gm.real) and math.isfinite(gm.imag)) or gm == 0:
+                    return False
+                lgm = _clog1(gm)
+                tm = complex(-lgm.real, math.pi - lgm.imag)
+                e0, e1 = _variation(plant, w0, wm), _variation(plant, wm, w1)
+                if not (math.isfinite(e0) and math.isfinite(e1)):
+                    return False
+                g_child[q] = len(gpc)
+                gpc += [[xv0, xm, t0, tm, e0], [xm, xv1, tm, t1, e1]]
+                g_child += [-1, -1]
+            pairs += [(p, g_child[q]), (p, g_child[q] + 1)]
+    return True
+
+
+def _refined_seeds(res: Residual, a, v, P, si: np.ndarray, sj: np.ndarray, bounds) -> np.ndarray:
+    """The tangent seeds worth refining: a seed whose +-2-node box provably holds nothing the refinement could
+    accept (:func:`seed_excluded`) is dropped, unless the wider +-3-node retry next to a jump of N could still
+    run and its box is not excluded too. The refinements of the seeds kept give exactly what refining all of
+    them gives (every refinement of a dropped seed fails)."""
+    eps_a, eps_v = bounds
+    ln_n, ln_g = clog(P.n), clog(P.g)
+    na, nv = a.size, v.size
+    keep = np.ones(si.size, bool)
+    for k, (i, j) in enumerate(zip(si.tolist(), sj.tolist())):
+        if seed_excluded(res, a, v, ln_n, eps_a, ln_g, eps_v, max(i - 2, 0), min(i + 2, na - 1), max(j - 2, 0),
+                         min(j + 2, nv - 1)):
+            keep[k] = bool(_near_jump(P, np.array([i]), np.array([j]), 3)[0]) and not seed_excluded(
+                res, a, v, ln_n, eps_a, ln_g, eps_v, max(i - 3, 0), min(i + 3, na - 1), max(j - 3, 0),
+                min(j + 3, nv - 1))
+    return keep
+
+
+def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: float, cells=None, bounds=None):
     """All roots of R in the window spanned by the grid (a, v) with loop products P = G N on it.
 
     ``cells`` = (i, j): the only cells that can hold a root (see ``candidate_cells``); None for all. P is an
     array, or with ``cells`` an :class:`OuterProduct` (only read at the candidate cells and their neighbours).
+    ``bounds`` = (eps_a, eps_v), the grid's bounds per interval (with ``cells``): tangent seeds whose boxes
+    provably hold no root are then not refined (:func:`_refined_seeds`).
     Returns arrays (a, v) of refined roots (|R| <= tol (1 + |GN|)), merged and sorted by frequency,
     and the jump crossings of N as rows (a, v, winding) sorted by frequency. Raises ValueError when
     the roots form a continuum (:func:`check_continuum`).
@@ -805,6 +960,9 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
     if si.size > _MAX_TANGENT_SEEDS:
         best = np.argsort(sm)[:_MAX_TANGENT_SEEDS]
         si, sj = si[best], sj[best]
+    if si.size and bounds is not None and isinstance(P, OuterProduct):
+        keep = _refined_seeds(res, a, v, P, si, sj, bounds)
+        si, sj = si[keep], sj[keep]
     if si.size:
         sbox = _node_boxes(a, v, si, sj, 2)
         ta, tv, ok = refine(res, a[si], v[sj], sbox, tol)

@@ -32,6 +32,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from ..._checks import memory_limit
+from ..grid import BYTES_PER_POINT
 from .kernels import accepted, cabs, cdiv, element, plant, refine, slopes_at
 
 __all__ = ["solve_one", "solve_many", "solve_one_dispatcher", "solve_many_dispatcher", "FALLBACK", "MAX_ROOTS", "CONSTANTS", "STABLE", "UNSTABLE", "MARGINAL"]
@@ -41,7 +43,8 @@ CONSTANTS = dict(
     STEP=0.35, GOLDEN=0.3819660112501051, MONOTONE_WIDTH=1e-9, MAX_ROUNDS=64, MIN_WIDTH=1e-13,
     MAX_POINTS=2_000_000, SPLIT_PHASE=np.pi / 2, MAX_EDGE_DEPTH=50, MAX_SEGMENTS=4_000_000, JUMP_LENGTH=1e-9,
     JUMP_SIZE=1e-3, JUMP_KEEP=0.9, TANGENT_THRESHOLD=0.1, MAX_TANGENT_SEEDS=5000, MERGE_RADIUS=1e-12,
-    JUMP_DOMINANCE=4.0, DEGENERATE_SIN=1e-4, DECADES=2.0, EDGE_TOL=1e-9)
+    JUMP_DOMINANCE=4.0, DEGENERATE_SIN=1e-4, DECADES=2.0, EDGE_TOL=1e-9, SEED_MARGIN=0.005, SEED_SPLITS=64,
+    SEED_TESTS=4096)
 _STEP = CONSTANTS["STEP"]
 _GOLDEN = CONSTANTS["GOLDEN"]
 _MONOTONE_WIDTH = CONSTANTS["MONOTONE_WIDTH"]
@@ -60,6 +63,9 @@ _MERGE_RADIUS = CONSTANTS["MERGE_RADIUS"]
 _DOMINANCE = CONSTANTS["JUMP_DOMINANCE"]
 _DEGENERATE_SIN = CONSTANTS["DEGENERATE_SIN"]
 _EDGE_TOL = CONSTANTS["EDGE_TOL"]
+_SEED_MARGIN = CONSTANTS["SEED_MARGIN"]
+_SEED_SPLITS = CONSTANTS["SEED_SPLITS"]
+_SEED_TESTS = CONSTANTS["SEED_TESTS"]
 _WIN_LO = 10.0 ** -CONSTANTS["DECADES"]
 _WIN_HI = 10.0 ** CONSTANTS["DECADES"]
 _TWO_PI = 2.0 * np.pi
@@ -85,6 +91,8 @@ _OPTS = dict(cache=True, nogil=True, error_model="numpy")
 
 _CORNER_I = np.array([0, 1, 1, 0])
 _CORNER_J = np.array([0, 0, 1, 1])
+
+_BYTES_PER_POINT = float(BYTES_PER_POINT[False])  # the work arrays per grid point (amplitude-only N)
 
 # label codes
 STABLE, UNSTABLE, MARGINAL = 0, 1, 2
@@ -201,9 +209,17 @@ def _dlog(l1, l0):
 
 @njit(**_OPTS)
 def _order(x):
-    """A stable argsort of a 1-D array (bottom-up merge sort; NaN-free input): np.argsort(kind="stable")."""
+    """A stable argsort of a 1-D array (bottom-up merge sort; NaN-free input): np.argsort(kind="stable").
+    Input already in order (most grids): the identity, after one pass."""
     n = x.size
     idx = np.arange(n)
+    ordered = True
+    for i in range(1, n):
+        if x[i] < x[i - 1]:
+            ordered = False
+            break
+    if ordered:
+        return idx
     tmp = np.empty(n, np.int64)
     width = 1
     while width < n:
@@ -271,40 +287,37 @@ def _sign(x):
 
 
 @njit(**_OPTS)
-def _log_variation(rr, sgn, delay, w0, w1, b1, b2, b3, b4):
-    """Plant.log_variation on one interval [w0, w1] (roots rr, signs +1 zeros / -1 poles; b1..b4 work space)."""
-    n = rr.size
-    for k in range(n):
-        x, y = -rr[k].real, rr[k].imag
-        turn = sgn[k] * math.atan2(x * (w1 - w0), x * x + (w0 - y) * (w1 - y))
-        m0 = 0.5 * math.log(x * x + (w0 - y) * (w0 - y))
-        m1 = 0.5 * math.log(x * x + (w1 - y) * (w1 - y))
-        low = math.log(abs(x)) if (w0 < y and y < w1) else _npmin(m0, m1)
-        up, down = m1 - low, m0 - low
-        b1[k] = up if sgn[k] > 0 else down
-        b2[k] = down if sgn[k] > 0 else up
-        b3[k] = turn if turn > 0 else 0.0
-        b4[k] = turn if turn < 0 else 0.0
-    rise, fall = _row_sum(b1, n), _row_sum(b2, n)
-    arg = _npmax(_row_sum(b3, n), -_row_sum(b4, n) + delay * (w1 - w0))
-    return math.hypot(arg, _npmax(rise, fall))
-
-
-@njit(**_OPTS)
 def _resolve_plant(zeros, poles, delay, v):
-    """grid.resolve_plant for a rational G: (nodes, eps per interval, status)."""
+    """grid.resolve_plant for a rational G: (nodes, e^nodes, eps per interval, status).
+
+    The intervals of a round are the ones of the Python version, in its order, each bounded by
+    Plant.log_variation's expressions. Every node (its w = e^x and ln|jw - r| for each root r) is computed once,
+    in a table the intervals index (a split adds its midpoint): the same expression at the same w gives the same
+    value. The loops are written out here, with no call that takes an array (numba does not inline such calls
+    across functions, and each one pays reference counting)."""
     rr = np.concatenate((zeros, poles))
-    sgn = np.concatenate((np.ones(zeros.size), -np.ones(poles.size)))
+    nz = zeros.size
     nr = rr.size
+    xr, yr = np.empty(nr), np.empty(nr)
+    for k in range(nr):
+        xr[k], yr[k] = -rr[k].real, rr[k].imag  # jw - r = x + j (w - y)
     b1, b2, b3, b4 = np.empty(nr), np.empty(nr), np.empty(nr), np.empty(nr)
-    out_x = np.empty(2 * v.size + 16)
+    cap = 2 * v.size + 16
+    tx, tw, tm = np.empty(cap), np.empty(cap), np.empty((cap, nr))  # the node table: x, e^x, ln|jw - r|
+    n_nodes = v.size
+    for i in range(n_nodes):
+        w = math.exp(v[i])
+        tx[i], tw[i] = v[i], w
+        for k in range(nr):
+            tm[i, k] = 0.5 * math.log(xr[k] * xr[k] + (w - yr[k]) * (w - yr[k]))
+    out_n = np.empty(2 * v.size + 16, np.int64)  # the finished nodes (table indices) and intervals
     out_e = np.empty(2 * v.size + 16)
-    out_x[0] = v[0]
+    out_n[0] = 0
     n_out = 1
-    x0, x1 = v[:-1].copy(), v[1:].copy()
+    i0, i1 = np.arange(v.size - 1), np.arange(1, v.size)  # node indices of the live intervals' ends
     settled = False
     for _ in range(_MAX_ROUNDS):
-        m = x0.size
+        m = i0.size
         if m == 0:
             settled = True
             break
@@ -312,39 +325,82 @@ def _resolve_plant(zeros, poles, delay, v):
         split = np.empty(m, np.bool_)
         n_split = 0
         for i in range(m):
-            eps[i] = _log_variation(rr, sgn, delay, math.exp(x0[i]), math.exp(x1[i]), b1, b2, b3, b4)
-            split[i] = (eps[i] > _STEP) and (x1[i] - x0[i] > _MIN_WIDTH * (1 + abs(x0[i])))
+            p, q = i0[i], i1[i]
+            w0, w1 = tw[p], tw[q]
+            for k in range(nr):  # Plant._log_variation, one root at a time (zeros +, poles -)
+                x, y = xr[k], yr[k]
+                turn = math.atan2(x * (w1 - w0), x * x + (w0 - y) * (w1 - y))
+                if k >= nz:
+                    turn = -turn
+                m0, m1 = tm[p, k], tm[q, k]
+                low = math.log(abs(x)) if (w0 < y and y < w1) else _npmin(m0, m1)
+                up, down = m1 - low, m0 - low
+                b1[k] = up if k < nz else down
+                b2[k] = down if k < nz else up
+                b3[k] = turn if turn > 0 else 0.0
+                b4[k] = turn if turn < 0 else 0.0
+            if nr == 0:
+                rise = fall = pos = neg = 0.0
+            elif nr <= 8:  # numpy's sum along the last axis: the first term plus the others in order
+                rise, fall, pos, neg = -0.0, -0.0, -0.0, -0.0
+                for k in range(1, nr):
+                    rise += b1[k]
+                    fall += b2[k]
+                    pos += b3[k]
+                    neg += b4[k]
+                rise, fall, pos, neg = b1[0] + rise, b2[0] + fall, b3[0] + pos, b4[0] + neg
+            else:
+                rise, fall, pos, neg = _row_sum(b1, nr), _row_sum(b2, nr), _row_sum(b3, nr), _row_sum(b4, nr)
+            arg = _npmax(pos, -neg + delay * (w1 - w0))
+            e = math.hypot(arg, _npmax(rise, fall))
+            eps[i] = e
+            split[i] = (e > _STEP) and (tx[q] - tx[p] > _MIN_WIDTH * (1 + abs(tx[p])))
             n_split += split[i]
-        if n_out + m > out_x.size:
-            grow = max(2 * out_x.size, n_out + m)
-            ox, oe = np.empty(grow), np.empty(grow)
-            ox[:n_out], oe[:n_out] = out_x[:n_out], out_e[:n_out]
-            out_x, out_e = ox, oe
-        nx0, nx1 = np.empty(2 * n_split), np.empty(2 * n_split)
+        if n_out + m > out_n.size:
+            grow = max(2 * out_n.size, n_out + m)
+            on, oe = np.empty(grow, np.int64), np.empty(grow)
+            on[:n_out], oe[:n_out] = out_n[:n_out], out_e[:n_out]
+            out_n, out_e = on, oe
+        if n_nodes + n_split > tx.size:
+            grow = max(2 * tx.size, n_nodes + n_split)
+            gx, gw, gm = np.empty(grow), np.empty(grow), np.empty((grow, nr))
+            gx[:n_nodes], gw[:n_nodes], gm[:n_nodes] = tx[:n_nodes], tw[:n_nodes], tm[:n_nodes]
+            tx, tw, tm = gx, gw, gm
+        n0, n1 = np.empty(2 * n_split, np.int64), np.empty(2 * n_split, np.int64)
         k = 0
         for i in range(m):
+            p, q = i0[i], i1[i]
             if split[i]:
-                xm = 0.5 * (x0[i] + x1[i])
-                nx0[k], nx1[k] = x0[i], xm
-                nx0[n_split + k], nx1[n_split + k] = xm, x1[i]
+                xm = 0.5 * (tx[p] + tx[q])
+                w = math.exp(xm)
+                tx[n_nodes], tw[n_nodes] = xm, w
+                for r in range(nr):
+                    tm[n_nodes, r] = 0.5 * math.log(xr[r] * xr[r] + (w - yr[r]) * (w - yr[r]))
+                n0[k], n1[k] = p, n_nodes
+                n0[n_split + k], n1[n_split + k] = n_nodes, q
+                n_nodes += 1
                 k += 1
             else:
-                out_x[n_out] = x1[i]
+                out_n[n_out] = q
                 out_e[n_out - 1] = eps[i]
                 n_out += 1
-        x0, x1 = nx0, nx1
-        if n_out + x0.size > _MAX_POINTS:
-            return out_x[:1], out_e[:0], 6
+        i0, i1 = n0, n1
+        if n_out + i0.size > _MAX_POINTS:
+            return tx[:1], tw[:1], out_e[:0], 6
     if not settled:
-        return out_x[:1], out_e[:0], 6
-    order = _order(out_x[1:n_out])
-    nodes = np.empty(n_out)
-    eps = np.empty(n_out - 1)
-    nodes[0] = out_x[0]
+        return tx[:1], tw[:1], out_e[:0], 6
+    xs = np.empty(n_out - 1)
     for i in range(n_out - 1):
-        nodes[i + 1] = out_x[order[i] + 1]
+        xs[i] = tx[out_n[i + 1]]
+    order = _order(xs)
+    nodes, ws = np.empty(n_out), np.empty(n_out)
+    eps = np.empty(n_out - 1)
+    nodes[0], ws[0] = tx[0], tw[0]
+    for i in range(n_out - 1):
+        q = out_n[order[i] + 1]
+        nodes[i + 1], ws[i + 1] = tx[q], tw[q]
         eps[i] = out_e[order[i]]
-    return nodes, eps, 0
+    return nodes, ws, eps, 0
 
 
 # ------------------------------------------------------------------------------------------------ N's grid
@@ -476,27 +532,29 @@ def _reach_index(c, d, half, to_inf):
 
 @njit(**_OPTS)
 def _fine_value(num, den, delay, n0, vf, slack):
-    """(room / (|G| (1 + slack)), ok) at one fine frequency of predict._limit_reach; ok False where that function
-    gives up (G N_lim not finite, or no room)."""
+    """(room / (|G| (1 + slack)), ok, G) at one fine frequency of predict._limit_reach; ok False where that
+    function gives up (G N_lim not finite, or no room)."""
     g = plant(num, den, delay, math.exp(vf))
     P = g * n0
     if not (math.isfinite(P.real) and math.isfinite(P.imag)):
-        return np.nan, False
+        return np.nan, False, g
     room = cabs(1 + P) - cabs(P) * slack
     if not room > 0:
-        return np.nan, False
-    return room / (cabs(g) * (1 + slack)), True
+        return np.nan, False, g
+    return room / (cabs(g) * (1 + slack)), True, g
 
 
 @njit(**_OPTS)
-def _limit_reach(num, den, delay, kind, p, v, g, eps_v, to_inf, c, d):
+def _limit_reach(num, den, zeros, poles, delay, kind, p, v, g, eps_v, to_inf, c, d):
     """predict._limit_reach: the amplitude beyond (to_inf) or below which no root lies, or NaN (None there).
 
     The element's bound is c / A (tail, to_inf) or c A^2 + d (head); c NaN: the element states none. The
     minimum r over the refined frequencies is needed only as far as it moves the index read on the amplitude
     grid: it is taken on the nodes first (G there is known), then the refined frequencies of an interval are
     evaluated only where the interval's exact variation bound eps (|ln G(w) - ln G(w_k)| <= eps) cannot keep
-    them above the threshold that would change the index; the result is the one of the full evaluation."""
+    them above the threshold that would change the index, and there by halving blocks of them with the exact
+    bound of each block; the result is the one of the full evaluation (a skipped value is above the threshold, and
+    has room)."""
     if c != c:
         return np.nan
     n0 = element(kind, p, np.inf if to_inf else 0.0)
@@ -512,7 +570,7 @@ def _limit_reach(num, den, delay, kind, p, v, g, eps_v, to_inf, c, d):
     slack = math.expm1((slack_eps if slack_eps > -np.inf else _STEP) / k)
     r = np.inf
     for i in range(nv):  # the nodes (t = 0 of every interval, and the last node)
-        val, ok = _fine_value(num, den, delay, n0, v[i], slack)
+        val, ok, _ = _fine_value(num, den, delay, n0, v[i], slack)
         if not ok:
             return np.nan
         r = _npmin(r, val)
@@ -520,6 +578,7 @@ def _limit_reach(num, den, delay, kind, p, v, g, eps_v, to_inf, c, d):
     if idx < 0 and to_inf:
         return np.nan  # no amplitude of the grid is reached: none for any smaller r either
     an0 = cabs(n0)
+    bq0, bq1 = np.empty(2 * k + 2, np.int64), np.empty(2 * k + 2, np.int64)  # a stack of blocks
     for i in range(nv - 1):
         # value(w) = (|1/G(w) + N_lim| - |N_lim| slack) / (1 + slack), and |1/G(w) - 1/G_i| <= |1/G_i| (e^eps - 1)
         e = math.exp(eps_v[i]) * (1 + 1e-12)
@@ -527,11 +586,32 @@ def _limit_reach(num, den, delay, kind, p, v, g, eps_v, to_inf, c, d):
         lb = (cabs(h + n0) - cabs(h) * (e - 1) - an0 * slack) / (1 + slack) * (1 - 1e-9) - 1e-300
         if math.isfinite(e) and math.isfinite(lb) and lb > 0 and thr < 0.5 * lb:
             continue  # no refined frequency of this interval can change the index (nor has no room)
-        for q in range(1, k):
-            val, ok = _fine_value(num, den, delay, n0, v[i] + (v[i + 1] - v[i]) * (q * step_t), slack)
+        # the refined frequencies q = 1..k-1 in blocks [q0, q1]: G at q0 evaluated, the rest of the block skipped
+        # when the exact variation of G over it keeps every value above the threshold (as for whole intervals)
+        bq0[0], bq1[0] = 1, k - 1
+        nb = 1
+        while nb > 0:
+            nb -= 1
+            q0, q1 = bq0[nb], bq1[nb]
+            x0 = v[i] + (v[i + 1] - v[i]) * (q0 * step_t)
+            val, ok, g0 = _fine_value(num, den, delay, n0, x0, slack)
             if not ok:
                 return np.nan
             r = _npmin(r, val)
+            if q1 == q0:
+                continue
+            x1 = v[i] + (v[i + 1] - v[i]) * (q1 * step_t)
+            e = math.exp(_variation(zeros, poles, delay, math.exp(x0), math.exp(x1))) * (1 + 1e-12)
+            h = cdiv(1.0 + 0j, g0)
+            lb = (cabs(h + n0) - cabs(h) * (e - 1) - an0 * slack) / (1 + slack) * (1 - 1e-9) - 1e-300
+            if math.isfinite(e) and math.isfinite(lb) and lb > 0 and thr < 0.5 * lb:
+                continue
+            mid = (q0 + 1 + q1) // 2  # [q0 + 1, mid - 1] and [mid, q1]
+            bq0[nb], bq1[nb] = mid, q1
+            nb += 1
+            if mid - 1 >= q0 + 1:
+                bq0[nb], bq1[nb] = q0 + 1, mid - 1
+                nb += 1
     idx, thr = _reach_index(c, d, 0.5 * r, to_inf)
     if idx < 0:
         return np.nan
@@ -539,11 +619,11 @@ def _limit_reach(num, den, delay, kind, p, v, g, eps_v, to_inf, c, d):
 
 
 @njit(**_OPTS)
-def _amplitude_window(num, den, delay, kind, p, v, g, g_abs, eps_v, lo, hi, tail_c, head_c, head_d):
+def _amplitude_window(num, den, zeros, poles, delay, kind, p, v, g, g_abs, eps_v, lo, hi, tail_c, head_c, head_d):
     """predict._default_amplitude_window for an amplitude-only N: (A_lo, A_hi, case, top, bottom, status);
     case 0: |G N| can reach 1 there, 1: N's amplitude domain (never reaches 1)."""
-    top = _limit_reach(num, den, delay, kind, p, v, g, eps_v, True, tail_c, 0.0)
-    bottom = _limit_reach(num, den, delay, kind, p, v, g, eps_v, False, head_c, head_d)
+    top = _limit_reach(num, den, zeros, poles, delay, kind, p, v, g, eps_v, True, tail_c, 0.0)
+    bottom = _limit_reach(num, den, zeros, poles, delay, kind, p, v, g, eps_v, False, head_c, head_d)
     if lo > 0:
         cand = lo * (1 + _CAND_ABOVE)
         if top == top:
@@ -599,20 +679,30 @@ def _amplitude_window(num, den, delay, kind, p, v, g, g_abs, eps_v, lo, hi, tail
 # ------------------------------------------------------------------------------------------ cells and windings
 
 
+_SCAN_ROWS = 16  # up to this many amplitude intervals the candidate cells are found by a scan of every cell
+
+
 @njit(**_OPTS)
-def _candidate_cells(ln_n, eps_a, ln_g, eps_v):
-    """_kernels.candidate_cells: sorted flat indices i * n_nodes_v + j of the cells that may hold a root."""
-    na, nv = ln_n.size - 1, ln_g.size - 1
+def _candidate_cells(ln_n, eps_a, rg, g, eps_v):
+    """_kernels.candidate_cells: sorted flat indices i * n_nodes_v + j of the cells that may hold a root, and
+    arg G at the nodes where it was needed (NaN elsewhere).
+
+    rg: ln|G| at the frequency nodes (the real part of grid.clog(G)); arg G, its imaginary part, is computed only
+    at the nodes of cells whose real parts pass, once each. Few amplitude intervals (<= _SCAN_ROWS): every cell
+    is scanned for the window [lo, hi] of the sorted search (the same cells, found without a sort)."""
+    na, nv = ln_n.size - 1, rg.size - 1
     if na < 1 or nv < 1:
-        return np.empty(0, np.int64)
-    rg = np.empty(nv)
-    for j in range(nv):
-        rg[j] = ln_g[j].real
-    order = _order(rg)
-    srt = rg[order]
+        return np.empty(0, np.int64), np.full(nv + 1, np.nan)
     emax = -np.inf
     for j in range(nv):
         emax = _npmax(emax, eps_v[j])
+    scan = na <= _SCAN_ROWS
+    order = np.empty(0, np.int64)
+    srt = rg[:0]
+    if not scan:
+        order = _order(rg[:nv])
+        srt = rg[:nv][order]
+    arg_g = np.full(nv + 1, np.nan)
     out = np.empty(64, np.int64)
     n_out = 0
     for i in range(na):
@@ -624,18 +714,29 @@ def _candidate_cells(ln_n, eps_a, ln_g, eps_v):
             lo = -np.inf
         if hi != hi:
             hi = np.inf
-        start = _bisect(srt, lo, False)
-        stop = _bisect(srt, hi, True)
+        start, stop = 0, nv
+        if not scan:
+            start = _bisect(srt, lo, False)
+            stop = _bisect(srt, hi, True)
         for q in range(start, stop):
-            j = order[q]
+            if scan:
+                j = q
+                if not (lo <= rg[j] and rg[j] <= hi):
+                    continue
+            else:
+                j = order[q]
             re = rn + rg[j]
             e = eps_a[i] + eps_v[j]
-            im = ln_n[i].imag + ln_g[j].imag - _PI
+            if abs(re) > e:
+                continue
+            if arg_g[j] != arg_g[j]:
+                arg_g[j] = _angle(g[j])
+            im = ln_n[i].imag + arg_g[j] - _PI
             if im > _PI:
                 im -= _TWO_PI
             elif im < -_PI:
                 im += _TWO_PI
-            if not (abs(re) > e) and re * re + im * im <= e * e:
+            if re * re + im * im <= e * e:
                 if n_out == out.size:
                     grow = np.empty(2 * out.size, np.int64)
                     grow[:n_out] = out[:n_out]
@@ -643,7 +744,7 @@ def _candidate_cells(ln_n, eps_a, ln_g, eps_v):
                 out[n_out] = i * (nv + 1) + j  # flat index in the node grid
                 n_out += 1
     out = out[:n_out]
-    return out[_order(out)]
+    return (out if scan else out[_order(out)]), arg_g
 
 
 @njit(**_OPTS)
@@ -846,9 +947,166 @@ def _windings(num, den, delay, kind, p, continuous, a, v, n, g, cells):
 
 
 @njit(**_OPTS)
-def _tangent_seeds(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n, g, cells, wind_cells, tol):
+def _variation(zeros, poles, delay, w0, w1):
+    """Plant.log_variation on one interval [w0, w1]: the exact bound on |ln G(w) - ln G(w0)| there."""
+    rise = fall = pos = neg = 0.0
+    for k in range(zeros.size + poles.size):
+        r = zeros[k] if k < zeros.size else poles[k - zeros.size]
+        sg = 1.0 if k < zeros.size else -1.0
+        x, y = -r.real, r.imag
+        turn = sg * math.atan2(x * (w1 - w0), x * x + (w0 - y) * (w1 - y))
+        m0 = 0.5 * math.log(x * x + (w0 - y) * (w0 - y))
+        m1 = 0.5 * math.log(x * x + (w1 - y) * (w1 - y))
+        low = math.log(abs(x)) if (w0 < y and y < w1) else _npmin(m0, m1)
+        rise += (m1 - low) if sg > 0 else (m0 - low)
+        fall += (m0 - low) if sg > 0 else (m1 - low)
+        pos += turn if turn > 0 else 0.0
+        neg += turn if turn < 0 else 0.0
+    return math.hypot(_npmax(pos, -neg + delay * (w1 - w0)), _npmax(rise, fall))
+
+
+@njit(**_OPTS)
+def _wrap(d):
+    """d wrapped to [-pi, pi) (d within (-5 pi, 5 pi): sums and differences of two args and pi)."""
+    for _ in range(2):
+        if d >= _PI:
+            d -= _TWO_PI
+        elif d < -_PI:
+            d += _TWO_PI
+    return d
+
+
+@njit(**_OPTS)
+def _gap(l0, l1, t, e):
+    """How far (log units, arg taken modulo 2 pi) the rectangle spanned by l0, l1 (ln N at the ends of a piece on
+    which ln|N| and arg N are monotone and arg N turns by less than pi) lies from the disc of radius e around t
+    (j pi - ln G at the left end of a piece of G, e the exact bound of ln G's change on it)."""
+    x0, x1 = _npmin(l0.real, l1.real), _npmax(l0.real, l1.real)
+    dy = _wrap(l1.imag - l0.imag)
+    yc, hy = l0.imag + 0.5 * dy, 0.5 * abs(dy)
+    dx = _npmax(_npmax(x0 - t.real, t.real - x1), 0.0)
+    dd = _npmax(abs(_wrap(t.imag - yc)) - hy, 0.0)
+    return math.sqrt(dx * dx + dd * dd) - e
+
+
+@njit(**_OPTS)
+def _push(pn, pg, top, x, y):
+    """Push the pair (x, y) on the stack (pn, pg) of size top, growing it when full."""
+    if top == pn.size:
+        gn, gg = np.empty(2 * top, np.int64), np.empty(2 * top, np.int64)
+        gn[:top], gg[:top] = pn[:top], pg[:top]
+        pn, pg = gn, gg
+    pn[top], pg[top] = x, y
+    return pn, pg, top + 1
+
+
+@njit(**_OPTS)
+def _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg, arg_g, eps_v, i0, i1, j0, j1):
+    """roots.seed_excluded: whether the box a[i0]..a[i1] x v[j0]..v[j1] provably holds no point where
+    |1 + G N| is within 0.125 % of 1 + |G N| (nothing the refinement could accept). The pieces of N and of G are
+    binary trees (a piece halved once, its halves shared by every pair that reads them); arg_g: arg G at the
+    nodes, NaN where not yet computed (filled here)."""
+    for j in range(j0, j1 + 1):
+        if not math.isfinite(rg[j]):
+            return False
+        if arg_g[j] != arg_g[j]:
+            arg_g[j] = _angle(g[j])
+    for i in range(i0, i1):
+        if not (eps_a[i] <= _STEP) or not (a[i + 1] - a[i] > _MONOTONE_WIDTH * (1 + abs(a[i]))):
+            return False
+        if not (math.isfinite(ln_n[i].real) and math.isfinite(ln_n[i + 1].real)):
+            return False
+    for j in range(j0, j1):
+        if not math.isfinite(eps_v[j]):
+            return False
+    apart = True  # the grid's own pieces first: most boxes need no halving (and no work arrays)
+    for i in range(i0, i1):
+        for j in range(j0, j1):
+            t0, t1 = complex(-rg[j], _PI - arg_g[j]), complex(-rg[j + 1], _PI - arg_g[j + 1])
+            if _npmax(_gap(ln_n[i], ln_n[i + 1], t0, eps_v[j]),
+                      _gap(ln_n[i], ln_n[i + 1], t1, eps_v[j])) < _SEED_MARGIN:
+                apart = False
+    if apart:
+        return True
+    n_n, n_g = i1 - i0, j1 - j0
+    cn, cg = n_n + 2 * _SEED_SPLITS, n_g + 2 * _SEED_SPLITS
+    pa0, pa1, pc = np.empty(cn), np.empty(cn), np.full(cn, -1, np.int64)
+    pl0, pl1 = np.empty(cn, np.complex128), np.empty(cn, np.complex128)
+    for i in range(i0, i1):  # N pieces: the grid's intervals, then halves
+        if not (eps_a[i] <= _STEP) or not (a[i + 1] - a[i] > _MONOTONE_WIDTH * (1 + abs(a[i]))):
+            return False
+        if not (math.isfinite(ln_n[i].real) and math.isfinite(ln_n[i + 1].real)):
+            return False
+        pa0[i - i0], pa1[i - i0], pl0[i - i0], pl1[i - i0] = a[i], a[i + 1], ln_n[i], ln_n[i + 1]
+    qv0, qv1, qe, qc = np.empty(cg), np.empty(cg), np.empty(cg), np.full(cg, -1, np.int64)
+    qt0, qt1 = np.empty(cg, np.complex128), np.empty(cg, np.complex128)
+    for j in range(j0, j1):  # G pieces: the grid's intervals (j pi - ln G at their ends), then halves
+        if not math.isfinite(eps_v[j]):
+            return False
+        qv0[j - j0], qv1[j - j0], qe[j - j0] = v[j], v[j + 1], eps_v[j]
+        qt0[j - j0] = complex(-rg[j], _PI - arg_g[j])
+        qt1[j - j0] = complex(-rg[j + 1], _PI - arg_g[j + 1])
+    pn, pg = np.empty(2 * n_n * n_g + 16, np.int64), np.empty(2 * n_n * n_g + 16, np.int64)
+    top = 0
+    for x in range(n_n):
+        for y in range(n_g):
+            pn, pg, top = _push(pn, pg, top, x, y)
+    splits = tests = 0
+    while top > 0:
+        top -= 1
+        x, y = pn[top], pg[top]
+        l0, l1, e = pl0[x], pl1[x], qe[y]
+        tests += 1
+        if _npmax(_gap(l0, l1, qt0[y], e), _gap(l0, l1, qt1[y], e)) >= _SEED_MARGIN:
+            continue
+        if tests > _SEED_TESTS:
+            return False
+        if math.hypot(l1.real - l0.real, _wrap(l1.imag - l0.imag)) >= e:  # the N piece's halves
+            if pc[x] < 0:
+                splits += 1
+                if splits > _SEED_SPLITS:
+                    return False
+                xm = 0.5 * (pa0[x] + pa1[x])
+                nm = element(kind, p, math.exp(xm))
+                if not (math.isfinite(nm.real) and math.isfinite(nm.imag)) or nm == 0:
+                    return False
+                lm = _clog(nm)
+                c = pc[x] = n_n
+                n_n += 2
+                pa0[c], pa1[c], pl0[c], pl1[c] = pa0[x], xm, l0, lm
+                pa0[c + 1], pa1[c + 1], pl0[c + 1], pl1[c + 1] = xm, pa1[x], lm, l1
+            pn, pg, top = _push(pn, pg, top, pc[x], y)
+            pn, pg, top = _push(pn, pg, top, pc[x] + 1, y)
+        else:  # the G piece's halves
+            if qc[y] < 0:
+                splits += 1
+                if splits > _SEED_SPLITS:
+                    return False
+                xm = 0.5 * (qv0[y] + qv1[y])
+                w0, wm, w1 = math.exp(qv0[y]), math.exp(xm), math.exp(qv1[y])
+                gm = plant(num, den, delay, wm)
+                if not (math.isfinite(gm.real) and math.isfinite(gm.imag)) or gm == 0:
+                    return False
+                lgm = _clog(gm)
+                tm = complex(-lgm.real, _PI - lgm.imag)
+                e0, e1 = _variation(zeros, poles, delay, w0, wm), _variation(zeros, poles, delay, wm, w1)
+                if not (math.isfinite(e0) and math.isfinite(e1)):
+                    return False
+                c = qc[y] = n_g
+                n_g += 2
+                qv0[c], qv1[c], qt0[c], qt1[c], qe[c] = qv0[y], xm, qt0[y], tm, e0
+                qv0[c + 1], qv1[c + 1], qt0[c + 1], qt1[c + 1], qe[c + 1] = xm, qv1[y], tm, qt1[y], e1
+            pn, pg, top = _push(pn, pg, top, x, qc[y])
+            pn, pg, top = _push(pn, pg, top, x, qc[y] + 1)
+    return True
+
+
+@njit(**_OPTS)
+def _tangent_seeds(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n, g, cells, wind_cells, tol, ln_n,
+                   eps_a, rg, arg_g, eps_v):
     """The tangent seeds of roots.find_roots and their refinement (with the wider retry next to a jump):
-    (status, points evaluated); status 4 when a seed refines to a root (the Python driver isolates there)."""
+    (status, points evaluated); status 4 when a seed refines to a root (the Python driver isolates there).
+    Seeds whose boxes provably hold nothing a refinement could accept (:func:`_no_root_in`) are not refined."""
     nc, nv, nA, n_wind = cells.size, v.size, a.size, wind_cells.size
     n_points = 0
     # tangent seeds: local minima of m below the threshold among the corners of the candidate cells
@@ -891,6 +1149,20 @@ def _tangent_seeds(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n
             n_seed += 1
     if n_seed > _MAX_SEEDS:
         return 6, n_points
+    n_kept = 0
+    for s in range(n_seed):  # roots.seed_excluded: no refinement of the seed could succeed
+        i, j = seeds[s] // nv, seeds[s] % nv
+        if _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg, arg_g, eps_v,
+                       max(i - 2, 0), min(i + 2, nA - 1), max(j - 2, 0), min(j + 2, nv - 1)):
+            r0, r1, c0, c1 = max(i - 4, 0), min(i + 5, nA), max(j - 4, 0), min(j + 5, nv)
+            if not (_dominant_any(n, g, r0, r1, c0, c1, True) or _dominant_any(n, g, r0, r1, c0, c1, False)):
+                continue  # no wider retry either
+            if _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg, arg_g, eps_v,
+                           max(i - 3, 0), min(i + 3, nA - 1), max(j - 3, 0), min(j + 3, nv - 1)):
+                continue
+        seeds[n_kept] = seeds[s]
+        n_kept += 1
+    n_seed = n_kept
     if n_seed:
         ta, tv = np.empty(n_seed), np.empty(n_seed)
         b0a, b1a, b0v, b1v = np.empty(n_seed), np.empty(n_seed), np.empty(n_seed), np.empty(n_seed)
@@ -1089,7 +1361,7 @@ def _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom
         if not (math.isfinite(g.real) and math.isfinite(g.imag)):
             return 8, fl, it, empty
     v = _linspace(math.log(w_lo), math.log(w_hi), nw)
-    v, eps_v, status = _resolve_plant(zeros, poles, delay, v)
+    v, w_nodes, eps_v, status = _resolve_plant(zeros, poles, delay, v)
     if status:
         return status, fl, it, empty
     nv = v.size
@@ -1097,7 +1369,7 @@ def _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom
     g_abs = np.empty(nv)
     any_g = False
     for j in range(nv):
-        g[j] = plant(num, den, delay, math.exp(v[j]))
+        g[j] = plant(num, den, delay, w_nodes[j])
         if not (math.isfinite(g[j].real) and math.isfinite(g[j].imag)):
             return 8, fl, it, empty
         g_abs[j] = cabs(g[j])
@@ -1106,8 +1378,8 @@ def _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom
         return 8, fl, it, empty
     n_eval = nv
     if A_lo != A_lo:
-        A_lo, A_hi, case, top, bottom, status = _amplitude_window(num, den, delay, kind, p, v, g, g_abs, eps_v,
-                                                                  dom_lo, dom_hi, tail_c, head_c, head_d)
+        A_lo, A_hi, case, top, bottom, status = _amplitude_window(num, den, zeros, poles, delay, kind, p, v, g, g_abs,
+                                                                  eps_v, dom_lo, dom_hi, tail_c, head_c, head_d)
         if status:
             return status, fl, it, empty
         it[0] = case
@@ -1141,12 +1413,12 @@ def _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom
         jumps += e > _STEP
     fl[6], fl[7], it[3] = big_v, big_a, jumps
     ln_n = np.empty(nA, np.complex128)
-    ln_g = np.empty(nv, np.complex128)
+    rg = np.empty(nv)
     for i in range(nA):
         ln_n[i] = _clog(n[i])
     for j in range(nv):
-        ln_g[j] = _clog(g[j])
-    cells = _candidate_cells(ln_n, eps_a, ln_g, eps_v)
+        rg[j] = math.log(g_abs[j])  # the real part of _clog(g[j])
+    cells, arg_g = _candidate_cells(ln_n, eps_a, rg, g, eps_v)
     nc = cells.size
     it[4] = nc
     n_points = 0
@@ -1192,7 +1464,7 @@ def _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom
         if not (ok[c] and inside):
             return 2, fl, it, empty
     status, n_seed_points = _tangent_seeds(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n, g, cells,
-                                           wind_cells, tol)
+                                           wind_cells, tol, ln_n, eps_a, rg, arg_g, eps_v)
     n_points += n_seed_points
     if status:
         return status, fl, it, empty
@@ -1257,24 +1529,18 @@ def solve_many_dispatcher():
     return _drive_many
 
 
-def solve_one(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol):
+def solve_one(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit=None):
     """The driver on one loop: (status, floats, ints, roots) as :func:`_drive` returns them (windows NaN:
-    the defaults)."""
-    from ..._checks import memory_limit
-    from ..grid import BYTES_PER_POINT
-
+    the defaults; ``mem_limit``: the memory bound in bytes, read here when None)."""
     num, den, zeros, poles, delay = gpart
     return _drive_one(num, den, zeros, poles, delay, *npart, float(w_lo), float(w_hi), float(A_lo), float(A_hi),
-                      int(na), int(nw), float(tol), float(marginal_tol), float(memory_limit()),
-                      float(BYTES_PER_POINT[False]))
+                      int(na), int(nw), float(tol), float(marginal_tol),
+                      float(memory_limit() if mem_limit is None else mem_limit), _BYTES_PER_POINT)
 
 
 def solve_many(parts, windows, na, nw, tol, marginal_tol):
     """The driver over loops [(gpart, npart), ...] with windows [(w_lo, w_hi, A_lo, A_hi), ...] in one parallel
     call: arrays (status, floats, ints, roots (L, MAX_ROOTS, 10), root counts)."""
-    from ..._checks import memory_limit
-    from ..grid import BYTES_PER_POINT
-
     L = len(parts)
     padded = []
     for q in range(4):  # num, den, zeros, poles: rows padded to the longest, with their lengths
@@ -1297,4 +1563,4 @@ def solve_many(parts, windows, na, nw, tol, marginal_tol):
     win = np.asarray(windows, float).reshape(L, 4)
     return _drive_many(*padded, cols[0], kind, p, cont, *cols[1:9], win[:, 0].copy(),
                        win[:, 1].copy(), win[:, 2].copy(), win[:, 3].copy(), int(na), int(nw), float(tol),
-                       float(marginal_tol), float(memory_limit()), float(BYTES_PER_POINT[False]))
+                       float(marginal_tol), float(memory_limit()), _BYTES_PER_POINT)

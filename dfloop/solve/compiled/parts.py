@@ -52,36 +52,48 @@ def plant_part(G):
         return None
     if getattr(G, "ninputs", 1) != 1 or getattr(G, "noutputs", 1) != 1 or getattr(G, "dt", 0) not in (0, None):
         return None
-    num, den = (np.asarray(x, dtype=float) for x in (G.num[0][0], G.den[0][0]))
+    num, den = G.num[0][0], G.den[0][0]
+    key = None
+    if type(num) is np.ndarray and type(den) is np.ndarray and num.ndim == 1 and den.ndim == 1:
+        key = (num.dtype.str, num.tobytes(), den.dtype.str, den.tobytes(), delay)  # as given: no conversion
+        hit = _PLANTS.get(key)
+        if hit is not None:
+            return hit
+    num, den = np.asarray(num, dtype=float), np.asarray(den, dtype=float)
     if num.ndim != 1 or den.ndim != 1:
         return None
-    key = (num.tobytes(), den.tobytes(), delay)
-    hit = _PLANTS.get(key)
-    if hit is not None:
-        return hit
     if not (np.all(np.isfinite(num)) and np.all(np.isfinite(den))) or max(den.size, num.size) - 1 > MAX_ORDER:
         return None
     num, den = (x[np.argmax(x != 0):] if np.any(x) else x[:0] for x in (num, den))
     if num.size == 0 or den.size == 0 or num.size > den.size:
         return None
     zeros, poles = (np.ascontiguousarray(_roots(x), complex) for x in (num, den))  # as Plant has them
-    return _remember(_PLANTS, key, (np.ascontiguousarray(num), np.ascontiguousarray(den), zeros, poles, delay))
+    out = (np.ascontiguousarray(num), np.ascontiguousarray(den), zeros, poles, delay)
+    return out if key is None else _remember(_PLANTS, key, out)
 
 
-def element_part(N, form):
+_NOTHING = object()
+
+
+def element_part(N, form_of):
     """The element's arguments for the driver (kind, parameters, continuity, domain and its logs, tail and head
-    bound constants, breakpoint), or None where the driver does not mirror the element's methods."""
+    bound constants, breakpoint), or None where the driver does not mirror the element's methods or
+    ``form_of(N)`` (:func:`.residual.element_form`) gives it no compiled form. Remembered by the class and the
+    attributes (a built-in element is a function of them; an element whose attributes cannot be hashed is
+    converted every time)."""
     cls = type(N)
     try:
-        key = (cls, tuple(vars(N).items()))  # a built-in element is a function of its attributes
+        key = (cls, tuple(vars(N).items()))
         hash(key)
     except TypeError:
         key = None
-    hit = _ELEMENTS.get(key) if key is not None else None
-    if hit is not None:
-        return hit
-    out = _element_part(N, form, cls)
-    return out if key is None or out is None else _remember(_ELEMENTS, key, out)
+    if key is not None:
+        hit = _ELEMENTS.get(key, _NOTHING)
+        if hit is not _NOTHING:
+            return hit
+    form = form_of(N)
+    out = None if form is None else _element_part(N, form, cls)
+    return out if key is None else _remember(_ELEMENTS, key, out)
 
 
 def _element_part(N, form, cls):

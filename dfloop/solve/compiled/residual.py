@@ -64,19 +64,25 @@ def _kernels(part: str | None = None) -> tuple:
     return parts[part] if part is not None else sum(parts.values(), ())
 
 
-def enabled() -> bool:
+def mode() -> str:
+    """The value of ``DFLOOP_COMPILED`` (``"1"`` when unset): read once per call of the solver and handed down
+    (the environment may change between calls, e.g. in tests)."""
+    return os.environ.get("DFLOOP_COMPILED", "1")
+
+
+def enabled(mode_: str | None = None) -> bool:
     """Whether the compiled path is used where it applies: always, unless ``DFLOOP_COMPILED=0`` in the
-    environment selects the Python reference path. The first use on a fresh install compiles the residual's kernels
-    (a few seconds), announced on the progress channel. Whether a single call also runs the compiled driver is
-    :func:`driver_wanted`.
+    environment selects the Python reference path (``mode_``: that variable's value when already read, see
+    :func:`mode`). The first use on a fresh install compiles the residual's kernels (a few seconds), announced on
+    the progress channel. Whether a single call also runs the compiled driver is :func:`driver_wanted`.
     """
-    return os.environ.get("DFLOOP_COMPILED", "1") != "0"
+    return (mode() if mode_ is None else mode_) != "0"
 
 
 _DRIVER_READY: list = []   # [True] once the driver is known to be compiled or cached in this process
 
 
-def driver_wanted() -> bool:
+def driver_wanted(mode_: str | None = None) -> bool:
     """Whether a single :func:`dfloop.predict_limit_cycles` call runs the compiled driver (:mod:`.driver`).
 
     ``DFLOOP_COMPILED=0``: never. ``DFLOOP_COMPILED=driver``: always (compiling it first if needed, announced).
@@ -85,11 +91,12 @@ def driver_wanted() -> bool:
     single call wait about ``COMPILE_SECONDS`` for it: the call runs the Python driver on the compiled residual
     (the same algorithm; results agree to 1e-12, tests/test_compiled.py), and says once that ``dfloop warmup``
     compiles the driver. Batches (:func:`dfloop.predict_many`) compile it, announced: their loops amortise it.
+    ``mode_``: the value of ``DFLOOP_COMPILED`` when already read (:func:`mode`).
     """
-    mode = os.environ.get("DFLOOP_COMPILED", "1")
-    if mode == "0":
+    mode_ = mode() if mode_ is None else mode_
+    if mode_ == "0":
         return False
-    if mode == "driver" or _DRIVER_READY:
+    if mode_ == "driver" or _DRIVER_READY:
         return True
     from ...progress import announce, compile_pending
 
@@ -193,12 +200,19 @@ def _loop_arrays(plant: Plant, N):
     return (*coef[:2], zeros, poles, coef[2], KINDS[form[0]], np.ascontiguousarray(form[1], float), ln_lo, ln_hi)
 
 
+_SETTLED: set = set()  # parts (see _kernels) whose compile was announced or found unneeded in this process
+
+
 def _announce_compile(part: str = "residual") -> None:
     """Say once, before the first compile of this installation, that ``part`` (see :func:`_kernels`) compiles and
-    about how long it takes."""
+    about how long it takes. Once said, or once the part is found compiled or cached, later calls cost a set
+    lookup (a part compiled or cached stays so for the process)."""
+    if part in _SETTLED:
+        return
     what, seconds = {"driver": ("the solver", COMPILE_SECONDS), "batch": ("the batch solver", BATCH_COMPILE_SECONDS),
                      "residual": ("the solver's residual kernels", RESIDUAL_SECONDS)}[part]
     announce_compile(what, seconds, *_kernels(part))
+    _SETTLED.add(part)
 
 
 class CompiledResidual(Residual):
@@ -265,16 +279,14 @@ class CompiledResidual(Residual):
         return ra, rv, ok
 
 
-def driver_parts(G, N):
+def driver_parts(G, N, mode_: str | None = None):
     """(plant part, element part) of the loop for the compiled driver (:mod:`.driver`), or None where it does not
     apply: the compiled path switched off, an element without a compiled form (or one the driver does not mirror),
-    a plant that is not a rational continuous tf/ss (with or without a pure delay). Loads no numba."""
-    if not enabled():
+    a plant that is not a rational continuous tf/ss (with or without a pure delay). Loads no numba. ``mode_``: the
+    value of ``DFLOOP_COMPILED`` when already read (:func:`mode`)."""
+    if not enabled(mode_):
         return None
-    form = element_form(N)
-    if form is None:
-        return None
-    npart = element_part(N, form)
+    npart = element_part(N, element_form)
     if npart is None:
         return None
     gpart = plant_part(G)
@@ -292,13 +304,13 @@ def driver_parts(G, N):
     return gpart, npart
 
 
-def run_driver(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol):
-    """The compiled driver on one loop (windows NaN: the defaults), announcing a first compile:
-    (status, floats, ints, roots) (:func:`.driver.solve_one`)."""
+def run_driver(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit=None):
+    """The compiled driver on one loop (windows NaN: the defaults; ``mem_limit``: the memory bound in bytes when
+    already read), announcing a first compile: (status, floats, ints, roots) (:func:`.driver.solve_one`)."""
     from .driver import solve_one
 
     _announce_compile("driver")
-    return solve_one(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol)
+    return solve_one(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit)
 
 
 def run_batch(parts, windows, na, nw, tol, marginal_tol):

@@ -1,0 +1,70 @@
+"""Tangent seeds are skipped only where no root can be (roots.seed_excluded): checked by brute force.
+
+On grids chosen as the solver chooses them (G's exact rule, N's monotone sampled rule), every box that
+``seed_excluded`` declares empty is sampled densely: the relative residual |1 + G N| / (1 + |G N|) must stay above
+0.00125 (what the proof promises) everywhere; boxes around the solver's roots must never be excluded; and on the
+backlash servo most boxes are excluded (the test is not vacuous).
+"""
+from __future__ import annotations
+
+import math
+
+import control as ct
+import numpy as np
+import pytest
+
+import dfloop as df
+from dfloop.solve import as_plant
+from dfloop.solve.delay import delayed
+from dfloop.solve.grid import clog, resolve_plant, resolve_sampled
+from dfloop.solve.roots import Residual, seed_excluded
+
+LOOPS = [(ct.tf([5], [1, 1, 0]), df.Backlash(h=1.0), (0.55, 20.0), (0.05, 20.0)),
+         (delayed(ct.tf([8.0], [0.5, 1.0, 0.0]), 0.02), df.Backlash(h=1e-3), (5.1e-4, 0.05), (0.1, 100.0)),
+         (ct.tf([8], [1, 2, 2, 1]), df.Saturation(1.0), (0.2, 20.0), (0.05, 20.0))]
+
+
+def _grid(G, N, A_win, w_win, na=24, nw=48):
+    plant = as_plant(G)
+    res = Residual(plant, N)
+    v, g, eps_v, _, _ = resolve_plant(plant, np.linspace(math.log(w_win[0]), math.log(w_win[1]), nw))
+    a, n, eps_a, _, _ = resolve_sampled(lambda A: res._n(A, None), np.linspace(math.log(A_win[0]),
+                                                                                math.log(A_win[1]), na),
+                                        "N", monotone=True)
+    return res, a, v, n, g, eps_a, eps_v
+
+
+@pytest.mark.parametrize("k", range(len(LOOPS)))
+def test_excluded_boxes_hold_no_root_by_brute_force(k):
+    G, N, A_win, w_win = LOOPS[k]
+    res, a, v, n, g, eps_a, eps_v = _grid(G, N, A_win, w_win)
+    ln_n, ln_g = clog(n), clog(g)
+    excluded = checked = 0
+    rng = np.random.default_rng(k)
+    for _ in range(60):
+        i, j = int(rng.integers(2, a.size - 2)), int(rng.integers(2, v.size - 2))
+        if not seed_excluded(res, a, v, ln_n, eps_a, ln_g, eps_v, i - 2, i + 2, j - 2, j + 2):
+            continue
+        excluded += 1
+        aa, vv = np.meshgrid(np.linspace(a[i - 2], a[i + 2], 41), np.linspace(v[j - 2], v[j + 2], 41))
+        P = res.terms(aa.ravel(), vv.ravel())
+        rel = np.abs(1 + P) / (1 + np.abs(P))
+        assert rel.min() >= 0.00125, (k, i, j, rel.min())
+        checked += 1
+    assert checked == excluded and excluded >= 10  # the proof applies to most boxes of these grids
+
+
+@pytest.mark.parametrize("k", range(2))
+def test_boxes_around_roots_are_never_excluded(k):
+    G, N, A_win, w_win = LOOPS[k]
+    cycles = df.predict_limit_cycles(G, N, amplitude=A_win, omega=w_win)
+    assert len(cycles) >= 1
+    res, a, v, n, g, eps_a, eps_v = _grid(G, N, A_win, w_win)
+    ln_n, ln_g = clog(n), clog(g)
+    for c in cycles:
+        i = int(np.clip(np.searchsorted(a, math.log(c.amplitude)), 2, a.size - 3))
+        j = int(np.clip(np.searchsorted(v, math.log(c.frequency)), 2, v.size - 3))
+        for di in (-1, 0):
+            for dj in (-1, 0):
+                assert not seed_excluded(res, a, v, ln_n, eps_a, ln_g, eps_v, i + di - 2, i + di + 2, j + dj - 2,
+                                         j + dj + 2)
