@@ -150,9 +150,11 @@ def reference(G, N, c, factors):
         el = static_element(lambda x: np.asarray(N.output(np.asarray(x, float)), float),
                             np.unique(np.concatenate([-bp, bp])))
     truth = DelayTruth(ss.A, ss.B, ss.C, G.delay, el)
-    run = truth.run(c.amplitude, c.frequency,
-                                                         settle=SETTLE_PLAY if factor > 1 else SETTLE,
-                                                         max_periods=RUN_PERIODS * factor, max_steps=RUN_STEPS * factor)
+    try:
+        run = truth.run(c.amplitude, c.frequency, settle=SETTLE_PLAY if factor > 1 else SETTLE,
+                        max_periods=RUN_PERIODS * factor, max_steps=RUN_STEPS * factor)
+    except ValueError as exc:             # scipy's event location (brentq) on a guard met at a step's end
+        return None, f"reference failed: {exc}"
     if run.settled and factor > 1:      # slow convergence: the limit of the last 40 periods (tests/delay_truth.py)
         A_lim, w_lim, correction = truth.limit(40)
         return (A_lim, w_lim), f"settled (extrapolated by {correction:.1e})"
@@ -169,7 +171,7 @@ def run_loop(G, N, factors):
     cycles = df.predict_limit_cycles(G, N)
     t_pred = time.perf_counter() - t0
     picks = sorted(cycles, key=lambda c: c.frequency)[:PER_LOOP]
-    exacts, t_exact, settled, unsettled, errs = [], [], [], 0, []
+    exacts, t_exact, settled, unsettled, failed, errs = [], [], [], 0, 0, []
     for c in picks:
         t0 = time.perf_counter()
         e = df.exact_cycle(G, N, c)
@@ -180,6 +182,8 @@ def run_loop(G, N, factors):
             settled.append(ref)
         elif why.startswith("not settled"):
             unsettled += 1
+        elif why.startswith("reference failed"):
+            failed += 1
     found = [e for e in exacts if e.success]
     misses = []
     for A, w in settled:
@@ -190,7 +194,7 @@ def run_loop(G, N, factors):
             misses.append((A, w))
     ests = [max(e.extra["error_estimate"]) for e in found if "error_estimate" in e.extra]
     return dict(predicted=len(cycles), checked=len(picks), found=len(found), settled=len(settled), misses=misses,
-                unsettled=unsettled, errs=errs, ests=ests, t_pred=t_pred,
+                unsettled=unsettled, failed=failed, errs=errs, ests=ests, t_pred=t_pred,
                 ratio=float(np.mean(t_exact) / t_pred) if t_exact else math.nan)
 
 
@@ -200,14 +204,14 @@ def main() -> str:
     rows = ["| # | loop | predicted | exact found / checked | runs settled (not within bound) | max diff A, w | "
             "misses | max error estimate | predict (ms) | exact / predict |",
             "|---|---|---|---|---|---|---|---|---|---|"]
-    total = dict(checked=0, found=0, settled=0, misses=0, unsettled=0)
+    total = dict(checked=0, found=0, settled=0, misses=0, unsettled=0, failed=0)
     per_kind = {k: [0, 0] for k in ELEMENTS}               # settled runs, misses
     ratios, errs, ests = [], [], []
     t_all = time.perf_counter()
     for k in range(LOOPS):
         G, N, desc, factors = random_loop(rng, k)
         r = run_loop(G, N, factors)
-        for key in ("checked", "found", "settled", "unsettled"):
+        for key in ("checked", "found", "settled", "unsettled", "failed"):
             total[key] += r[key]
         total["misses"] += len(r["misses"])
         kind = ELEMENTS[k % len(ELEMENTS)]
@@ -242,7 +246,8 @@ def main() -> str:
             "",
             f"- predictions checked: {total['checked']}; exact orbits found near them: {total['found']}",
             f"- reference runs that settled on an oscillation: {total['settled']} ({kinds}); not settled within the "
-            f"bound: {total['unsettled']}; the others went to rest or diverged",
+            f"bound: {total['unsettled']}; reference runs that failed (scipy's event location): {total['failed']}; the "
+            "others went to rest or diverged",
             f"- found by exact_cycle to {MATCH:g} in A and w: {total['settled'] - total['misses']}; "
             f"**misses: {total['misses']}**; largest difference {max(errs) if errs else math.nan:.1e}",
             f"- exact_cycle's error estimates (delay equation loops): largest {max(ests) if ests else math.nan:.1e}",

@@ -85,7 +85,8 @@ class ExactCycle:
         predicted orbit, :func:`dfloop.hybrid.shooting.homotopy_orbit`). On the
         exact delay flow: ``s0`` (plant state), ``mode0``, ``u0`` (plant input), ``queue0`` (pending switches
         [instant (s), level] of the delay line), ``section`` (the switch the return map starts on) and ``delay``;
-        after a failed search that was globalised, ``outcome`` and ``motions`` (:mod:`dfloop.hybrid.globalise`).
+        after a failed search that was globalised, ``outcome`` and ``motions`` (:mod:`dfloop.hybrid.globalise`), and
+        ``edge`` when the boundary between the motions' fates was followed (:mod:`dfloop.hybrid.edge`).
     """
 
     success: bool
@@ -331,7 +332,7 @@ def _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations
                    **constant)
     outer = None if not globalise else shoot_or_globalise(
         G, N, predicted, lambda c, **kw: exact_cycle(G, N, c, **{**options, **kw}), max_deviation, constant,
-        counterpart=counterpart)
+        finish=lambda loop, orbit: _result(loop, orbit, predicted, harmonics, samples), counterpart=counterpart)
     if outer is not None:
         return outer
     loop = loop_model(G, N, A0 + abs(bias), w0, what="exact_cycle", r0=r0, load=load)

@@ -35,7 +35,8 @@ def test_no_orbit_answer_carries_where_the_motions_went():
     miss = df.exact_cycle(G, N, inner)
     hit = df.exact_cycle(G, N, outer)
     assert not miss.success and miss.amplitude is None and hit.success
-    assert miss.extra["outcome"] == "another cycle"
+    # the motions go to the outer cycle or rest; the boundary between the two is rest (tests/test_edge_tracking.py)
+    assert miss.extra["outcome"] == "edge rest" and "go to another cycle" in miss.message
     assert f"A={hit.amplitude:.6g}" in miss.message and f"w={hit.frequency:.6g}" in miss.message
     motions = miss.extra["motions"]
     assert len(motions) == 3 and {m["outcome"] for m in motions} <= {"periodic", "rest", "not periodic"}
@@ -126,9 +127,11 @@ def test_dead_zone_motion_resting_off_zero_is_rest_with_where_never_not_periodic
     assert first["outcome"] == "rest" and first["y_end"] == 0.0
     assert 0.05 < abs(first["x_end"]) < 0.5                       # off zero, inside the dead band
     assert f"comes to rest at x = {first['x_end']:.4g}" in e.message
-    # some motions rest, one diverges: an unstable orbit may separate them (here it does, A ~ 1.85, farther than
-    # max_deviation), so nothing is ruled out: not checked, never "artefact"
-    assert e.extra["outcome"] == "boundary" and exact_kind(e) == "not checked"
+    # some motions rest, one diverges: the unstable orbit that separates them (A ~ 1.85) is found by edge tracking,
+    # farther than max_deviation from this prediction: another cycle (the orbit itself: tests/test_edge_tracking.py)
+    assert e.extra["outcome"] == "another cycle" and e.extra["edge"]["outcome"] == "orbit"
+    assert "edge tracking) settles on another cycle, the exact orbit A=1.8504" in e.message and "(unstable)" in e.message
+    assert exact_kind(e) == "artefact"
     # independent truth: the same start integrated by scipy (the dead zone is continuous: no events needed)
     loop = loop_model(G, N, *pred)
     A, B = loop.plant
@@ -143,14 +146,15 @@ def test_dead_zone_motion_resting_off_zero_is_rest_with_where_never_not_periodic
     assert first["x_end"] == pytest.approx(-Cr @ sol.y[:, -1], abs=1e-6)
 
 
-def test_a_boundary_between_rest_and_divergence_rules_nothing_out():
+def test_a_boundary_between_rest_and_divergence_is_followed_by_edge_tracking():
     """A backlash around an order-12 plant (integrator, Pade-8 delay, two lags): the DF's unstable cycle. The
     large-amplitude loop (backlash -> unit gain) has a closed-loop pole in the right half plane (python-control),
     so the motions started on and outside the prediction diverge (followed on the exact flow to the divergence
     bound: they used to stop at a false sliding release, the switch tests drowned in the companion form's
-    rounding), the one inside comes to rest. Neither Newton nor the homotopy from the prediction converge: the
-    answer must say that nothing is ruled out (an unstable orbit may separate rest from divergence), and the
-    verdict is "not checked", never "artefact"."""
+    rounding), the one inside comes to rest. Neither Newton nor the homotopy from the prediction converge. Edge
+    tracking between rest and divergence puts the boundary at the start amplitude h/2, where the predicted
+    sinusoid stops leaving the play (a start below it is exactly at rest: the DF is 0 there), and finds no
+    oscillation on it: the prediction (A = 1.015 h/2) is an artefact of the DF."""
     from dfloop.solve.verdict import exact_kind
 
     num, den = ct.pade(1.0, 8)
@@ -161,5 +165,19 @@ def test_a_boundary_between_rest_and_divergence_rules_nothing_out():
     e = df.exact_cycle(G, N, c)
     kinds = [m["outcome"] for m in e.extra["motions"]]
     assert not e.success and sorted(kinds) == ["divergence", "divergence", "rest"]
-    assert e.extra["outcome"] == "boundary" and "none ruled out" in e.message and "homotopy" in e.message
-    assert exact_kind(e) == "not checked"
+    assert "homotopy" in e.message
+    assert e.extra["outcome"] == "edge rest" and e.extra["edge"]["outcome"] == "slow"
+    assert (e.extra["edge"]["inside"], e.extra["edge"]["outside"]) == ("rest", "divergence")
+    assert e.extra["edge"]["boundary"] * c.amplitude == pytest.approx(0.25, rel=1e-6)     # h/2
+    assert exact_kind(e) == "artefact"
+
+
+def test_a_start_far_from_every_orbit_is_answered_from_the_motions_without_endless_newton_steps():
+    # a start (0.6 A, 2 w) off the dead zone's unstable cycle of 3/(s(s+1)^2): Newton's steps from it once
+    # asked for periods several times the start's, each flow running to its event bound (minutes); a step
+    # may now change the period by at most PERIOD_STEP, and the answer comes from the motions: all rest
+    # inside the dead band (the unstable cycle, A = 1.85, lies beyond every start)
+    G = ct.tf([3.0], [1.0, 2.0, 1.0, 0.0])
+    e = df.exact_cycle(G, df.DeadZone(0.5), (0.6 * 1.887, 2.0), max_deviation=0.7)
+    assert not e.success and e.extra["outcome"] == "rest", e.message
+    assert all(m["outcome"] == "rest" and abs(m["x_end"]) <= 0.5 for m in e.extra["motions"])

@@ -34,6 +34,7 @@ import numpy as np
 from ..harmonics import steady_state
 from .delay import DelayError, delay_simulation, split_delay
 from .loop import HybridError
+from .edge import EDGE_PERIODS, EdgeTrack, edge_track
 from .model import loop_model, start_on_prediction
 
 __all__ = ["shoot_or_globalise", "inside_search", "homotopy_allowed", "RUN_PERIODS", "STARTS"]
@@ -61,10 +62,12 @@ def inside_search() -> bool:
 
 
 def shoot_or_globalise(G, N, predicted: tuple, shoot, max_deviation: float, constant: dict | None = None,
-                       counterpart: bool = False):
+                       finish=None, counterpart: bool = False):
     """Run ``shoot(cycle, **options)`` (one :func:`dfloop.exact_cycle` call) and globalise when it fails.
 
     ``constant``: the loop's constant input and the predicted bias (``r0``, ``load``, ``bias``), for the runs.
+    ``finish(loop, orbit)``: the :class:`~dfloop.exact.ExactCycle` of an orbit the edge tracking converged (None:
+    no edge tracking).
     ``counterpart``: an orbit farther than ``max_deviation`` is still returned when it is this prediction's own
     (:func:`_counterpart`).
 
@@ -80,7 +83,7 @@ def shoot_or_globalise(G, N, predicted: tuple, shoot, max_deviation: float, cons
             return first
         quiet = _HOMOTOPY.set(False)
         try:
-            return _globalise(G, N, predicted, first, shoot, max_deviation, constant or {}, counterpart)
+            return _globalise(G, N, predicted, first, shoot, max_deviation, constant or {}, finish, counterpart)
         finally:
             _HOMOTOPY.reset(quiet)
     finally:
@@ -88,10 +91,10 @@ def shoot_or_globalise(G, N, predicted: tuple, shoot, max_deviation: float, cons
 
 
 def _simulate(G, N, A: float, w: float, periods: float, r0: float = 0.0, load: float = 0.0, bias: float = 0.0):
-    """(t, x, diverged, method, y_end) of the loop run on its exact flow from the predicted orbit of (A, w), or None
-    when the loop has no exact flow (a run that fails part-way returns the part before the failure). With a
-    constant input (r0, load) the run starts on x = bias + A sin(w t) and x is returned less its final mean;
-    y_end is the element's output at the end of the run."""
+    """(t, x, diverged, method, y_end, x_end) of the loop run on its exact flow from the predicted orbit of (A, w),
+    or None when the loop has no exact flow (a run that fails part-way returns the part before the failure). With
+    a constant input (r0, load) the run starts on x = bias + A sin(w t) and x is returned less its final mean;
+    y_end and x_end are the element's output and its input itself (not less any mean) at the end of the run."""
     try:
         loop = loop_model(G, N, A + abs(bias), w, r0=r0, load=load)
     except ValueError:
@@ -103,13 +106,13 @@ def _simulate(G, N, A: float, w: float, periods: float, r0: float = 0.0, load: f
             sim = delay_simulation(loop, A, w, periods, 64, diverge=_DIVERGED, bias=bias)
         except DelayError as exc:
             if "left the range" in str(exc):          # the quantizer's modelled range (64 A): a divergence
-                return np.array([0.0]), np.array([_DIVERGED * A]), True, str(exc), math.nan
+                return np.array([0.0]), np.array([_DIVERGED * A]), True, str(exc), math.nan, math.nan
             if "never switches" in str(exc):          # the element stays at rest: so does its output
-                return np.array([0.0]), np.array([0.0]), False, str(exc), 0.0
+                return np.array([0.0]), np.array([0.0]), False, str(exc), 0.0, math.nan
             return None
         shifted = (r0 or load or bias) and not sim.diverged       # x less its final mean, as below
         x = sim.x - np.mean(sim.x[-max(sim.x.size // 10, 1):]) if shifted else sim.x
-        return sim.t, x, sim.diverged, sim.method, float(sim.y[-1])
+        return sim.t, x, sim.diverged, sim.method, float(sim.y[-1]), float(sim.x[-1])
     P = 2.0 * math.pi / w
     ts, xs = [], []
     diverged, y_end = False, math.nan
@@ -134,9 +137,10 @@ def _simulate(G, N, A: float, w: float, periods: float, r0: float = 0.0, load: f
         if not ts:
             return None
     x = np.concatenate(xs)
+    x_end = float(x[-1])
     if (r0 != 0.0 or load != 0.0 or bias != 0.0) and not diverged:
         x = x - np.mean(x[-max(x.size // 10, 1):])
-    return np.concatenate(ts), x, diverged, loop.method, y_end
+    return np.concatenate(ts), x, diverged, loop.method, y_end, x_end
 
 
 def _motion(G, N, A0: float, w0: float, factor: float, constant: dict | None = None) -> dict:
@@ -146,21 +150,21 @@ def _motion(G, N, A0: float, w0: float, factor: float, constant: dict | None = N
     out = {"start_amplitude": A, "start_frequency": w0, "periods": RUN_PERIODS}
     if run is None:
         return {**out, "outcome": "no simulation"}
-    t, x, diverged, _, y_end = run
+    t, x, diverged, _, y_end, x_end = run
     if diverged:
         return {**out, "outcome": "divergence", "amplitude": float(np.max(np.abs(x)))}
     if t.size < 3:          # the element never switches from this start: its output stays at rest
         return {**out, "outcome": "rest", "amplitude": 0.0, "note": run[3]}
     tail = x[t > t[-1] - 0.1 * (t[-1] - t[0])]
     if np.max(np.abs(tail)) < _REST * A:
-        return {**out, "outcome": "rest", "amplitude": float(np.max(np.abs(tail))), "x_end": float(x[-1]),
+        return {**out, "outcome": "rest", "amplitude": float(np.max(np.abs(tail))), "x_end": x_end,
                 "y_end": y_end}
     if _at_rest(tail, A):   # rest off zero (inside a dead band or play, or an equilibrium of a biased loop)
-        return {**out, "outcome": "rest", "amplitude": float(np.ptp(tail) / 2), "x_end": float(x[-1]),
+        return {**out, "outcome": "rest", "amplitude": float(np.ptp(tail) / 2), "x_end": x_end,
                 "y_end": y_end}
     st = steady_state(t, x, _MEASURE)
     if not st.oscillating:   # no zero crossing left: at rest, possibly off zero (in a play or dead band)
-        return {**out, "outcome": "rest", "amplitude": float(st.amplitude), "x_end": float(x[-1]), "y_end": y_end}
+        return {**out, "outcome": "rest", "amplitude": float(st.amplitude), "x_end": x_end, "y_end": y_end}
     kind = "periodic" if st.periodicity < _PERIODIC else "not periodic"
     return {**out, "outcome": kind, "amplitude": float(st.amplitude), "frequency": float(st.frequency),
             "periodicity": float(st.periodicity)}
@@ -198,6 +202,23 @@ def _words(m: dict) -> str:
     return f"{start}: the loop cannot be simulated here"
 
 
+def _edge_loop(G, N, predicted, constant):
+    A0, w0 = predicted
+    return loop_model(G, N, A0 + abs(constant.get("bias", 0.0)), w0, r0=constant.get("r0", 0.0),
+                      load=constant.get("load", 0.0))
+
+
+def _edge_verdict(edge, outcome: str, msg: str) -> tuple[str, str]:
+    """The outcome and message once edge tracking has followed the boundary between the starts' fates."""
+    if edge.outcome in ("rest", "slow"):
+        return "edge rest", (f"no periodic orbit near the prediction: of the motions started on and around it some "
+                             f"{edge.inside} and some {edge.outside}, and the boundary between them (edge tracking) "
+                             "is rest, not a periodic orbit (see the evidence)")
+    if outcome == "boundary":
+        return outcome, f"{msg}; edge tracking on that boundary was inconclusive ({edge.outcome})"
+    return outcome, msg
+
+
 def _rebase(found, predicted, how: str):
     """The orbit ``found`` (shot from another start) reported against the original prediction."""
     A0, w0 = predicted
@@ -205,6 +226,44 @@ def _rebase(found, predicted, how: str):
     return dataclasses.replace(found, predicted=predicted, amplitude_error=(A0 - A) / A, frequency_error=(w0 - w) / w,
                                message=f"{found.message}; found by globalisation ({how})",
                                extra={**found.extra, "outcome": "orbit", "globalised": how})
+
+
+def _bracket(motions: list, others: list) -> tuple | None:
+    """(inside, outside) start factors of two neighbouring starts with different fates (rest, divergence, a cycle:
+    the orbit shooting found from the motion, or its measured amplitude), or None."""
+    def fate(m, orbit):
+        if m["outcome"] in ("rest", "divergence"):
+            return m["outcome"]
+        if m["outcome"] == "periodic":
+            return ("cycle", round(math.log((orbit.amplitude if orbit is not None else m["amplitude"])), 1))
+        return None
+
+    ranked = sorted(zip(motions, others), key=lambda p: p[0]["start_amplitude"])
+    fates = [fate(m, o) for m, o in ranked]
+    for (m1, _), (m2, _), f1, f2 in zip(ranked, ranked[1:], fates, fates[1:]):
+        if f1 is not None and f2 is not None and f1 != f2:
+            return m1["start_amplitude"], m2["start_amplitude"]
+    return None
+
+
+def _edge(G, N, predicted, motions, orbits, constant):
+    """The edge tracking between the first two neighbouring starts with different fates: the EdgeTrack, or a
+    sentence saying why none ran (None when no two starts differ)."""
+    A0, w0 = predicted
+    pair = _bracket(motions, orbits)
+    if pair is None:
+        return None
+    if split_delay(G)[1] > 0:
+        return "edge tracking between them is not available on the delay engines (their state is a history)"
+    try:
+        loop = loop_model(G, N, A0 + abs(constant.get("bias", 0.0)), w0, r0=constant.get("r0", 0.0),
+                          load=constant.get("load", 0.0))
+    except ValueError as exc:
+        return f"no loop model to track the boundary on ({exc})"
+    if not loop.exact:
+        return "edge tracking needs an exact flow"
+    return edge_track(loop, N, A0, w0, pair[0] / A0, pair[1] / A0, bias=constant.get("bias", 0.0),
+                      periods=EDGE_PERIODS)
 
 
 def _counterpart(G, N, predicted: tuple, orbit, constant: dict) -> str:
@@ -238,7 +297,7 @@ def _counterpart(G, N, predicted: tuple, orbit, constant: dict) -> str:
             "this prediction's orbit, the DF misplaces it")
 
 
-def _globalise(G, N, predicted, first, shoot, max_deviation, constant, counterpart):
+def _globalise(G, N, predicted, first, shoot, max_deviation, constant, finish=None, counterpart=False):
     A0, w0 = predicted
     near = first.extra.get("another_orbit")     # Newton converged, but farther than max_deviation
     claim = _counterpart(G, N, predicted, near, constant) if counterpart and near is not None else ""
@@ -256,8 +315,9 @@ def _globalise(G, N, predicted, first, shoot, max_deviation, constant, counterpa
                 return _rebase(r, predicted, f"single/multiple shooting with {nodes} node(s) from the prediction")
             tried.append(f"{nodes} node(s): {r.message}")
     motions = [_motion(G, N, A0, w0, f, constant) for f in STARTS]
-    others = []
+    others, orbits = [], []
     for m in motions:
+        orbits.append(None)
         if m["outcome"] not in ("periodic", "not periodic"):
             continue
         r = None
@@ -276,16 +336,38 @@ def _globalise(G, N, predicted, first, shoot, max_deviation, constant, counterpa
         if deviation <= max_deviation:
             return _rebase(r, predicted, how)
         others.append((r, how))
+        orbits[-1] = r
     if all(m["outcome"] == "no simulation" for m in motions):
         return first      # no time-domain model to globalise with: the first answer stands
     evidence = "; ".join(_words(m) for m in motions)
+    edge = _edge(G, N, predicted, motions, orbits, constant) if finish is not None else None
+    edge_orbit = None
+    if isinstance(edge, EdgeTrack):
+        evidence += f"; edge tracking: {edge.message} ({edge.periods:.3g} predicted periods on the boundary, " \
+                    f"{edge.trials} trial runs, {edge.seconds:.2g} s)"
+        if edge.orbit is not None:
+            r = finish(_edge_loop(G, N, predicted, constant), edge.orbit)
+            k = r.extra.get("returns", 1) if r.success else 1
+            if r.success:
+                deviation = max(abs(math.log(abs(r.harmonics[k - 1]) / A0)), abs(math.log(k * r.frequency / w0)))
+                how = (f"edge tracking: the motion on the boundary between the starts that "
+                       f"{edge.inside} and those that {edge.outside} became periodic; shooting from it converged")
+                if deviation <= max_deviation:
+                    out = _rebase(r, predicted, how)
+                    return dataclasses.replace(out, extra={**out.extra, "edge": edge.to_dict()})
+                others.insert(0, (r, how))
+                edge_orbit = r
+    elif isinstance(edge, str):
+        evidence += f"; {edge}"
     if others:
         o, how = others[0]
         claim = _counterpart(G, N, predicted, o, constant) if counterpart else ""
         if claim:
             return _rebase(o, predicted, f"{how}; {claim}")
         outcome = "another cycle"
-        msg = (f"no periodic orbit near the prediction: the motions started on and around it go to another cycle, "
+        where = ("the motion on the boundary between the fates of the starts around it (edge tracking) settles on "
+                 "another cycle" if o is edge_orbit else "the motions started on and around it go to another cycle")
+        msg = (f"no periodic orbit near the prediction: {where}, "
                f"the exact orbit A={o.amplitude:.6g}, w={o.frequency:.6g} rad/s "
                f"({'stable' if o.stable else 'unstable'}), farther than max_deviation = {max_deviation:g}")
     else:
@@ -313,6 +395,18 @@ def _globalise(G, N, predicted, first, shoot, max_deviation, constant, counterpa
             msg = (f"no periodic orbit found near the prediction, but none ruled out: {kinds.count('no simulation')} "
                    f"of the {len(kinds)} motions started on and around it could not be followed on the exact flow "
                    f"(the others: {seen})")
+        if isinstance(edge, EdgeTrack) and outcome in ("boundary", "another cycle", "rest", "divergence"):
+            outcome, msg = _edge_verdict(edge, outcome, msg)
+    if isinstance(edge, EdgeTrack) and outcome == "another cycle" and edge.outcome not in ("rest", "slow", "orbit"):
+        # some starts go to another cycle, others elsewhere, and the boundary between them was not resolved
+        outcome = "boundary"
+        msg += (f"; but the motions split between two fates and edge tracking on the boundary between them was "
+                f"inconclusive ({edge.outcome}), so an unstable orbit near the prediction is not ruled out")
+    elif isinstance(edge, EdgeTrack) and outcome == "another cycle" and edge.outcome != "orbit":
+        outcome = "edge rest"
+        msg += "; the boundary between the fates of the starts runs through rest, not through a periodic orbit"
     extra = {**first.extra, "outcome": outcome, "motions": motions, "attempts": tried}
+    if isinstance(edge, EdgeTrack):
+        extra["edge"] = edge.to_dict()
     return dataclasses.replace(first, message=f"{msg}. Evidence: {evidence}. First attempt: {first.message}",
                                extra=extra)

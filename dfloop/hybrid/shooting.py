@@ -34,6 +34,7 @@ HOMOTOPY_CORRECTIONS = 4     # Newton corrections per homotopy step
 HOMOTOPY_TOL = 1e-6          # |H| relative to the nodes' size that ends a correction
 HOMOTOPY_SOLVES = 120        # bound on the corrections of one homotopy (each: one flow per node)
 FLOOR = 1e-9       # a residual below this that stops decreasing is the rounding floor: accepted
+PERIOD_STEP = 2.0  # a Newton step may change the period by at most this factor (a larger one is damped)
 _DETECT_PERIODS = 8   # settled periods over which the period is detected
 DIVERGED = 1e6        # |x| beyond this many predicted amplitudes while settling: the motion diverges
 _PLAUSIBLE = math.log(8.0)   # a detected period within a factor 8 of the predicted one is used
@@ -430,7 +431,7 @@ def _line_search(loop, zs, flows, T, c, delta, residual, nx, max_events):
     step = 1.0
     for _ in range(LINE_SEARCH + 1):
         T_new = T + step * delta[-1]
-        if T_new > 0:
+        if T / PERIOD_STEP < T_new < T * PERIOD_STEP:   # a step that moves the period by more is not a correction
             try:
                 new_z, new_modes, trial = [], [], []
                 if loop.batched:   # modes are functions of the state: all nodes at once, with monodromy

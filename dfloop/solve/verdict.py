@@ -6,13 +6,16 @@ A :class:`~dfloop.solve.result.LimitCycle` from ``predict_limit_cycles(..., exac
 - **confirmed**: an exact periodic orbit exists near the prediction; ``distance`` is the larger of |ln(A/A_exact)|
   and |ln(w/w_exact)| (0.01 ~ 1 %), ``detail`` gives the orbit and its Floquet stability;
 - **artefact**: no periodic orbit near the prediction, with the evidence exact_cycle gathered (where the motions
-  started on and around it went: another cycle, rest, divergence, or a motion not periodic within the runs);
+  started on and around it went: another cycle, rest, divergence, or a motion not periodic within the runs; or,
+  where they split between two fates, the motion on the boundary between them, followed by edge tracking
+  (:mod:`dfloop.hybrid.edge`), comes to rest instead of becoming periodic);
 - a tabulated N (dynamic backlash) is certified at the point of use (:func:`dfloop.exact.table_certificate`:
   the table's error estimate and validity at the cycle, N re-simulated there): the detail says so, and an
   artefact is only concluded from a table value that is valid and not replaced by its re-simulation;
 - **not checked**: no exact orbit was asked for (``exact=False``), the loop has no exact engine here (the
   reason), or the check was inconclusive (shooting failed from a motion that looked periodic, or the motions
-  around the prediction split between rest and divergence, where an unstable orbit may lie).
+  around the prediction split between rest and divergence, where an unstable orbit may lie, and edge tracking
+  on the boundary between them neither converged to one nor showed the boundary at rest).
 """
 from __future__ import annotations
 
@@ -24,7 +27,9 @@ __all__ = ["Verdict", "classify", "exact_kind", "table_words", "CONFIRMED", "ART
 CONFIRMED, ARTEFACT, NOT_CHECKED = "confirmed", "artefact", "not checked"
 _ARTEFACT_OUTCOMES = {"another cycle": "the motions go to another cycle", "rest": "the motions decay to rest",
                       "divergence": "the motions diverge",
-                      "not periodic": "the motions are not periodic within the runs"}
+                      "not periodic": "the motions are not periodic within the runs",
+                      "edge rest": "the motion on the boundary between the starts' fates (edge tracking) comes to "
+                                   "rest, no periodic orbit on it"}
 
 
 @dataclass(frozen=True)
