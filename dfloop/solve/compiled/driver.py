@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..._checks import memory_limit
-from ..grid import BYTES_PER_POINT
+from ..grid import ANGLE_ROUNDING, BYTES_PER_POINT, SUM_ROUNDING
 from .kernels import accepted, cabs, cdiv, element, plant, refine, slopes_at
 
 __all__ = ["solve_one", "solve_many", "solve_one_dispatcher", "solve_many_dispatcher", "FALLBACK", "MAX_ROOTS", "CONSTANTS", "STABLE", "UNSTABLE", "MARGINAL"]
@@ -318,10 +318,10 @@ def _resolve_plant(zeros, poles, delay, v):
     """grid.resolve_plant for a rational G: (nodes, e^nodes, eps per interval, status).
 
     The intervals of a round are the ones of the Python version, in its order, each bounded by
-    Plant.log_variation's expressions. Every node (its w = e^x and ln|jw - r| for each root r) is computed once,
-    in a table the intervals index (a split adds its midpoint): the same expression at the same w gives the same
-    value. The loops are written out here, with no call that takes an array (numba does not inline such calls
-    across functions, and each one pays reference counting)."""
+    grid._interval_bound's expressions. Every node (its w = e^x, and ln|jw - r| and the angle of jw - r for each
+    root r: grid.node_terms) is computed once, in a table the intervals index (a split adds its midpoint): the
+    same expression at the same w gives the same value. The loops are written out here, with no call that takes
+    an array (numba does not inline such calls across functions, and each one pays reference counting)."""
     rr = np.concatenate((zeros, poles))
     nz = zeros.size
     nr = rr.size
@@ -333,14 +333,17 @@ def _resolve_plant(zeros, poles, delay, v):
     tame = math.isfinite(delay)
     for k in range(nr):
         tame &= abs(xr[k]) <= _TAME and abs(yr[k]) <= _TAME
+    scale, margin = 1.0 + SUM_ROUNDING * (nr + 1), ANGLE_ROUNDING * nr  # rounding of the differenced angles
     cap = 2 * v.size + 16
-    tx, tw, tm = np.empty(cap), np.empty(cap), np.empty((cap, nr))  # the node table: x, e^x, ln|jw - r|
+    # the node table: x, e^x, ln|jw - r|, angle of jw - r
+    tx, tw, tm, ta = np.empty(cap), np.empty(cap), np.empty((cap, nr)), np.empty((cap, nr))
     n_nodes = v.size
     for i in range(n_nodes):
         w = math.exp(v[i])
         tx[i], tw[i] = v[i], w
-        for k in range(nr):
+        for k in range(nr):  # grid.node_terms (0 on the imaginary axis)
             tm[i, k] = 0.5 * math.log(xr[k] * xr[k] + (w - yr[k]) * (w - yr[k]))
+            ta[i, k] = math.atan((w - yr[k]) / xr[k]) if xr[k] != 0 else 0.0
     out_n = np.empty(2 * v.size + 16, np.int64)  # the finished nodes (table indices) and intervals
     out_e = np.empty(2 * v.size + 16)
     out_n[0] = 0
@@ -359,7 +362,7 @@ def _resolve_plant(zeros, poles, delay, v):
             p, q = i0[i], i1[i]
             w0, w1 = tw[p], tw[q]
             wide = tx[q] - tx[p] > _MIN_WIDTH * (1 + abs(tx[p]))
-            for k in range(nr):  # Plant._log_variation, one root at a time (zeros +, poles -): magnitudes ...
+            for k in range(nr):  # grid._interval_bound, one root at a time (zeros +, poles -): magnitudes ...
                 x, y = xr[k], yr[k]
                 m0, m1 = tm[p, k], tm[q, k]
                 low = math.log(abs(x)) if (w0 < y and y < w1) else _npmin(m0, m1)
@@ -378,14 +381,17 @@ def _resolve_plant(zeros, poles, delay, v):
                 rise, fall = _row_sum(b1, nr), _row_sum(b2, nr)
             mag = _npmax(rise, fall)
             if wide and tame and w1 <= _TAME and mag > _STEP:
-                # e = hypot(arg, mag) >= mag > _STEP (arg is not NaN here): split whatever the phase bound, whose
-                # atan2 per root is the most of this function's cost (a split interval's eps is not kept)
+                # e = hypot(arg, mag) >= mag > _STEP (arg is not NaN here): split whatever the phase bound
+                # (a split interval's eps is not kept)
                 split[i] = True
                 n_split += 1
                 continue
-            for k in range(nr):  # ... then phases
+            for k in range(nr):  # ... then phases: the difference of the node angles (atan2 on the imaginary axis)
                 x, y = xr[k], yr[k]
-                turn = math.atan2(x * (w1 - w0), x * x + (w0 - y) * (w1 - y))
+                if x != 0:
+                    turn = ta[q, k] - ta[p, k]
+                else:
+                    turn = math.atan2(x * (w1 - w0), x * x + (w0 - y) * (w1 - y))
                 if k >= nz:
                     turn = -turn
                 b3[k] = turn if turn > 0 else 0.0
@@ -400,7 +406,7 @@ def _resolve_plant(zeros, poles, delay, v):
                 pos, neg = b3[0] + pos, b4[0] + neg
             else:
                 pos, neg = _row_sum(b3, nr), _row_sum(b4, nr)
-            arg = _npmax(pos, -neg + delay * (w1 - w0))
+            arg = _npmax(pos, -neg + delay * (w1 - w0)) * scale + margin
             e = math.hypot(arg, mag)
             eps[i] = e
             split[i] = (e > _STEP) and wide
@@ -412,9 +418,10 @@ def _resolve_plant(zeros, poles, delay, v):
             out_n, out_e = on, oe
         if n_nodes + n_split > tx.size:
             grow = max(2 * tx.size, n_nodes + n_split)
-            gx, gw, gm = np.empty(grow), np.empty(grow), np.empty((grow, nr))
-            gx[:n_nodes], gw[:n_nodes], gm[:n_nodes] = tx[:n_nodes], tw[:n_nodes], tm[:n_nodes]
-            tx, tw, tm = gx, gw, gm
+            gx, gw, gm, ga = np.empty(grow), np.empty(grow), np.empty((grow, nr)), np.empty((grow, nr))
+            gx[:n_nodes], gw[:n_nodes] = tx[:n_nodes], tw[:n_nodes]
+            gm[:n_nodes], ga[:n_nodes] = tm[:n_nodes], ta[:n_nodes]
+            tx, tw, tm, ta = gx, gw, gm, ga
         n0, n1 = np.empty(2 * n_split, np.int64), np.empty(2 * n_split, np.int64)
         k = 0
         for i in range(m):
@@ -425,6 +432,7 @@ def _resolve_plant(zeros, poles, delay, v):
                 tx[n_nodes], tw[n_nodes] = xm, w
                 for r in range(nr):
                     tm[n_nodes, r] = 0.5 * math.log(xr[r] * xr[r] + (w - yr[r]) * (w - yr[r]))
+                    ta[n_nodes, r] = math.atan((w - yr[r]) / xr[r]) if xr[r] != 0 else 0.0
                 n0[k], n1[k] = p, n_nodes
                 n0[n_split + k], n1[n_split + k] = n_nodes, q
                 n_nodes += 1
