@@ -70,6 +70,7 @@ _WIN_LO = 10.0 ** -CONSTANTS["DECADES"]
 _WIN_HI = 10.0 ** CONSTANTS["DECADES"]
 _TWO_PI = 2.0 * np.pi
 _PI = np.pi
+_TAME = 1e100  # bound on |roots| and w below which the phase bound of an interval cannot be NaN
 _MAX_PAIRWISE = 128  # roots of a plant beyond which the numpy reduction order is not mirrored (a fallback)
 
 # the constant candidate amplitudes of predict._default_amplitude_window and the grid of predict._limit_reach
@@ -199,51 +200,77 @@ def _wrapped(d):
 
 
 @njit(**_OPTS)
-def _dlog(l1, l0):
-    """grid._dlog."""
+def _dlog(l1, l0, wrapped):
+    """grid._dlog, with the wrapped phase difference _wrapped(l1.imag - l0.imag) already computed."""
     dre = l1.real - l0.real
     if dre != dre:
         dre = 0.0
-    return math.hypot(dre, _wrapped(l1.imag - l0.imag))
+    return math.hypot(dre, wrapped)
 
 
 @njit(**_OPTS)
 def _order(x):
-    """A stable argsort of a 1-D array (bottom-up merge sort; NaN-free input): np.argsort(kind="stable").
-    Input already in order (most grids): the identity, after one pass."""
+    """A stable argsort of a 1-D array (NaN-free input): np.argsort(kind="stable"), by a natural merge sort.
+
+    The array is cut into its runs (non-decreasing, or strictly decreasing and then reversed: no ties inside, so
+    no order among equal values changes), and adjacent runs are merged pairwise, the left one first on ties:
+    the unique stable order, in O(n log(runs)). Sampled curves (|G| along the frequency grid) have few runs; input
+    already in order (most grids) is the identity, after one pass."""
     n = x.size
     idx = np.arange(n)
-    ordered = True
-    for i in range(1, n):
-        if x[i] < x[i - 1]:
-            ordered = False
-            break
-    if ordered:
+    bounds = np.empty(n + 1, np.int64)
+    nb = 0
+    i = 0
+    while i < n:
+        bounds[nb] = i
+        nb += 1
+        j = i + 1
+        if j < n and x[j] < x[i]:  # a strictly decreasing run, reversed
+            while j < n and x[j] < x[j - 1]:
+                j += 1
+            lo, hi = i, j - 1
+            while lo < hi:
+                idx[lo], idx[hi] = idx[hi], idx[lo]
+                lo += 1
+                hi -= 1
+        else:
+            while j < n and x[j] >= x[j - 1]:
+                j += 1
+        i = j
+    bounds[nb] = n
+    if nb <= 1:
         return idx
     tmp = np.empty(n, np.int64)
-    width = 1
-    while width < n:
-        for lo in range(0, n, 2 * width):
-            mid, hi = min(lo + width, n), min(lo + 2 * width, n)
-            i, j, k = lo, mid, lo
+    while nb > 1:
+        k = 0
+        for r in range(0, nb, 2):
+            lo = bounds[r]
+            if r + 1 < nb:
+                mid, hi = bounds[r + 1], bounds[r + 2]
+            else:
+                mid = hi = bounds[r + 1]
+            i, j, q = lo, mid, lo
             while i < mid and j < hi:
                 if x[idx[j]] < x[idx[i]]:
-                    tmp[k] = idx[j]
+                    tmp[q] = idx[j]
                     j += 1
                 else:
-                    tmp[k] = idx[i]
+                    tmp[q] = idx[i]
                     i += 1
-                k += 1
+                q += 1
             while i < mid:
-                tmp[k] = idx[i]
+                tmp[q] = idx[i]
                 i += 1
-                k += 1
+                q += 1
             while j < hi:
-                tmp[k] = idx[j]
+                tmp[q] = idx[j]
                 j += 1
-                k += 1
+                q += 1
+            bounds[k] = lo
+            k += 1
+        bounds[k] = n
+        nb = k
         idx, tmp = tmp, idx
-        width *= 2
     return idx
 
 
@@ -302,6 +329,10 @@ def _resolve_plant(zeros, poles, delay, v):
     for k in range(nr):
         xr[k], yr[k] = -rr[k].real, rr[k].imag  # jw - r = x + j (w - y)
     b1, b2, b3, b4 = np.empty(nr), np.empty(nr), np.empty(nr), np.empty(nr)
+    # roots and delay within _TAME: no product below overflows, so no phase bound is NaN (see the split shortcut)
+    tame = math.isfinite(delay)
+    for k in range(nr):
+        tame &= abs(xr[k]) <= _TAME and abs(yr[k]) <= _TAME
     cap = 2 * v.size + 16
     tx, tw, tm = np.empty(cap), np.empty(cap), np.empty((cap, nr))  # the node table: x, e^x, ln|jw - r|
     n_nodes = v.size
@@ -327,34 +358,52 @@ def _resolve_plant(zeros, poles, delay, v):
         for i in range(m):
             p, q = i0[i], i1[i]
             w0, w1 = tw[p], tw[q]
-            for k in range(nr):  # Plant._log_variation, one root at a time (zeros +, poles -)
+            wide = tx[q] - tx[p] > _MIN_WIDTH * (1 + abs(tx[p]))
+            for k in range(nr):  # Plant._log_variation, one root at a time (zeros +, poles -): magnitudes ...
                 x, y = xr[k], yr[k]
-                turn = math.atan2(x * (w1 - w0), x * x + (w0 - y) * (w1 - y))
-                if k >= nz:
-                    turn = -turn
                 m0, m1 = tm[p, k], tm[q, k]
                 low = math.log(abs(x)) if (w0 < y and y < w1) else _npmin(m0, m1)
                 up, down = m1 - low, m0 - low
                 b1[k] = up if k < nz else down
                 b2[k] = down if k < nz else up
-                b3[k] = turn if turn > 0 else 0.0
-                b4[k] = turn if turn < 0 else 0.0
             if nr == 0:
-                rise = fall = pos = neg = 0.0
+                rise = fall = 0.0
             elif nr <= 8:  # numpy's sum along the last axis: the first term plus the others in order
-                rise, fall, pos, neg = -0.0, -0.0, -0.0, -0.0
+                rise, fall = -0.0, -0.0
                 for k in range(1, nr):
                     rise += b1[k]
                     fall += b2[k]
+                rise, fall = b1[0] + rise, b2[0] + fall
+            else:
+                rise, fall = _row_sum(b1, nr), _row_sum(b2, nr)
+            mag = _npmax(rise, fall)
+            if wide and tame and w1 <= _TAME and mag > _STEP:
+                # e = hypot(arg, mag) >= mag > _STEP (arg is not NaN here): split whatever the phase bound, whose
+                # atan2 per root is the most of this function's cost (a split interval's eps is not kept)
+                split[i] = True
+                n_split += 1
+                continue
+            for k in range(nr):  # ... then phases
+                x, y = xr[k], yr[k]
+                turn = math.atan2(x * (w1 - w0), x * x + (w0 - y) * (w1 - y))
+                if k >= nz:
+                    turn = -turn
+                b3[k] = turn if turn > 0 else 0.0
+                b4[k] = turn if turn < 0 else 0.0
+            if nr == 0:
+                pos = neg = 0.0
+            elif nr <= 8:
+                pos, neg = -0.0, -0.0
+                for k in range(1, nr):
                     pos += b3[k]
                     neg += b4[k]
-                rise, fall, pos, neg = b1[0] + rise, b2[0] + fall, b3[0] + pos, b4[0] + neg
+                pos, neg = b3[0] + pos, b4[0] + neg
             else:
-                rise, fall, pos, neg = _row_sum(b1, nr), _row_sum(b2, nr), _row_sum(b3, nr), _row_sum(b4, nr)
+                pos, neg = _row_sum(b3, nr), _row_sum(b4, nr)
             arg = _npmax(pos, -neg + delay * (w1 - w0))
-            e = math.hypot(arg, _npmax(rise, fall))
+            e = math.hypot(arg, mag)
             eps[i] = e
-            split[i] = (e > _STEP) and (tx[q] - tx[p] > _MIN_WIDTH * (1 + abs(tx[p])))
+            split[i] = (e > _STEP) and wide
             n_split += split[i]
         if n_out + m > out_n.size:
             grow = max(2 * out_n.size, n_out + m)
@@ -407,21 +456,21 @@ def _resolve_plant(zeros, poles, delay, v):
 
 
 @njit(**_OPTS)
-def _turns(l0, lg, lm, l1):
-    """grid._non_monotone of one interval sampled at l0, lg, lm, l1 (complex logs)."""
-    s = (l0, lg, lm, l1)
-    turned = False
-    for part in range(2):
-        up = down = False
-        for k in range(3):
-            if part == 0:
-                d = s[k + 1].real - s[k].real
-            else:
-                d = _wrapped(s[k + 1].imag - s[k].imag)
-            up |= d > 1e-10
-            down |= d < -1e-10
-        turned |= up and down
-    return turned
+def _turns(l0, lg, lm, l1, w_g0, w_1m):
+    """grid._non_monotone of one interval sampled at l0, lg, lm, l1 (complex logs); w_g0, w_1m: the wrapped phase
+    differences lg - l0 and l1 - lm (computed for the interval's bound already; the third, lm - lg, only when
+    ln|N| alone does not turn)."""
+    up = down = False
+    for d in (lg.real - l0.real, lm.real - lg.real, l1.real - lm.real):
+        up |= d > 1e-10
+        down |= d < -1e-10
+    if up and down:
+        return True
+    up = down = False
+    for d in (w_g0, _wrapped(lm.imag - lg.imag), w_1m):
+        up |= d > 1e-10
+        down |= d < -1e-10
+    return up and down
 
 
 @njit(**_OPTS)
@@ -465,12 +514,14 @@ def _resolve_element(kind, p, x):
                 return out_x[:1], out_f[:1], out_e[:0], n_eval, 7
             lm[i] = _clog(fm[i])
             lg = _clog(fg)
-            e = _npmax(_dlog(lm[i], l0[i]) + _dlog(l1[i], lm[i]), _dlog(lg, l0[i]) + _dlog(l1[i], lg))
+            w_g0, w_1m = _wrapped(lg.imag - l0[i].imag), _wrapped(l1[i].imag - lm[i].imag)
+            e = _npmax(_dlog(lm[i], l0[i], _wrapped(lm[i].imag - l0[i].imag)) + _dlog(l1[i], lm[i], w_1m),
+                       _dlog(lg, l0[i], w_g0) + _dlog(l1[i], lg, _wrapped(l1[i].imag - lg.imag)))
             eps[i] = e
             fin = math.isfinite(e)
             s = fin and (e > _STEP) and (dx > _MIN_WIDTH * (1 + abs(x0[i])))
             if not s and fin and dx > _MONOTONE_WIDTH * (1 + abs(x0[i])):
-                s = _turns(l0[i], lg, lm[i], l1[i])
+                s = _turns(l0[i], lg, lm[i], l1[i], w_g0, w_1m)
             split[i] = s
             n_split += s
         if n_out + k > out_x.size:
@@ -698,10 +749,13 @@ def _candidate_cells(ln_n, eps_a, rg, g, eps_v):
         emax = _npmax(emax, eps_v[j])
     scan = na <= _SCAN_ROWS
     order = np.empty(0, np.int64)
-    srt = rg[:0]
-    if not scan:
+    srt, srt_e = rg[:0], rg[:0]
+    if not scan:  # ln|G| sorted, with eps_v in the same order: the search reads both in sequence
         order = _order(rg[:nv])
-        srt = rg[:nv][order]
+        srt = np.empty(nv)
+        srt_e = np.empty(nv)
+        for q in range(nv):
+            srt[q], srt_e[q] = rg[order[q]], eps_v[order[q]]
     arg_g = np.full(nv + 1, np.nan)
     out = np.empty(64, np.int64)
     n_out = 0
@@ -723,12 +777,16 @@ def _candidate_cells(ln_n, eps_a, rg, g, eps_v):
                 j = q
                 if not (lo <= rg[j] and rg[j] <= hi):
                     continue
+                re = rn + rg[j]
+                e = eps_a[i] + eps_v[j]
+                if abs(re) > e:
+                    continue
             else:
+                re = rn + srt[q]
+                e = eps_a[i] + srt_e[q]
+                if abs(re) > e:
+                    continue
                 j = order[q]
-            re = rn + rg[j]
-            e = eps_a[i] + eps_v[j]
-            if abs(re) > e:
-                continue
             if arg_g[j] != arg_g[j]:
                 arg_g[j] = _angle(g[j])
             im = ln_n[i].imag + arg_g[j] - _PI
