@@ -185,12 +185,10 @@ class DelayDDE:
         return 0.5 * (lo + hi)
 
 
-def _equations(A, B, C, f, delay, kinks, s0: np.ndarray, x: np.ndarray, P: float):
-    """The periodic equations in (node values x, plant state s_0, P): x_k + C s_k (s_k from s_0 by the steps'
-    recursion s_{k+1} = Phi s_k + sum_p E_p f(xi_p)), s_N - s_0, and the phase. Returns (R, S (N+1, n), dde,
-    (points, xi))."""
+def node_states(dde: DelayDDE, x: np.ndarray, s0: np.ndarray):
+    """(S (N + 1, n), (points, xi)): the plant states at the N + 1 nodes of one period driven by the delayed
+    element output of the node values x, by the steps' recursion s_{k+1} = Phi s_k + sum_p E_p f(xi_p) from s0."""
     N = x.size
-    dde = DelayDDE(A, B, C, f, delay, P / N, kinks)
     pts = dde.points(x)
     k, E, idx, w = pts
     xi = np.einsum("pj,pj->p", x[idx], w)
@@ -200,8 +198,17 @@ def _equations(A, B, C, f, delay, kinks, s0: np.ndarray, x: np.ndarray, P: float
     S[0] = s0
     for j in range(N):
         S[j + 1] = dde.Phi @ S[j] + F[j]
+    return S, (pts, xi)
+
+
+def _equations(A, B, C, f, delay, kinks, s0: np.ndarray, x: np.ndarray, P: float):
+    """The periodic equations in (node values x, plant state s_0, P): x_k + C s_k (s_k from s_0 by the steps'
+    recursion s_{k+1} = Phi s_k + sum_p E_p f(xi_p)), s_N - s_0, and the phase. Returns (R, S (N+1, n), dde,
+    (points, xi))."""
+    dde = DelayDDE(A, B, C, f, delay, P / x.size, kinks)
+    S, data = node_states(dde, x, s0)
     R = np.concatenate([x + S[:-1] @ dde.C, S[-1] - s0, [_phase(x)]])
-    return R, S, dde, (pts, xi)
+    return R, S, dde, data
 
 
 def node_jacobian(dde: DelayDDE, x: np.ndarray, data) -> np.ndarray:

@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from .dde import DDELoop, DelayDDE, balanced_states, multipliers, node_jacobian
+from .dde import DDELoop, DelayDDE, balanced_states, multipliers, node_jacobian, node_states
 
 __all__ = ["forced_dde_orbit", "TARGET", "MAX_NODES"]
 
@@ -28,17 +28,8 @@ MAX_NODES = 4096
 
 def _equations(dde: DelayDDE, x: np.ndarray, s0: np.ndarray, r: np.ndarray):
     """(residual, node states S (N + 1, n), quadrature data) of the forced periodic equations."""
-    N = x.size
-    pts = dde.points(x)
-    k, E, idx, w = pts
-    xi = np.einsum("pj,pj->p", x[idx], w)
-    F = np.zeros((N, dde.n))
-    np.add.at(F, k, E * dde.f(xi)[:, None])
-    S = np.empty((N + 1, dde.n))
-    S[0] = s0
-    for j in range(N):
-        S[j + 1] = dde.Phi @ S[j] + F[j]
-    return np.concatenate([x + S[:-1] @ dde.C - r, S[-1] - s0]), S, (pts, xi)
+    S, data = node_states(dde, x, s0)
+    return np.concatenate([x + S[:-1] @ dde.C - r, S[-1] - s0]), S, data
 
 
 def _newton(A, B, C, f, kinks, T, P, x, s0, R, tol, max_iterations):

@@ -142,8 +142,13 @@ def harmonic_balance_state(loop, N, amplitude: float, frequency: float, t: float
     r0, load = getattr(loop, "r0", 0.0), getattr(loop, "load", 0.0)
     if bias != 0.0 or r0 != 0.0 or load != 0.0:
         return _biased_state(loop, amplitude, frequency, t, bias, r0, load)
-    n_val = complex(N(amplitude, frequency) if N.frequency_dependent else N(amplitude))
-    X = np.linalg.solve(1j * frequency * np.eye(A.shape[0]) - A, B) * n_val * amplitude
+    memo = getattr(loop, "_harmonic_balance", None)   # the shooting's nodes share the phasor: one solve for all
+    if memo is not None and memo[0] is A and memo[1] is N and memo[2] == (amplitude, frequency):
+        X = memo[3]
+    else:
+        n_val = complex(N(amplitude, frequency) if N.frequency_dependent else N(amplitude))
+        X = np.linalg.solve(1j * frequency * np.eye(A.shape[0]) - A, B) * n_val * amplitude
+        loop._harmonic_balance = (A, N, (amplitude, frequency), X)
     return (X * np.exp(1j * frequency * t)).imag.copy()
 
 
