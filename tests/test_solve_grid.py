@@ -10,7 +10,7 @@ from scipy.optimize import brentq
 
 import dfloop as df
 from dfloop.describing.base import DescribingFunction
-from dfloop.solve import ContinuumError, GridReport
+from dfloop.solve import ContinuumError, GridReport, grid
 from dfloop.solve.plant import as_plant
 
 
@@ -176,3 +176,43 @@ def test_delay_inside_a_frequency_dependent_N_every_root(T):
     assert len(cycles) == ref.size
     np.testing.assert_allclose([c.frequency for c in cycles], ref, rtol=1e-10)
     assert all(c.stability == "stable" for c in cycles)
+
+
+@pytest.mark.parametrize("order", [1, 3, 6, 10])
+def test_grid_bound_with_allpass_pairs_holds_against_dense_sampling(order):
+    # a Pade delay's zeros mirror its poles: resolve_plant counts each pair's magnitude by the joint bound of
+    # grid.allpass_pairs (the pair's modulus is ~1). The bound of every final interval must still hold the change
+    # of ln G sampled densely, on the Pade chain alone and with a pair mirrored only to 1e-10 (a pair the rule
+    # accepts with a slack) or to 1e-6 (a pair it must refuse: counted root by root)
+    rng = np.random.default_rng(order)
+    num, den = ct.pade(rng.uniform(0.2, 3.0), order)
+    base = ct.tf([2.0], [1.0, 1.2, 1.0]) * ct.tf(num, den)
+    pr = -rng.uniform(0.3, 2.0) + 1j * rng.uniform(0.5, 4.0)
+    for mismatch, counted in ((0.0, True), (1e-10, True), (1e-6, False)):
+        z = -np.conj(pr) + mismatch * abs(pr.real) * np.exp(1j * rng.uniform(0, 2 * np.pi))
+        pair = ct.tf(np.real(np.poly([z, np.conj(z)])), np.real(np.poly([pr, np.conj(pr)])))
+        plant = as_plant(base * pair)
+        zeros, poles = plant.roots
+        paired, slack = grid.allpass_pairs(zeros, poles)
+        # the Pade chain's pairs (all its roots), and the extra pair only within the mismatch the rule allows
+        assert paired.sum() == 2 * order + (4 if counted else 0)
+        assert 0 <= slack < 1e-6
+        v = np.linspace(np.log(0.05), np.log(50.0), 40)
+        nodes, _, eps = grid.resolve_plant(plant, v)[:3]
+        assert eps.max() <= grid.STEP
+        for i in rng.choice(eps.size, 25, replace=False):
+            w = np.exp(np.linspace(nodes[i], nodes[i + 1], 2001))
+            g = plant(w)
+            lg = np.log(np.abs(g)) + 1j * np.unwrap(np.angle(g))
+            assert np.max(np.abs(lg - lg[0])) <= eps[i]
+
+
+def test_allpass_pairs_pairs_only_mirrors():
+    # no mirror: nothing paired; a zero at a pole's mirror with the other pole's imaginary part: not paired
+    zeros = np.array([1.0 + 2.0j, 1.0 - 2.0j, -3.0 + 0.0j])
+    poles = np.array([-1.0 + 1.0j, -1.0 - 1.0j, -0.5 + 0.0j])
+    paired, slack = grid.allpass_pairs(zeros, poles)
+    assert not paired.any() and slack == 0.0
+    # exact mirrors pair one to one (a repeated pole is taken once per zero)
+    paired, slack = grid.allpass_pairs(np.array([2.0 + 0j, 2.0 + 0j]), np.array([-2.0 + 0j, -2.0 + 0j, -2.0 + 0j]))
+    assert paired.tolist() == [True, True, True, True, False] and 0 < slack < 1e-14

@@ -20,13 +20,15 @@ from __future__ import annotations
 
 from typing import Callable
 
+import math
+
 import numpy as np
 
 from .._checks import memory_limit
 from .plant import Plant
 
 __all__ = ["STEP", "FD_MIN_WIDTH", "MONOTONE_WIDTH", "BYTES_PER_POINT", "ANGLE_ROUNDING", "SUM_ROUNDING", "resolve_plant",
-           "resolve_sampled", "node_terms", "check_memory", "clog", "largest_step"]
+           "resolve_sampled", "node_terms", "allpass_pairs", "ALLPASS_MISMATCH", "check_memory", "clog", "largest_step"]
 
 STEP = 0.35
 """Largest change of the complex log of G (or N) allowed within one grid interval (|d ln| = |d ln|f|| + phase)."""
@@ -200,6 +202,48 @@ SUM_ROUNDING = 2.3e-16
 non-negative terms in floating point is within (n - 1) u of the exact sum; 2.3e-16 > 2u)."""
 
 
+ALLPASS_MISMATCH = 1e-9
+"""Largest distance |z + conj(p)|, relative to |Re p|, at which a zero z and a pole p count as an all-pass pair
+(:func:`allpass_pairs`): the mirrored roots of a Pade delay, computed apart, meet this to ~1e-14."""
+
+
+def allpass_pairs(zeros: np.ndarray, poles: np.ndarray):
+    """The all-pass pairs of a rational plant: (paired, slack).
+
+    ``paired`` (bool, zeros then poles) marks each zero z matched with a pole p at its mirror image,
+    z = -conj(p) up to ``ALLPASS_MISMATCH`` |Re p| (each zero takes the nearest unmatched pole; a Pade delay's
+    zeros mirror its poles). The factor (jw - z) / (jw - p) of a pair has modulus 1 at every w when the mirror
+    is exact; with z = -conj(p) + d, its modulus lies within |d| / |Re p| of 1, since
+    |jw + conj(p)| = |jw - p| >= |Re p|. So a pair changes ln|G| by at most 2 c, c = -ln(1 - |d| / |Re p|)
+    (|d| with a rounding margin), on any interval: ``slack`` is the sum over the pairs, and
+    :func:`resolve_plant`'s magnitude bound counts the pairs by it in place of their roots' separate rises and
+    falls (their phases as before). Written in scalar arithmetic that numba compiles unchanged, so the compiled
+    driver's grid is the same bit for bit.
+    """
+    nz, n_p = zeros.size, poles.size
+    paired = np.zeros(nz + n_p, np.bool_)
+    slack = 0.0
+    for i in range(nz):
+        zr, zi = zeros[i].real, zeros[i].imag
+        best, j_best = math.inf, -1
+        for j in range(n_p):
+            pr, pi_ = poles[j].real, poles[j].imag
+            if paired[nz + j] or not (pr != 0 and math.isfinite(pr) and math.isfinite(pi_)):
+                continue
+            d = math.hypot(zr + pr, zi - pi_)
+            if d < best:
+                best, j_best = d, j
+        if j_best < 0 or not (math.isfinite(zr) and math.isfinite(zi)):
+            continue
+        pr, pi_ = poles[j_best].real, poles[j_best].imag
+        # the distance's own rounding (two sums and a hypot of numbers of these sizes), as a margin
+        d = best * (1 + 1e-15) + 1e-15 * (abs(zr) + abs(zi) + abs(pr) + abs(pi_))
+        if d <= ALLPASS_MISMATCH * abs(pr):
+            paired[i] = paired[nz + j_best] = True
+            slack += -2.0 * math.log1p(-d / abs(pr))
+    return paired, slack * (1 + 1e-12)
+
+
 def node_terms(plant: Plant, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """ln|j nu - r| and the angle of j nu - r on its continuous branch, at each frequency of w (rad/s, shape (k,))
     for each root r of a rational plant (zeros, then poles; nu = w, or the plant's frequency map of it): two
@@ -222,10 +266,12 @@ def _interval_bound(plant: Plant, nu0, nu1, m0, m1, t0, t1) -> np.ndarray:
     the two ends (exactly its atan2 turn of log_variation, up to rounding: ``ANGLE_ROUNDING`` per root and
     ``SUM_ROUNDING`` per term are added, so the bound stays an upper bound), except for roots on the imaginary
     axis, whose turn is log_variation's atan2 (0, or pi where the interval passes the root, where the magnitude
-    bound is infinite anyway)."""
+    bound is infinite anyway). The magnitudes of all-pass pairs (a Pade delay's mirrored roots) are counted by
+    their joint bound (:func:`allpass_pairs`), not root by root: their moduli cancel."""
     zeros, poles = plant.roots
     r = np.concatenate([zeros, poles])
     nr = r.size
+    paired, slack = allpass_pairs(zeros, poles)
     sign = np.concatenate([np.ones(zeros.size), -np.ones(poles.size)])
     x, y = -r.real, r.imag
     w0, w1 = nu0[:, None], nu1[:, None]
@@ -238,8 +284,9 @@ def _interval_bound(plant: Plant, nu0, nu1, m0, m1, t0, t1) -> np.ndarray:
         inside = (w0 < y) & (y < w1)
         low = np.where(inside, np.log(np.abs(x)), np.minimum(m0, m1))
         up, down = m1 - low, m0 - low  # total rise and fall of ln|jw - r| on the interval
-        rise = np.where(sign > 0, up, down).sum(axis=-1)
-        fall = np.where(sign > 0, down, up).sum(axis=-1)
+        up, down = np.where(paired, 0.0, up), np.where(paired, 0.0, down)  # all-pass pairs: by the slack
+        rise = np.where(sign > 0, up, down).sum(axis=-1) + slack
+        fall = np.where(sign > 0, down, up).sum(axis=-1) + slack
     delay_turn = plant.delay * (nu1 - nu0)
     arg = np.maximum(np.where(turn > 0, turn, 0).sum(axis=-1), -np.where(turn < 0, turn, 0).sum(axis=-1) + delay_turn)
     arg = arg * (1.0 + SUM_ROUNDING * (nr + 1)) + ANGLE_ROUNDING * nr

@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..._checks import memory_limit
-from ..grid import ANGLE_ROUNDING, BYTES_PER_POINT, SUM_ROUNDING
+from ..grid import ANGLE_ROUNDING, BYTES_PER_POINT, SUM_ROUNDING, allpass_pairs
 from .kernels import accepted, cabs, cdiv, element, plant, refine, slopes_at
 
 __all__ = ["solve_one", "solve_many", "solve_one_dispatcher", "solve_many_dispatcher", "FALLBACK", "MAX_ROOTS", "CONSTANTS", "STABLE", "UNSTABLE", "MARGINAL"]
@@ -94,6 +94,7 @@ _CORNER_I = np.array([0, 1, 1, 0])
 _CORNER_J = np.array([0, 0, 1, 1])
 
 _BYTES_PER_POINT = float(BYTES_PER_POINT[False])  # the work arrays per grid point (amplitude-only N)
+_allpass_pairs = njit(**_OPTS)(allpass_pairs)  # grid.allpass_pairs, the same source compiled
 
 # label codes
 STABLE, UNSTABLE, MARGINAL = 0, 1, 2
@@ -334,6 +335,7 @@ def _resolve_plant(zeros, poles, delay, v):
     for k in range(nr):
         tame &= abs(xr[k]) <= _TAME and abs(yr[k]) <= _TAME
     scale, margin = 1.0 + SUM_ROUNDING * (nr + 1), ANGLE_ROUNDING * nr  # rounding of the differenced angles
+    paired, slack = _allpass_pairs(zeros, poles)  # all-pass pairs: magnitudes by their joint bound
     cap = 2 * v.size + 16
     # the node table: x, e^x, ln|jw - r|, angle of jw - r
     tx, tw, tm, ta = np.empty(cap), np.empty(cap), np.empty((cap, nr)), np.empty((cap, nr))
@@ -366,7 +368,7 @@ def _resolve_plant(zeros, poles, delay, v):
                 x, y = xr[k], yr[k]
                 m0, m1 = tm[p, k], tm[q, k]
                 low = math.log(abs(x)) if (w0 < y and y < w1) else _npmin(m0, m1)
-                up, down = m1 - low, m0 - low
+                up, down = (0.0, 0.0) if paired[k] else (m1 - low, m0 - low)
                 b1[k] = up if k < nz else down
                 b2[k] = down if k < nz else up
             if nr == 0:
@@ -379,6 +381,7 @@ def _resolve_plant(zeros, poles, delay, v):
                 rise, fall = b1[0] + rise, b2[0] + fall
             else:
                 rise, fall = _row_sum(b1, nr), _row_sum(b2, nr)
+            rise, fall = rise + slack, fall + slack
             mag = _npmax(rise, fall)
             if wide and tame and w1 <= _TAME and mag > _STEP:
                 # e = hypot(arg, mag) >= mag > _STEP (arg is not NaN here): split whatever the phase bound
