@@ -68,3 +68,32 @@ def test_boxes_around_roots_are_never_excluded(k):
             for dj in (-1, 0):
                 assert not seed_excluded(res, a, v, ln_n, eps_a, ln_g, eps_v, i + di - 2, i + di + 2, j + dj - 2,
                                          j + dj + 2)
+
+
+@pytest.mark.parametrize("k", range(len(LOOPS)))
+def test_compiled_exclusion_of_the_python_driver_drops_only_empty_boxes(k):
+    # the Python driver on a compiled loop decides its seeds in the compiled driver's kernel (driver.kept_seeds):
+    # every seed it drops must have a +-2-node box that holds nothing the refinement could accept (brute force),
+    # the seeds next to the solver's roots must be kept, and most seeds of these grids are dropped
+    from dfloop.solve.compiled import driver
+    from dfloop.solve.compiled.residual import compiled_loop
+
+    G, N, A_win, w_win = LOOPS[k]
+    res, a, v, n, g, eps_a, eps_v = _grid(G, N, A_win, w_win)
+    loop = compiled_loop(res.plant, N)
+    assert loop is not None
+    rng = np.random.default_rng(10 + k)
+    si, sj = rng.integers(0, a.size, 80), rng.integers(0, v.size, 80)
+    cycles = df.predict_limit_cycles(G, N, amplitude=A_win, omega=w_win)
+    near = [(int(np.searchsorted(a, math.log(c.amplitude))), int(np.searchsorted(v, math.log(c.frequency))))
+            for c in cycles]
+    si, sj = np.concatenate([si, [i for i, _ in near]]), np.concatenate([sj, [j for _, j in near]])
+    keep = driver.kept_seeds(loop, a, v, n, g, eps_a, eps_v, si, sj)
+    for s in np.flatnonzero(~keep):
+        i, j = si[s], sj[s]
+        i0, i1, j0, j1 = max(i - 2, 0), min(i + 2, a.size - 1), max(j - 2, 0), min(j + 2, v.size - 1)
+        aa, vv = np.meshgrid(np.linspace(a[i0], a[i1], 41), np.linspace(v[j0], v[j1], 41))
+        P = res.terms(aa.ravel(), vv.ravel())
+        rel = np.abs(1 + P) / (1 + np.abs(P))
+        assert rel.min() >= 0.00125, (k, i, j, rel.min())
+    assert keep[80:].all() and (~keep[:80]).sum() >= 20

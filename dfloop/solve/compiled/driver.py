@@ -36,7 +36,7 @@ from ..._checks import memory_limit
 from ..grid import ANGLE_ROUNDING, BYTES_PER_POINT, SUM_ROUNDING, allpass_pairs
 from .kernels import accepted, cabs, cdiv, element, plant, refine, slopes_at
 
-__all__ = ["solve_one", "solve_many", "solve_one_dispatcher", "solve_many_dispatcher", "FALLBACK", "MAX_ROOTS", "CONSTANTS", "STABLE", "UNSTABLE", "MARGINAL"]
+__all__ = ["solve_one", "solve_many", "solve_one_dispatcher", "solve_many_dispatcher", "kept_seeds", "kept_seeds_dispatcher", "FALLBACK", "MAX_ROOTS", "CONSTANTS", "STABLE", "UNSTABLE", "MARGINAL"]
 
 # the constants of the Python driver this one mirrors (tests/test_compiled.py checks they are the same values)
 CONSTANTS = dict(
@@ -1583,6 +1583,47 @@ def _drive_many(num, n_num, den, n_den, zeros, n_zeros, poles, n_poles, delay, k
             count[k] = r.shape[0]
             roots[k, :r.shape[0]] = r
     return status, fl, it, roots, count
+
+
+@njit(**_OPTS)
+def _kept_seeds(num, den, zeros, poles, delay, kind, p, a, v, n, g, eps_a, eps_v, si, sj):
+    """roots._refined_seeds for the Python driver on a compiled loop: the mask of the tangent seeds (si, sj) worth
+    refining, decided as :func:`_tangent_seeds` decides (the exclusion :func:`_no_root_in`, sound: a dropped
+    seed's refinement could accept nothing, so the roots found are the same)."""
+    nA, nv = a.size, v.size
+    ln_n = np.empty(nA, np.complex128)
+    rg = np.empty(nv)
+    for i in range(nA):
+        ln_n[i] = _clog(n[i])
+    for j in range(nv):
+        rg[j] = math.log(cabs(g[j]))
+    arg_g = np.full(nv, np.nan)
+    keep = np.ones(si.size, np.bool_)
+    for s in range(si.size):
+        i, j = si[s], sj[s]
+        if _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg, arg_g, eps_v,
+                       max(i - 2, 0), min(i + 2, nA - 1), max(j - 2, 0), min(j + 2, nv - 1)):
+            r0, r1, c0, c1 = max(i - 4, 0), min(i + 5, nA), max(j - 4, 0), min(j + 5, nv)
+            near = _dominant_any(n, g, r0, r1, c0, c1, True) or _dominant_any(n, g, r0, r1, c0, c1, False)
+            keep[s] = near and not _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg,
+                                               arg_g, eps_v, max(i - 3, 0), min(i + 3, nA - 1), max(j - 3, 0),
+                                               min(j + 3, nv - 1))
+    return keep
+
+
+def kept_seeds(loop, a, v, n, g, eps_a, eps_v, si, sj):
+    """The tangent seeds worth refining (bool mask) for the Python driver on a compiled loop (``loop``: the
+    residual's kernel arrays, :func:`.residual.compiled_loop`); a, v: the grid (ln A, ln w); n, g: N and G at its
+    nodes; eps_a, eps_v: its bounds; si, sj: the seeds' node indices."""
+    num, den, zeros, poles, delay, kind, p = loop[:7]
+    f, c = np.ascontiguousarray, np.complex128
+    return _kept_seeds(num, den, zeros, poles, float(delay), kind, p, f(a, float), f(v, float), f(n, c), f(g, c),
+                       f(eps_a, float), f(eps_v, float), f(si, np.int64), f(sj, np.int64))
+
+
+def kept_seeds_dispatcher():
+    """The numba dispatcher of :func:`kept_seeds` (for the compile announcement)."""
+    return _kept_seeds
 
 
 # ------------------------------------------------------------------------------------------- the Python side

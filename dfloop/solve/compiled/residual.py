@@ -59,7 +59,8 @@ def _kernels(part: str | None = None) -> tuple:
     from . import driver
 
     parts = {"driver": (driver.solve_one_dispatcher(),),
-             "residual": (K.refine, K.evaluate_slopes, K.products, K.plant_values, K.element_values),
+             "residual": (K.refine, K.evaluate_slopes, K.products, K.plant_values, K.element_values,
+                          driver.kept_seeds_dispatcher()),
              "batch": (driver.solve_many_dispatcher(),)}
     return parts[part] if part is not None else sum(parts.values(), ())
 
@@ -264,6 +265,13 @@ class CompiledResidual(Residual):
             return super()._evaluate_slopes(a, v)
         return out[0], out[1], out[2], out[3], out[4]
 
+    def kept_seeds(self, a, v, P, si, sj, bounds) -> np.ndarray:
+        """The tangent seeds worth refining (:func:`dfloop.solve.roots._refined_seeds`), decided in the compiled
+        driver's kernel (the same sound exclusion: the roots found do not change, only the work)."""
+        from .driver import kept_seeds
+
+        return kept_seeds(self._loop, a, v, P.n, P.g, bounds[0], bounds[1], si, sj)
+
     def refine(self, a, v, box, tol: float, certified: bool = False):
         """:func:`dfloop.solve.roots.refine` in the kernels (point by point; the same iteration)."""
         a, v = np.array(a, float).ravel(), np.array(v, float).ravel()
@@ -307,10 +315,19 @@ def driver_parts(G, N, mode_: str | None = None):
 def run_driver(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit=None):
     """The compiled driver on one loop (windows NaN: the defaults; ``mem_limit``: the memory bound in bytes when
     already read), announcing a first compile: (status, floats, ints, roots) (:func:`.driver.solve_one`)."""
+    _announce_compile("driver")
+    solve_one = _SOLVE_ONE[0] if _SOLVE_ONE else _load_solve_one()
+    return solve_one(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit)
+
+
+_SOLVE_ONE: list = []  # the driver's entry, imported on first use (importing it loads numba)
+
+
+def _load_solve_one():
     from .driver import solve_one
 
-    _announce_compile("driver")
-    return solve_one(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit)
+    _SOLVE_ONE.append(solve_one)
+    return solve_one
 
 
 def run_batch(parts, windows, na, nw, tol, marginal_tol):
