@@ -3,6 +3,7 @@ coefficients of a rational G and the compiled form of the element with the const
 wherever the driver does not mirror the Python path (it then runs instead)."""
 from __future__ import annotations
 
+import math
 import sys
 
 import numpy as np
@@ -32,12 +33,11 @@ def _roots(p: np.ndarray) -> np.ndarray:
     """np.roots(p) for p without leading zeros (what :class:`~dfloop.solve.plant.Plant` holds), with the degree-0
     and degree-1 cases taken without numpy's call overhead: np.roots gives there no root, or the eigenvalue of the
     1 x 1 companion matrix [-p1 / p0], exactly, followed by the roots at 0 of trailing zeros."""
-    nz = np.flatnonzero(p)
-    core = p[:nz[-1] + 1]
-    if core.size > 2:
+    c = p.tolist()
+    core = len(c) - _first_nonzero(c[::-1])  # up to the last non-zero coefficient
+    if core > 2:
         return np.roots(p)
-    head = np.array([-core[1] / core[0]]) if core.size == 2 else np.empty(0)
-    return np.concatenate([head, np.zeros(p.size - core.size)])
+    return np.array(([-c[1] / c[0]] if core == 2 else []) + [0.0] * (len(c) - core))
 
 
 def plant_part(G):
@@ -62,14 +62,25 @@ def plant_part(G):
     num, den = np.asarray(num, dtype=float), np.asarray(den, dtype=float)
     if num.ndim != 1 or den.ndim != 1:
         return None
-    if not (np.all(np.isfinite(num)) and np.all(np.isfinite(den))) or max(den.size, num.size) - 1 > MAX_ORDER:
+    if max(den.size, num.size) - 1 > MAX_ORDER:
         return None
-    num, den = (x[np.argmax(x != 0):] if np.any(x) else x[:0] for x in (num, den))
+    nl, dl = num.tolist(), den.tolist()  # a few coefficients: scalar Python is faster than numpy's calls
+    if not all(map(math.isfinite, nl)) or not all(map(math.isfinite, dl)):
+        return None
+    num, den = num[_first_nonzero(nl):], den[_first_nonzero(dl):]  # leading zeros trimmed, as Plant does
     if num.size == 0 or den.size == 0 or num.size > den.size:
         return None
     zeros, poles = (np.ascontiguousarray(_roots(x), complex) for x in (num, den))  # as Plant has them
     out = (np.ascontiguousarray(num), np.ascontiguousarray(den), zeros, poles, delay)
     return out if key is None else _remember(_PLANTS, key, out)
+
+
+def _first_nonzero(c: list) -> int:
+    """The index of the first non-zero coefficient (the length when all are zero: nothing is left)."""
+    for i, x in enumerate(c):
+        if x != 0:
+            return i
+    return len(c)
 
 
 _NOTHING = object()
@@ -96,16 +107,28 @@ def element_part(N, form_of):
     return out if key is None else _remember(_ELEMENTS, key, out)
 
 
+_MIRRORED: dict = {}  # element class -> whether the driver mirrors its methods (a fact of the class)
+
+
+def _mirrored(cls) -> bool:
+    """Whether the driver mirrors the methods of element class ``cls``: the protocol's default validity and
+    error estimate, and the bounds, domain and breakpoints of the class that defines its compiled form."""
+    hit = _MIRRORED.get(cls)
+    if hit is None:
+        owner = next(c for c in cls.__mro__ if "compiled_form" in c.__dict__)
+        hit = _MIRRORED[cls] = (
+            cls.validity is DescribingFunction.validity and cls.error_estimate is DescribingFunction.error_estimate
+            and all(getattr(cls, m) is getattr(owner, m) for m in ("tail_bound", "head_bound", "amplitude_domain"))
+            and (not issubclass(cls, StaticElement) or cls.breakpoints is owner.breakpoints))
+    return hit
+
+
 def _element_part(N, form, cls):
-    if cls.validity is not DescribingFunction.validity or cls.error_estimate is not DescribingFunction.error_estimate:
-        return None
-    owner = next(c for c in cls.__mro__ if "compiled_form" in c.__dict__)
-    if any(getattr(cls, m) is not getattr(owner, m) for m in ("tail_bound", "head_bound", "amplitude_domain")):
+    if not _mirrored(cls):
         return None
     kind = KINDS[form[0]]
-    lo, hi = (float(np.asarray(x, float)) for x in N.amplitude_domain())
-    with np.errstate(divide="ignore"):
-        ln_lo, ln_hi = float(np.log(lo)), float(np.log(hi))
+    lo, hi = (float(x) for x in N.amplitude_domain())  # the class's own: 0-d arrays
+    ln_lo, ln_hi = (float(np.log(x)) if x > 0 else -math.inf for x in (lo, hi))  # np.log(0) = -inf
     tail = N.tail_bound(np.ones(1))
     tail_c = np.nan if tail is None else float(tail[0])
     head_c = head_d = np.nan
@@ -115,7 +138,7 @@ def _element_part(N, form, cls):
         head_c, head_d = 0.75 * (1 + 1e-12) * abs(N.k3), float(4 * np.spacing(N.k1))
     bp = np.nan
     if isinstance(N, StaticElement):
-        if getattr(N, "step", None) is not None or cls.breakpoints is not owner.breakpoints:
+        if getattr(N, "step", None) is not None:
             return None
         pts = np.asarray(N.breakpoints(np.inf), float)
         if pts.size > 1:

@@ -155,9 +155,17 @@ def _coefficients(plant: Plant):
 
 def _own_form(cls) -> bool:
     """Whether ``cls`` evaluates N where its ``compiled_form`` is defined: a subclass of a built-in element that
-    overrides ``_evaluate`` or ``__call__`` (a user's variant) inherits a compiled form that is not its own."""
-    owner = next((c for c in cls.__mro__ if "compiled_form" in c.__dict__), None)
-    return owner is not None and all(getattr(cls, name) is getattr(owner, name) for name in ("_evaluate", "__call__"))
+    overrides ``_evaluate`` or ``__call__`` (a user's variant) inherits a compiled form that is not its own.
+    A fact of the class, remembered."""
+    hit = _OWN_FORM.get(cls)
+    if hit is None:
+        owner = next((c for c in cls.__mro__ if "compiled_form" in c.__dict__), None)
+        hit = _OWN_FORM[cls] = owner is not None and all(getattr(cls, name) is getattr(owner, name)
+                                                         for name in ("_evaluate", "__call__"))
+    return hit
+
+
+_OWN_FORM: dict = {}
 
 
 def compiled_loop(plant: Plant, N):
