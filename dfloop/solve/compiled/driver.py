@@ -343,8 +343,9 @@ def _resolve_plant(zeros, poles, delay, v):
     for i in range(n_nodes):
         w = math.exp(v[i])
         tx[i], tw[i] = v[i], w
-        for k in range(nr):  # grid.node_terms (0 on the imaginary axis)
-            tm[i, k] = 0.5 * math.log(xr[k] * xr[k] + (w - yr[k]) * (w - yr[k]))
+        for k in range(nr):  # grid.node_terms (0 on the imaginary axis; an all-pass pair's magnitudes unused)
+            if not paired[k]:
+                tm[i, k] = 0.5 * math.log(xr[k] * xr[k] + (w - yr[k]) * (w - yr[k]))
             ta[i, k] = math.atan((w - yr[k]) / xr[k]) if xr[k] != 0 else 0.0
     out_n = np.empty(2 * v.size + 16, np.int64)  # the finished nodes (table indices) and intervals
     out_e = np.empty(2 * v.size + 16)
@@ -365,10 +366,13 @@ def _resolve_plant(zeros, poles, delay, v):
             w0, w1 = tw[p], tw[q]
             wide = tx[q] - tx[p] > _MIN_WIDTH * (1 + abs(tx[p]))
             for k in range(nr):  # grid._interval_bound, one root at a time (zeros +, poles -): magnitudes ...
-                x, y = xr[k], yr[k]
-                m0, m1 = tm[p, k], tm[q, k]
-                low = math.log(abs(x)) if (w0 < y and y < w1) else _npmin(m0, m1)
-                up, down = (0.0, 0.0) if paired[k] else (m1 - low, m0 - low)
+                if paired[k]:
+                    up = down = 0.0
+                else:
+                    x, y = xr[k], yr[k]
+                    m0, m1 = tm[p, k], tm[q, k]
+                    low = math.log(abs(x)) if (w0 < y and y < w1) else _npmin(m0, m1)
+                    up, down = m1 - low, m0 - low
                 b1[k] = up if k < nz else down
                 b2[k] = down if k < nz else up
             if nr == 0:
@@ -434,7 +438,8 @@ def _resolve_plant(zeros, poles, delay, v):
                 w = math.exp(xm)
                 tx[n_nodes], tw[n_nodes] = xm, w
                 for r in range(nr):
-                    tm[n_nodes, r] = 0.5 * math.log(xr[r] * xr[r] + (w - yr[r]) * (w - yr[r]))
+                    if not paired[r]:
+                        tm[n_nodes, r] = 0.5 * math.log(xr[r] * xr[r] + (w - yr[r]) * (w - yr[r]))
                     ta[n_nodes, r] = math.atan((w - yr[r]) / xr[r]) if xr[r] != 0 else 0.0
                 n0[k], n1[k] = p, n_nodes
                 n0[n_split + k], n1[n_split + k] = n_nodes, q
