@@ -371,9 +371,12 @@ def warmup() -> float:
         res.terms(a, v)
         res.grid(a, v)
         res._evaluate_slopes(a, v)
-        from ..roots import Box
+        from ..roots import Box, OuterProduct
 
         res.refine(a, v, Box(-1.0, 1.0, 0.0, 1.0), 1e-10, True)
+        ga, gv = np.linspace(0.0, 1.0, 6), np.linspace(-1.0, 1.0, 6)  # the tangent seeds' exclusion
+        P = OuterProduct(res._n(np.exp(ga), None), res._g(np.exp(gv)))
+        res.kept_seeds(ga, gv, P, np.array([2]), np.array([3]), (np.full(5, 0.1), np.full(5, 0.1)))
     parts = driver_parts(ct.tf([5.0], [1.0, 1.0, 0.0]), N)
     if parts is not None:  # the driver, for one loop and for a batch
         nan = float("nan")
