@@ -397,6 +397,8 @@ def _resolve_plant(zeros, poles, delay, v):
                 x, y = xr[k], yr[k]
                 if x != 0:
                     turn = ta[q, k] - ta[p, k]
+                elif (w0 - y) * (w1 - y) > 0:  # atan2(+-0, positive) = +-0: no turn either sign (an integrator)
+                    turn = 0.0
                 else:
                     turn = math.atan2(x * (w1 - w0), x * x + (w0 - y) * (w1 - y))
                 if k >= nz:
