@@ -43,7 +43,7 @@ from .._blas import single_threaded_blas
 from ..harmonics import upward_crossings
 from .loop import HybridError
 from .model import start_on_prediction
-from .shooting import ShootingError, newton_orbit, node_count
+from .shooting import ShootingError, middle_halves, newton_orbit, node_count
 
 __all__ = ["EdgeTrack", "edge_track", "EDGE_PERIODS", "FATE_PERIODS"]
 
@@ -368,11 +368,7 @@ class _Tracker:
         m = node_count(loop, T, self.nodes)
         t = np.arange(m) * (T / m)
         if loop.switching and fl.t0.size > 1:    # each node within the middle half of its segment
-            bounds = np.append(fl.t0, T)
-            j = np.clip(np.searchsorted(bounds, t, side="right") - 1, 0, bounds.size - 2)
-            margin = 0.25 * (bounds[j + 1] - bounds[j])
-            t[1:] = np.clip(t, bounds[j] + margin, bounds[j + 1] - margin)[1:]
-            t = np.unique(t)
+            t = np.unique(middle_halves(t, np.append(fl.t0, T)))
         seg = np.clip(np.searchsorted(fl.t0, t, side="right") - 1, 0, fl.t0.size - 1)
         zs, modes = list(loop.states(fl, t)), [int(fl.modes[i]) for i in seg]
         c = np.diff(np.append(t, T)) / T

@@ -23,7 +23,7 @@ from ..harmonics import upward_crossings
 from .loop import Flow, HybridError
 from .model import start_on_prediction
 
-__all__ = ["Orbit", "ShootingError", "periodic_orbit", "newton_orbit", "homotopy_orbit", "node_count", "detect_period", "forced_orbit"]
+__all__ = ["Orbit", "ShootingError", "periodic_orbit", "newton_orbit", "homotopy_orbit", "node_count", "middle_halves", "detect_period", "forced_orbit"]
 
 LINE_SEARCH = 8    # step halvings per Newton iteration
 NODE_GROWTH = 2.0  # a node interval lets a perturbation grow by at most e^2 at the loop's fastest rate ...
@@ -153,6 +153,17 @@ def node_count(loop, period: float, nodes: int) -> int:
     return int(min(max(nodes, need), max(nodes, MAX_NODES)))
 
 
+def middle_halves(t: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Node times t (s, increasing) with every node but the first moved into the middle half of its segment
+    between consecutive switching times ``edges`` (s, increasing, spanning t): a small correction of the orbit then
+    never moves a switch across a node."""
+    j = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, edges.size - 2)
+    margin = 0.25 * (edges[j + 1] - edges[j])
+    out = t.copy()
+    out[1:] = np.clip(t, edges[j] + margin, edges[j + 1] - margin)[1:]
+    return out
+
+
 def _predicted_nodes(loop, N, amplitude, frequency, m, max_events, bias, shift: float = 0.0):
     """m nodes on the predicted orbit x = bias + A sin(w t): (states, modes, intervals as fractions of T); the
     first node ``shift`` node intervals after the middle of the longest segment.
@@ -175,10 +186,7 @@ def _predicted_nodes(loop, N, amplitude, frequency, m, max_events, bias, shift: 
             k = int(np.argmax(gaps))
             t_first = bounds[k] + 0.5 * gaps[k] + shift * T / m
             t = t_first + np.arange(m) * (T / m)
-            edges = np.concatenate([bounds - T, bounds, bounds + T, bounds + 2 * T])
-            j = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, edges.size - 2)
-            margin = 0.25 * (edges[j + 1] - edges[j])
-            t[1:] = np.clip(t, edges[j] + margin, edges[j + 1] - margin)[1:]
+            t = middle_halves(t, np.concatenate([bounds - T, bounds, bounds + T, bounds + 2 * T]))
             t = np.unique(t)
     zs, modes = [], []
     for ti in t:
