@@ -885,9 +885,10 @@ def _refined_seeds(res: Residual, a, v, P, si: np.ndarray, sj: np.ndarray, bound
     accept (:func:`seed_excluded`) is dropped, unless the wider +-3-node retry next to a jump of N could still
     run and its box is not excluded too. The refinements of the seeds kept give exactly what refining all of
     them gives (every refinement of a dropped seed fails)."""
-    compiled = getattr(res, "kept_seeds", None)  # a compiled loop: the same exclusion, in its kernel
-    if compiled is not None:
-        return compiled(a, v, P, si, sj, bounds)
+    compiled = getattr(res, "kept_seeds", None)  # a compiled loop: the same exclusion, in its kernel when ready
+    keep = None if compiled is None else compiled(a, v, P, si, sj, bounds)
+    if keep is not None:
+        return keep
     eps_a, eps_v = bounds
     ln_n, ln_g = clog(P.n), clog(P.g)
     na, nv = a.size, v.size

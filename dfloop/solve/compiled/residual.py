@@ -58,9 +58,8 @@ def _kernels(part: str | None = None) -> tuple:
     parallel form), or all (None)."""
     from . import driver
 
-    parts = {"driver": (driver.solve_one_dispatcher(),),
-             "residual": (K.refine, K.evaluate_slopes, K.products, K.plant_values, K.element_values,
-                          driver.kept_seeds_dispatcher()),
+    parts = {"driver": (driver.solve_one_dispatcher(), driver.kept_seeds_dispatcher()),
+             "residual": (K.refine, K.evaluate_slopes, K.products, K.plant_values, K.element_values),
              "batch": (driver.solve_many_dispatcher(),)}
     return parts[part] if part is not None else sum(parts.values(), ())
 
@@ -273,11 +272,16 @@ class CompiledResidual(Residual):
             return super()._evaluate_slopes(a, v)
         return out[0], out[1], out[2], out[3], out[4]
 
-    def kept_seeds(self, a, v, P, si, sj, bounds) -> np.ndarray:
+    def kept_seeds(self, a, v, P, si, sj, bounds) -> np.ndarray | None:
         """The tangent seeds worth refining (:func:`dfloop.solve.roots._refined_seeds`), decided in the compiled
-        driver's kernel (the same sound exclusion: the roots found do not change, only the work)."""
+        driver's kernel (the same sound exclusion: the roots found do not change, only the work), or None (the
+        Python decision) while the compiled driver is not ready: its kernels compile with the driver's
+        (:func:`driver_wanted`), not on a single call of a fresh installation."""
+        if not driver_wanted():
+            return None
         from .driver import kept_seeds
 
+        _announce_compile("driver")
         return kept_seeds(self._loop, a, v, P.n, P.g, bounds[0], bounds[1], si, sj)
 
     def refine(self, a, v, box, tol: float, certified: bool = False):
