@@ -260,18 +260,18 @@ def node_terms(plant: Plant, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return mag, angle
 
 
-def _interval_bound(plant: Plant, nu0, nu1, m0, m1, t0, t1) -> np.ndarray:
+def _interval_bound(plant: Plant, nu0, nu1, m0, m1, t0, t1, pairs) -> np.ndarray:
     """:meth:`Plant.log_variation` on the intervals [nu0, nu1] (mapped frequencies, shape (k,)) from the node terms
     of their ends (:func:`node_terms`, shapes (k, roots)): each factor's turn is the difference of its angles at
     the two ends (exactly its atan2 turn of log_variation, up to rounding: ``ANGLE_ROUNDING`` per root and
     ``SUM_ROUNDING`` per term are added, so the bound stays an upper bound), except for roots on the imaginary
     axis, whose turn is log_variation's atan2 (0, or pi where the interval passes the root, where the magnitude
     bound is infinite anyway). The magnitudes of all-pass pairs (a Pade delay's mirrored roots) are counted by
-    their joint bound (:func:`allpass_pairs`), not root by root: their moduli cancel."""
+    their joint bound (``pairs`` = :func:`allpass_pairs` of the plant), not root by root: their moduli cancel."""
     zeros, poles = plant.roots
     r = np.concatenate([zeros, poles])
     nr = r.size
-    paired, slack = allpass_pairs(zeros, poles)
+    paired, slack = pairs
     sign = np.concatenate([np.ones(zeros.size), -np.ones(poles.size)])
     x, y = -r.real, r.imag
     w0, w1 = nu0[:, None], nu1[:, None]
@@ -311,13 +311,14 @@ def resolve_plant(plant: Plant, v: np.ndarray, step: float = STEP):
     n_nodes = v.size
     done_i, done_eps = [np.zeros(1, np.int64)], [np.empty(0)]
     i0, i1 = np.arange(v.size - 1), np.arange(1, v.size)  # table indices of the live intervals' ends
+    pairs = allpass_pairs(*plant.roots)  # (paired, slack) of the all-pass pairs, once for the plant
     for _ in range(_MAX_ROUNDS):
         if i0.size == 0:
             break
         X, NU, M, T = (np.concatenate(t) if len(t) > 1 else t[0] for t in (tx, tnu, tm, ta))
         tx, tnu, tm, ta = [X], [NU], [M], [T]
         x0, x1 = X[i0], X[i1]
-        eps = _interval_bound(plant, NU[i0], NU[i1], M[i0], M[i1], T[i0], T[i1])
+        eps = _interval_bound(plant, NU[i0], NU[i1], M[i0], M[i1], T[i0], T[i1], pairs)
         split = (eps > step) & (x1 - x0 > _MIN_WIDTH * (1 + np.abs(x0)))
         done_i.append(i1[~split])
         done_eps.append(eps[~split])
