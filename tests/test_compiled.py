@@ -257,3 +257,24 @@ def test_a_fresh_install_does_not_make_a_single_call_wait_for_the_driver(monkeyp
     assert not residual.driver_wanted()
     monkeypatch.setattr(progress, "compile_pending", lambda *d: False)     # compiled (dfloop warmup, a batch)
     assert residual.driver_wanted() and residual._DRIVER_READY
+
+
+@pytest.mark.parametrize("G, N", [TEXTBOOK[0], TEXTBOOK[4], TEXTBOOK[7], TEXTBOOK[12]])
+def test_driver_windings_are_the_python_windings_on_every_cell(G, N):
+    """The compiled windings (which pass over a cell whose four edge steps all turn R by less than pi/2) give
+    every cell of a coarse grid the winding the Python driver's grid_windings gives it, cycles' cells included."""
+    from dfloop.solve.compiled.driver import _windings
+    from dfloop.solve.roots import grid_windings
+
+    N = df.as_element(N)
+    gpart, npart = driver_parts(G, N)
+    res = Residual(as_plant(G), N)
+    a, v = np.linspace(np.log(0.05), np.log(5.0), 30), np.linspace(np.log(0.1), np.log(10.0), 40)
+    n, g = N(np.exp(a)).astype(complex), as_plant(G)(np.exp(v))
+    ii, jj = (x.ravel() for x in np.meshgrid(np.arange(a.size - 1), np.arange(v.size - 1), indexing="ij"))
+    flat = ii * v.size + jj
+    cells, status, _ = _windings(gpart[0], gpart[1], float(gpart[4]), npart[0], npart[1], npart[2], a, v, n, g, flat)
+    ri, rj, wind, suspects = grid_windings(res, a, v, np.outer(n, g), cells=(ii, jj))
+    assert status == 0 and not suspects
+    assert cells.tolist() == (ri * v.size + rj).tolist()
+    assert np.all(np.abs(wind) == 1) and cells.size >= 1  # a cycle's cell is among them

@@ -963,10 +963,32 @@ def _s_min(ra, rv):
 @njit(**_OPTS)
 def _windings(num, den, delay, kind, p, continuous, a, v, n, g, cells):
     """roots.grid_windings on the candidate cells (flat indices): (cells of winding +-1, status, points evaluated);
-    status 1 for a winding of another size, 3 for a root on an edge."""
-    nc = cells.size
+    status 1 for a winding of another size, 3 for a root on an edge.
+
+    A cell whose four edge steps all turn R by less than pi/2 (with a margin: Re(R1 conj R0) > 1e-6 |Im(..)|)
+    winds 0 and splits no edge (its four principal steps sum to exactly 0 of the 2 pi k they must add up to):
+    it is passed over without its atan2s, as the full computation would pass it."""
     nv = v.size
     n_points = 0
+    keep = np.empty(cells.size, np.int64)
+    nc = 0
+    for c in range(cells.size):
+        i, j = cells[c] // nv, cells[c] % nv
+        r0 = 1.0 + n[i] * g[j]
+        r_first = r0
+        easy = True
+        for q in range(1, 5):
+            r1 = r_first if q == 4 else 1.0 + n[i + _CORNER_I[q]] * g[j + _CORNER_J[q]]
+            x = r1.real * r0.real + r1.imag * r0.imag
+            y = r1.imag * r0.real - r1.real * r0.imag
+            if not x > 1e-6 * abs(y):
+                easy = False
+                break
+            r0 = r1
+        if not easy:
+            keep[nc] = cells[c]
+            nc += 1
+    cells = keep[:nc]
     # windings of the candidate cells, corners counter-clockwise: (i, j) (i+1, j) (i+1, j+1) (i, j+1)
     ca, cv = np.empty(4 * nc), np.empty(4 * nc)
     Pc = np.empty(4 * nc, np.complex128)
