@@ -604,13 +604,20 @@ def _fine_value(num, den, delay, n0, vf, slack):
     """(room / (|G| (1 + slack)), ok, G) at one fine frequency of predict._limit_reach; ok False where that
     function gives up (G N_lim not finite, or no room)."""
     g = plant(num, den, delay, math.exp(vf))
+    val, ok = _room(g, n0, slack)
+    return val, ok, g
+
+
+@njit(**_OPTS)
+def _room(g, n0, slack):
+    """(room / (|G| (1 + slack)), ok) of :func:`_fine_value` with G known."""
     P = g * n0
     if not (math.isfinite(P.real) and math.isfinite(P.imag)):
-        return np.nan, False, g
+        return np.nan, False
     room = cabs(1 + P) - cabs(P) * slack
     if not room > 0:
-        return np.nan, False, g
-    return room / (cabs(g) * (1 + slack)), True, g
+        return np.nan, False
+    return room / (cabs(g) * (1 + slack)), True
 
 
 @njit(**_OPTS)
@@ -619,7 +626,7 @@ def _limit_reach(num, den, zeros, poles, delay, kind, p, v, g, eps_v, to_inf, c,
 
     The element's bound is c / A (tail, to_inf) or c A^2 + d (head); c NaN: the element states none. The
     minimum r over the refined frequencies is needed only as far as it moves the index read on the amplitude
-    grid: it is taken on the nodes first (G there is known), then the refined frequencies of an interval are
+    grid: it is taken on the nodes first (G there is known: ``g`` is G at e^v, the same expression), then the refined frequencies of an interval are
     evaluated only where the interval's exact variation bound eps (|ln G(w) - ln G(w_k)| <= eps) cannot keep
     them above the threshold that would change the index, and there by halving blocks of them with the exact
     bound of each block; the result is the one of the full evaluation (a skipped value is above the threshold, and
@@ -638,8 +645,8 @@ def _limit_reach(num, den, zeros, poles, delay, kind, p, v, g, eps_v, to_inf, c,
             slack_eps = eps_v[i]
     slack = math.expm1((slack_eps if slack_eps > -np.inf else _STEP) / k)
     r = np.inf
-    for i in range(nv):  # the nodes (t = 0 of every interval, and the last node)
-        val, ok, _ = _fine_value(num, den, delay, n0, v[i], slack)
+    for i in range(nv):  # the nodes (t = 0 of every interval, and the last node): G is known there (g[i] is
+        val, ok = _room(g[i], n0, slack)  # plant(num, den, delay, math.exp(v[i])), the value evaluated here)
         if not ok:
             return np.nan
         r = _npmin(r, val)
