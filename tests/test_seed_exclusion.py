@@ -97,3 +97,73 @@ def test_compiled_exclusion_of_the_python_driver_drops_only_empty_boxes(k):
         rel = np.abs(1 + P) / (1 + np.abs(P))
         assert rel.min() >= 0.00125, (k, i, j, rel.min())
     assert keep[80:].all() and (~keep[:80]).sum() >= 20
+
+
+def _curve(plant, v: np.ndarray) -> np.ndarray:
+    """j pi - ln G(e^v) on a dense grid v, on one continuous branch of arg."""
+    ln_g = np.log(np.abs(plant(np.exp(v)))) + 1j * np.unwrap(np.angle(plant(np.exp(v))))
+    return -ln_g.real + 1j * (np.pi - ln_g.imag)
+
+
+def test_chord_deviation_bounds_the_curve_by_dense_sampling():
+    """j pi - ln G(e^v) stays within grid.chord_deviation of its chord on every interval: random plants (order 1-7,
+    dampings down to 1e-6, integrators, zeros, delays), intervals of 1e-3..0.5 in ln w anywhere near the roots;
+    the bound is tight to within a modest factor where the curvature is steady (not vacuous)."""
+    from fuzz_loops import random_plant
+    from dfloop.solve.grid import chord_deviation
+
+    rng = np.random.default_rng(31)
+    tight = 0
+    for _ in range(60):
+        G, _, _, T = random_plant(rng)
+        plant = as_plant(delayed(G, T) if T else G)
+        zeros, poles = plant.roots
+        for _ in range(5):
+            v0 = math.log(10 ** rng.uniform(-1.5, 1.5))
+            v1 = v0 + 10 ** rng.uniform(-3, math.log10(0.5))
+            h = chord_deviation(zeros, poles, float(plant.delay), v0, v1)
+            v = np.linspace(v0, v1, 2001)
+            t = _curve(plant, v)
+            chord = t[0] + (t[-1] - t[0]) * (v - v0) / (v1 - v0)
+            dev = np.max(np.abs(t - chord))
+            assert dev <= h + 1e-13 * (1 + np.max(np.abs(t))), (G, T, v0, v1, dev, h)  # + this sampling's rounding
+            tight += dev >= h / 20
+    assert tight >= 30
+
+
+def test_chord_gap_is_a_lower_bound_on_the_distance_to_the_curve():
+    """grid.chord_gap never exceeds the distance (arg modulo 2 pi) from a rectangle spanned by two points to the
+    densely sampled curve j pi - ln G over the interval, on random plants and rectangles placed near the curve;
+    and it separates pairs the two discs of radius e cannot (the reason it exists)."""
+    from fuzz_loops import random_plant
+    from dfloop.solve.grid import chord_deviation, chord_gap
+    from dfloop.solve.roots import _gap
+
+    rng = np.random.default_rng(32)
+    sharper = 0
+    for _ in range(60):
+        G, _, _, T = random_plant(rng)
+        plant = as_plant(delayed(G, T) if T else G)
+        zeros, poles = plant.roots
+        for _ in range(5):
+            v0 = math.log(10 ** rng.uniform(-1.5, 1.5))
+            v1 = v0 + 10 ** rng.uniform(-2.5, math.log10(0.3))
+            e = float(plant.log_variation(math.exp(v0), math.exp(v1)))
+            h = chord_deviation(zeros, poles, float(plant.delay), v0, v1)
+            v = np.linspace(v0, v1, 2001)
+            t = _curve(plant, v)
+            # a flat rectangle beside the curve's middle, rotated by 2 pi k in arg
+            mid = t[1000] + complex(rng.uniform(-0.2, 0.2), rng.choice([-1, 1]) * rng.uniform(0.0, 0.3))
+            mid += 2j * np.pi * int(rng.integers(-2, 3))
+            half = complex(rng.uniform(0, 0.3), rng.uniform(0, 0.05))
+            l0, l1 = mid - half, mid + half
+            x0, x1 = min(l0.real, l1.real), max(l0.real, l1.real)
+            y0, y1 = min(l0.imag, l1.imag), max(l0.imag, l1.imag)
+            dx = np.maximum(np.maximum(x0 - t.real, t.real - x1), 0.0)
+            dy = np.maximum(np.abs(np.angle(np.exp(1j * (t.imag - 0.5 * (y0 + y1))))) - 0.5 * (y1 - y0), 0.0)
+            true = np.min(np.hypot(dx, dy))
+            gap = chord_gap(l0, l1, complex(t[0]), complex(t[-1]), e, h)
+            assert gap <= true + 1e-12, (G, T, v0, v1, gap, true)
+            lens = max(_gap(l0, l1, complex(t[0]), e), _gap(l0, l1, complex(t[-1]), e))
+            sharper += gap >= 0.005 > lens
+    assert sharper >= 20

@@ -28,7 +28,7 @@ from .._checks import memory_limit
 from .plant import Plant
 
 __all__ = ["STEP", "FD_MIN_WIDTH", "MONOTONE_WIDTH", "BYTES_PER_POINT", "ANGLE_ROUNDING", "SUM_ROUNDING", "resolve_plant",
-           "resolve_sampled", "node_terms", "allpass_pairs", "ALLPASS_MISMATCH", "check_memory", "clog", "largest_step"]
+           "resolve_sampled", "node_terms", "allpass_pairs", "ALLPASS_MISMATCH", "chord_deviation", "chord_gap", "check_memory", "clog", "largest_step"]
 
 STEP = 0.35
 """Largest change of the complex log of G (or N) allowed within one grid interval (|d ln| = |d ln|f|| + phase)."""
@@ -242,6 +242,67 @@ def allpass_pairs(zeros: np.ndarray, poles: np.ndarray):
             paired[i] = paired[nz + j_best] = True
             slack += -2.0 * math.log1p(-d / abs(pr))
     return paired, slack * (1 + 1e-12)
+
+
+def chord_deviation(zeros: np.ndarray, poles: np.ndarray, delay: float, v0: float, v1: float) -> float:
+    """How far j pi - ln G(e^v) can lie from its chord over [v0, v1] (v = ln w, w in rad/s; rational G with the
+    given zeros and poles and a pure delay in s): a bound h with |T(v) - L(v)| <= h for every v there, T the
+    curve and L the straight line between its values at the ends.
+
+    For a C^2 curve the distance to the chord is at most (v1 - v0)^2 / 8 max |T''| (the linear interpolation's
+    error, with its non-negative kernel, holds for complex values too). Each factor ln(j e^v - r) has second
+    derivative -j w r / (jw - r)^2, of modulus at most w1 |r| / d^2 on the interval (d the least distance from r
+    to the segment [j w0, j w1]); the delay's -j w T has w T <= w1 T. Infinite when a root lies on that segment.
+    Scalar arithmetic that numba compiles unchanged (the compiled driver's seed exclusion uses the same source).
+    """
+    w0, w1 = math.exp(v0), math.exp(v1)
+    m = w1 * delay
+    for k in range(zeros.size + poles.size):
+        r = zeros[k] if k < zeros.size else poles[k - zeros.size]
+        x, y = -r.real, r.imag
+        if x == 0.0 and y == 0.0:  # a root at the origin: ln(jw) has no curvature in ln w
+            continue
+        dy = max(w0 - y, 0.0, y - w1)
+        d2 = x * x + dy * dy
+        if not d2 > 0.0:
+            return math.inf
+        m += w1 * math.hypot(x, y) / d2
+    return (v1 - v0) * (v1 - v0) / 8.0 * m * (1.0 + 1e-9)
+
+
+def chord_gap(l0: complex, l1: complex, t0: complex, t1: complex, e: float, h: float) -> float:
+    """A lower bound (log units, arg modulo 2 pi) on the distance between the rectangle spanned by l0, l1 (ln N at
+    the ends of a piece where ln|N| and arg N are monotone and arg N turns by less than pi) and the curve
+    j pi - ln G over a piece of G with ends t0, t1, variation bound e (|ln G - ln G(end)| <= e on it) and chord
+    deviation h (:func:`chord_deviation`).
+
+    The curve lies within h of the chord [t0, t1] (whose turn, read modulo 2 pi, is the curve's own when
+    e < pi / 2; otherwise nothing is claimed: -inf). The separation of the rectangle and the chord along the
+    real axis, the imaginary axis and the chord's normal is each a lower bound on their distance; the largest,
+    less h, is returned. A sharper companion of the two discs of radius e around t0 and t1 where G turns slowly
+    and N's rectangle is flat (a long valley of small |1 + G N|). Scalar arithmetic that numba compiles
+    unchanged."""
+    if not (e < 0.5 * math.pi and h >= 0.0 and h < math.inf):
+        return -math.inf
+    two_pi = 2.0 * math.pi
+    dy = l1.imag - l0.imag
+    dy -= two_pi * math.floor((dy + math.pi) / two_pi)
+    yc, hy = l0.imag + 0.5 * dy, 0.5 * abs(dy)
+    x0, x1 = min(l0.real, l1.real), max(l0.real, l1.real)
+    du = t1.imag - t0.imag
+    du -= two_pi * math.floor((du + math.pi) / two_pi)
+    off = t0.imag + 0.5 * du - yc  # the chord's copy whose middle lies within pi of the rectangle's
+    shift = -two_pi * math.floor((off + math.pi) / two_pi)
+    ar, ai, br, bi = t0.real, t0.imag + shift, t1.real, t0.imag + du + shift
+    sep = max(x0 - max(ar, br), min(ar, br) - x1, (yc - hy) - max(ai, bi), min(ai, bi) - (yc + hy))
+    length = math.hypot(br - ar, bi - ai)
+    if length > 0.0:
+        nx, ny = -(bi - ai) / length, (br - ar) / length
+        s = ar * nx + ai * ny
+        c00, c01 = x0 * nx + (yc - hy) * ny, x0 * nx + (yc + hy) * ny
+        c10, c11 = x1 * nx + (yc - hy) * ny, x1 * nx + (yc + hy) * ny
+        sep = max(sep, min(c00, c01, c10, c11) - s, s - max(c00, c01, c10, c11))
+    return sep - h
 
 
 def node_terms(plant: Plant, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -23,7 +23,7 @@ import numpy as np
 from ..describing.base import DescribingFunction
 from .errors import ContinuumError
 from ._kernels import edge_steps, nonzero_windings, tangent_seeds
-from .grid import MONOTONE_WIDTH, STEP, clog
+from .grid import MONOTONE_WIDTH, STEP, chord_deviation, chord_gap, clog
 from .plant import Plant
 
 __all__ = ["Residual", "Box", "OuterProduct", "find_roots", "dominant_steps", "greedy_unique", "accepted", "residual_bound",
@@ -808,8 +808,11 @@ def seed_excluded(res: Residual, a: np.ndarray, v: np.ndarray, ln_n: np.ndarray,
     curve j pi - ln G over its frequencies. On each interval of N's grid ln|N| and arg N are monotone (the
     monotone rule of :func:`~dfloop.solve.grid.resolve_sampled`, the promise the candidate cells rest on), so ln N
     there stays in the rectangle its ends span; j pi - ln G stays within :meth:`Plant.log_variation` of its value
-    at either end of an interval (the exact bound, rational G). Every pair of an N piece and a G piece closer
-    than ``_SEED_MARGIN`` is replaced by the pairs of its larger piece's halves (N or G evaluated at the midpoint
+    at either end of an interval (the exact bound, rational G), and within
+    :func:`~dfloop.solve.grid.chord_deviation` of the chord between those values (from its curvature), so a pair
+    is apart when the rectangle lies ``_SEED_MARGIN`` beyond both discs or beyond the thickened chord
+    (:func:`~dfloop.solve.grid.chord_gap`). Every pair of an N piece and a G piece closer
+    than that is replaced by the pairs of its larger piece's halves (N or G evaluated at the midpoint
     the first time a piece is halved), with at most ``_SEED_SPLITS`` halvings and ``_SEED_TESTS`` pair tests.
     When all pairs are ``_SEED_MARGIN`` apart, |ln(G N) - j pi| >= 0.005 throughout the box, so |1 + G N| / (1 + |G N|) >= 0.00125 > tol (the relative
     residual is sqrt(sinh^2(x/2) + sin^2(y/2)) / cosh(x/2) at ln(G N) - j pi = x + j y). Intervals N cannot be
@@ -826,21 +829,25 @@ def seed_excluded(res: Residual, a: np.ndarray, v: np.ndarray, ln_n: np.ndarray,
         if not (math.isfinite(ln_n[i].real) and math.isfinite(ln_n[i + 1].real)):
             return False
         npc.append([a[i], a[i + 1], complex(ln_n[i]), complex(ln_n[i + 1])])
-    gpc = []  # G pieces: [v0, v1, j pi - ln G(v0), j pi - ln G(v1), bound]
+    zeros, poles = plant.roots
+    delay = float(plant.delay)
+    gpc = []  # G pieces: [v0, v1, j pi - ln G(v0), j pi - ln G(v1), bound, chord deviation]
     for j in range(j0, j1):
         if not (math.isfinite(eps_v[j]) and math.isfinite(ln_g[j].real) and math.isfinite(ln_g[j + 1].real)):
             return False
         gpc.append([v[j], v[j + 1], complex(-ln_g[j].real, math.pi - ln_g[j].imag),
-                    complex(-ln_g[j + 1].real, math.pi - ln_g[j + 1].imag), float(eps_v[j])])
+                    complex(-ln_g[j + 1].real, math.pi - ln_g[j + 1].imag), float(eps_v[j]),
+                    chord_deviation(zeros, poles, delay, float(v[j]), float(v[j + 1]))])
     pairs = [(p, q) for p in range(len(npc)) for q in range(len(gpc))]
     n_child, g_child = [-1] * len(npc), [-1] * len(gpc)  # the pieces are binary trees: halves made once, shared
     splits = tests = 0
     while pairs:
         p, q = pairs.pop()
         xa0, xa1, l0, l1 = npc[p]
-        xv0, xv1, t0, t1, e = gpc[q]
+        xv0, xv1, t0, t1, e, h = gpc[q]
         tests += 1
-        if max(_gap(l0, l1, t0, e), _gap(l0, l1, t1, e)) >= _SEED_MARGIN:
+        if max(_gap(l0, l1, t0, e), _gap(l0, l1, t1, e)) >= _SEED_MARGIN \
+                or chord_gap(l0, l1, t0, t1, e, h) >= _SEED_MARGIN:
             continue
         if tests > _SEED_TESTS:
             return False
@@ -874,7 +881,8 @@ def seed_excluded(res: Residual, a: np.ndarray, v: np.ndarray, ln_n: np.ndarray,
                 if not (math.isfinite(e0) and math.isfinite(e1)):
                     return False
                 g_child[q] = len(gpc)
-                gpc += [[xv0, xm, t0, tm, e0], [xm, xv1, tm, t1, e1]]
+                gpc += [[xv0, xm, t0, tm, e0, chord_deviation(zeros, poles, delay, xv0, xm)],
+                        [xm, xv1, tm, t1, e1, chord_deviation(zeros, poles, delay, xm, xv1)]]
                 g_child += [-1, -1]
             pairs += [(p, g_child[q]), (p, g_child[q] + 1)]
     return True

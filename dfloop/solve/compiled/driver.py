@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..._checks import memory_limit
-from ..grid import ANGLE_ROUNDING, BYTES_PER_POINT, SUM_ROUNDING, allpass_pairs
+from ..grid import ANGLE_ROUNDING, BYTES_PER_POINT, SUM_ROUNDING, allpass_pairs, chord_deviation, chord_gap
 from .kernels import accepted, cabs, cdiv, element, plant, refine, slopes_at
 
 __all__ = ["solve_one", "solve_many", "solve_one_dispatcher", "solve_many_dispatcher", "kept_seeds", "kept_seeds_dispatcher", "FALLBACK", "MAX_ROOTS", "CONSTANTS", "STABLE", "UNSTABLE", "MARGINAL"]
@@ -95,6 +95,8 @@ _CORNER_J = np.array([0, 0, 1, 1])
 
 _BYTES_PER_POINT = float(BYTES_PER_POINT[False])  # the work arrays per grid point (amplitude-only N)
 _allpass_pairs = njit(**_OPTS)(allpass_pairs)  # grid.allpass_pairs, the same source compiled
+_chord_deviation = njit(**_OPTS)(chord_deviation)  # grid.chord_deviation, the same source compiled
+_chord_gap = njit(**_OPTS)(chord_gap)  # grid.chord_gap, the same source compiled
 
 # label codes
 STABLE, UNSTABLE, MARGINAL = 0, 1, 2
@@ -1108,8 +1110,9 @@ def _push(pn, pg, top, x, y):
 @njit(**_OPTS)
 def _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg, arg_g, eps_v, i0, i1, j0, j1):
     """roots.seed_excluded: whether the box a[i0]..a[i1] x v[j0]..v[j1] provably holds no point where
-    |1 + G N| is within 0.125 % of 1 + |G N| (nothing the refinement could accept). The pieces of N and of G are
-    binary trees (a piece halved once, its halves shared by every pair that reads them); arg_g: arg G at the
+    |1 + G N| is within 0.125 % of 1 + |G N| (nothing the refinement could accept): a pair of pieces is apart
+    beyond the two discs of G's variation bound or beyond G's thickened chord (grid.chord_gap, its deviation
+    computed only where the discs do not already separate). The pieces of N and of G are binary trees (a piece halved once, its halves shared by every pair that reads them); arg_g: arg G at the
     nodes, NaN where not yet computed (filled here)."""
     for j in range(j0, j1 + 1):
         if not math.isfinite(rg[j]):
@@ -1125,12 +1128,20 @@ def _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg
         if not math.isfinite(eps_v[j]):
             return False
     apart = True  # the grid's own pieces first: most boxes need no halving (and no work arrays)
-    for i in range(i0, i1):
-        for j in range(j0, j1):
-            t0, t1 = complex(-rg[j], _PI - arg_g[j]), complex(-rg[j + 1], _PI - arg_g[j + 1])
-            if _npmax(_gap(ln_n[i], ln_n[i + 1], t0, eps_v[j]),
-                      _gap(ln_n[i], ln_n[i + 1], t1, eps_v[j])) < _SEED_MARGIN:
+    for j in range(j0, j1):
+        t0, t1 = complex(-rg[j], _PI - arg_g[j]), complex(-rg[j + 1], _PI - arg_g[j + 1])
+        h = np.inf
+        for i in range(i0, i1):
+            if _npmax(_gap(ln_n[i], ln_n[i + 1], t0, eps_v[j]), _gap(ln_n[i], ln_n[i + 1], t1, eps_v[j])) \
+                    >= _SEED_MARGIN:
+                continue
+            if h == np.inf:
+                h = _chord_deviation(zeros, poles, delay, v[j], v[j + 1])
+            if _chord_gap(ln_n[i], ln_n[i + 1], t0, t1, eps_v[j], h) < _SEED_MARGIN:
                 apart = False
+                break
+        if not apart:
+            break
     if apart:
         return True
     n_n, n_g = i1 - i0, j1 - j0
@@ -1145,6 +1156,7 @@ def _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg
         pa0[i - i0], pa1[i - i0], pl0[i - i0], pl1[i - i0] = a[i], a[i + 1], ln_n[i], ln_n[i + 1]
     qv0, qv1, qe, qc = np.empty(cg), np.empty(cg), np.empty(cg), np.full(cg, -1, np.int64)
     qt0, qt1 = np.empty(cg, np.complex128), np.empty(cg, np.complex128)
+    qh = np.full(cg, np.nan)  # the G pieces' chord deviations, computed where the discs do not separate a pair
     for j in range(j0, j1):  # G pieces: the grid's intervals (j pi - ln G at their ends), then halves
         if not math.isfinite(eps_v[j]):
             return False
@@ -1163,6 +1175,10 @@ def _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg
         l0, l1, e = pl0[x], pl1[x], qe[y]
         tests += 1
         if _npmax(_gap(l0, l1, qt0[y], e), _gap(l0, l1, qt1[y], e)) >= _SEED_MARGIN:
+            continue
+        if qh[y] != qh[y]:
+            qh[y] = _chord_deviation(zeros, poles, delay, qv0[y], qv1[y])
+        if _chord_gap(l0, l1, qt0[y], qt1[y], e, qh[y]) >= _SEED_MARGIN:
             continue
         if tests > _SEED_TESTS:
             return False
