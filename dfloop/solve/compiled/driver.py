@@ -720,38 +720,49 @@ def _amplitude_window(num, den, zeros, poles, delay, kind, p, v, g, g_abs, eps_v
     nc = cand.size
     if nc < 2:
         return 0.0, 0.0, 2, top, bottom, 9  # a token window: left to the Python driver
-    n = np.empty(nc, np.complex128)
-    any_n = False
-    for i in range(nc):
-        n[i] = element(kind, p, cand[i])
-        any_n |= n[i] != 0
-    if not any_n:
-        return 0.0, 0.0, 2, top, bottom, 8
     g_lo, g_hi = np.inf, -np.inf
     for i in range(g_abs.size):
         g_lo, g_hi = _npmin(g_lo, g_abs[i]), _npmax(g_hi, g_abs[i])
-    m = np.empty(nc)
-    band = np.empty(nc, np.bool_)
-    for i in range(nc):
-        m[i] = cabs(n[i])
-        band[i] = (m[i] * g_lo <= 2.0) and (m[i] * g_hi >= 0.5)
-    rows = np.zeros(nc, np.bool_)
-    for i in range(nc - 1):
-        cross = (_npmin(m[i + 1], m[i]) * g_lo <= 1.0) and (_npmax(m[i + 1], m[i]) * g_hi >= 1.0)
-        varying = cabs(n[i + 1] - n[i]) > 1e-9 * m[i]
-        if (band[i] or cross) and varying:
-            rows[i] = True
-        if (band[i + 1] or cross) and varying:
-            rows[i + 1] = True
+    # the rows where |G N| can reach 1: only the first and the last are needed, so the intervals between
+    # candidates are examined from each end inward, N evaluated only where they reach (the same rows)
+    n = np.empty(nc, np.complex128)
+    known = np.zeros(nc, np.bool_)
     i0, i1 = -1, -1
-    for i in range(nc):
-        if rows[i]:
-            if i0 < 0:
-                i0 = i
-            i1 = i
-    if i0 < 0:
+    for i in range(nc - 1):
+        lo_row, hi_row = _amplitude_rows(kind, p, cand, n, known, i, g_lo, g_hi)
+        if lo_row or hi_row:
+            i0 = i if lo_row else i + 1
+            break
+    if i0 < 0:  # no row: every N was evaluated
+        any_n = False
+        for i in range(nc):
+            any_n |= n[i] != 0
+        if not any_n:
+            return 0.0, 0.0, 2, top, bottom, 8
         return cand[0], cand[nc - 1], 1, top, bottom, 0
+    for i in range(nc - 2, -1, -1):
+        lo_row, hi_row = _amplitude_rows(kind, p, cand, n, known, i, g_lo, g_hi)
+        if lo_row or hi_row:
+            i1 = i + 1 if hi_row else i
+            break
     return cand[max(i0 - 2, 0)], cand[min(i1 + 2, nc - 1)], 0, top, bottom, 0
+
+
+@njit(**_OPTS)
+def _amplitude_rows(kind, p, cand, n, known, i, g_lo, g_hi):
+    """Whether the interval between candidates i and i + 1 marks row i and row i + 1 as rows where |G N| can
+    reach 1 (predict._default_amplitude_window: N there in the band 1/2..2 of |G|'s range, or crossing 1, and
+    varying), N evaluated at the candidates not known yet."""
+    for k in (i, i + 1):
+        if not known[k]:
+            n[k] = element(kind, p, cand[k])
+            known[k] = True
+    m0, m1 = cabs(n[i]), cabs(n[i + 1])
+    cross = (_npmin(m1, m0) * g_lo <= 1.0) and (_npmax(m1, m0) * g_hi >= 1.0)
+    varying = cabs(n[i + 1] - n[i]) > 1e-9 * m0
+    band0 = (m0 * g_lo <= 2.0) and (m0 * g_hi >= 0.5)
+    band1 = (m1 * g_lo <= 2.0) and (m1 * g_hi >= 0.5)
+    return (band0 or cross) and varying, (band1 or cross) and varying
 
 
 # ------------------------------------------------------------------------------------------ cells and windings
