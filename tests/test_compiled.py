@@ -22,6 +22,7 @@ from dfloop.solve import as_plant
 from dfloop.solve.compiled import CompiledResidual, driver_parts, residual_for, run_driver
 from dfloop.solve.compiled import kernels as K
 from dfloop.solve.delay import delayed
+from dfloop.solve.grid import clog
 from dfloop.solve.roots import Residual
 
 from fuzz_loops import random_element, random_plant
@@ -262,7 +263,8 @@ def test_a_fresh_install_does_not_make_a_single_call_wait_for_the_driver(monkeyp
 @pytest.mark.parametrize("G, N", [TEXTBOOK[0], TEXTBOOK[4], TEXTBOOK[7], TEXTBOOK[12]])
 def test_driver_windings_are_the_python_windings_on_every_cell(G, N):
     """The compiled windings (which pass over a cell whose four edge steps all turn R by less than pi/2) give
-    every cell of a coarse grid the winding the Python driver's grid_windings gives it, cycles' cells included."""
+    every cell of a coarse grid the winding the Python driver's grid_windings gives it, cycles' cells included.
+    (The cells they pass over as provably empty are checked in tests/test_seed_exclusion.py.)"""
     from dfloop.solve.compiled.driver import _windings
     from dfloop.solve.roots import grid_windings
 
@@ -273,7 +275,10 @@ def test_driver_windings_are_the_python_windings_on_every_cell(G, N):
     n, g = N(np.exp(a)).astype(complex), as_plant(G)(np.exp(v))
     ii, jj = (x.ravel() for x in np.meshgrid(np.arange(a.size - 1), np.arange(v.size - 1), indexing="ij"))
     flat = ii * v.size + jj
-    cells, status, _ = _windings(gpart[0], gpart[1], float(gpart[4]), npart[0], npart[1], npart[2], a, v, n, g, flat)
+    ln_n, ln_g = clog(n), clog(g)
+    eps_a = np.full(a.size - 1, np.inf)  # no bound on N's pieces: every cell goes through the windings themselves
+    cells, status, _ = _windings(gpart[0], gpart[1], gpart[2], gpart[3], float(gpart[4]), npart[0], npart[1], npart[2],
+                                 a, v, n, g, flat, ln_n, eps_a, ln_g.real, np.full(v.size, np.nan), np.full(v.size - 1, 1.0))
     ri, rj, wind, suspects = grid_windings(res, a, v, np.outer(n, g), cells=(ii, jj))
     assert status == 0 and not suspects
     assert cells.tolist() == (ri * v.size + rj).tolist()

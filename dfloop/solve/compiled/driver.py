@@ -981,13 +981,37 @@ def _s_min(ra, rv):
 
 
 @njit(**_OPTS)
-def _windings(num, den, delay, kind, p, continuous, a, v, n, g, cells):
+def _cell_apart(zeros, poles, delay, a, v, ln_n, eps_a, g, rg, arg_g, eps_v, i, j):
+    """Whether the cell a[i]..a[i+1] x v[j]..v[j+1] provably holds no point where |1 + G N| is within 0.125 % of
+    1 + |G N|: its N piece (monotone, bounded: the preconditions of :func:`_no_root_in`) lies ``_SEED_MARGIN``
+    beyond both discs of G's piece or beyond its thickened chord. arg_g: arg G at the nodes, NaN where not yet
+    computed (filled here)."""
+    if not (eps_a[i] <= _STEP and a[i + 1] - a[i] > _MONOTONE_WIDTH * (1 + abs(a[i]))):
+        return False
+    if not (math.isfinite(ln_n[i].real) and math.isfinite(ln_n[i + 1].real) and math.isfinite(eps_v[j])
+            and math.isfinite(rg[j]) and math.isfinite(rg[j + 1])):
+        return False
+    for q in (j, j + 1):
+        if arg_g[q] != arg_g[q]:
+            arg_g[q] = _angle(g[q])
+    t0, t1 = complex(-rg[j], _PI - arg_g[j]), complex(-rg[j + 1], _PI - arg_g[j + 1])
+    if _npmax(_gap(ln_n[i], ln_n[i + 1], t0, eps_v[j]), _gap(ln_n[i], ln_n[i + 1], t1, eps_v[j])) >= _SEED_MARGIN:
+        return True
+    h = _chord_deviation(zeros, poles, delay, v[j], v[j + 1])
+    return _chord_gap(ln_n[i], ln_n[i + 1], t0, t1, eps_v[j], h) >= _SEED_MARGIN
+
+
+@njit(**_OPTS)
+def _windings(num, den, zeros, poles, delay, kind, p, continuous, a, v, n, g, cells, ln_n, eps_a, rg, arg_g, eps_v):
     """roots.grid_windings on the candidate cells (flat indices): (cells of winding +-1, status, points evaluated);
     status 1 for a winding of another size, 3 for a root on an edge.
 
     A cell whose four edge steps all turn R by less than pi/2 (with a margin: Re(R1 conj R0) > 1e-6 |Im(..)|)
     winds 0 and splits no edge (its four principal steps sum to exactly 0 of the 2 pi k they must add up to):
-    it is passed over without its atan2s, as the full computation would pass it."""
+    it is passed over without its atan2s, as the full computation would pass it. So is a cell that provably
+    holds no point where |1 + G N| is within 0.125 % of 1 + |G N| (:func:`_cell_apart`, the seed exclusion's
+    test of one pair of pieces): R has no zero in it, so it winds 0, and its edges (where |R| stays that far
+    from 0) are resolved without a suspect; only the count of points evaluated changes."""
     nv = v.size
     n_points = 0
     keep = np.empty(cells.size, np.int64)
@@ -1005,7 +1029,7 @@ def _windings(num, den, delay, kind, p, continuous, a, v, n, g, cells):
                 easy = False
                 break
             r0 = r1
-        if not easy:
+        if not easy and not _cell_apart(zeros, poles, delay, a, v, ln_n, eps_a, g, rg, arg_g, eps_v, i, j):
             keep[nc] = cells[c]
             nc += 1
     cells = keep[:nc]
@@ -1276,6 +1300,9 @@ def _tangent_seeds(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n
                 if (di or dj) and 0 <= i + di < nA and 0 <= j + dj < nv:
                     if _m(n[i + di] * g[j + dj]) < x:
                         low = False
+                        break
+            if not low:
+                break
         if low:
             seeds[n_seed] = node
             n_seed += 1
@@ -1554,7 +1581,8 @@ def _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom
     nc = cells.size
     it[4] = nc
     n_points = 0
-    wind_cells, status, n_terms = _windings(num, den, delay, kind, p, continuous, a, v, n, g, cells)
+    wind_cells, status, n_terms = _windings(num, den, zeros, poles, delay, kind, p, continuous, a, v, n, g, cells,
+                                            ln_n, eps_a, rg, arg_g, eps_v)
     n_points += n_terms
     if status:
         return status, fl, it, empty
