@@ -812,8 +812,9 @@ def seed_excluded(res: Residual, a: np.ndarray, v: np.ndarray, ln_n: np.ndarray,
     :func:`~dfloop.solve.grid.chord_deviation` of the chord between those values (from its curvature), so a pair
     is apart when the rectangle lies ``_SEED_MARGIN`` beyond both discs or beyond the thickened chord
     (:func:`~dfloop.solve.grid.chord_gap`). Every pair of an N piece and a G piece closer
-    than that is replaced by the pairs of its larger piece's halves (N or G evaluated at the midpoint
-    the first time a piece is halved), with at most ``_SEED_SPLITS`` halvings and ``_SEED_TESTS`` pair tests.
+    than that is replaced by the pairs of the halves of the piece whose uncertainty binds the better of the two
+    tests (N's rectangle against G's chord deviation, or against its disc radius; N or G evaluated at the
+    midpoint the first time a piece is halved), with at most ``_SEED_SPLITS`` halvings and ``_SEED_TESTS`` pair tests.
     When all pairs are ``_SEED_MARGIN`` apart, |ln(G N) - j pi| >= 0.005 throughout the box, so |1 + G N| / (1 + |G N|) >= 0.00125 > tol (the relative
     residual is sqrt(sinh^2(x/2) + sin^2(y/2)) / cosh(x/2) at ln(G N) - j pi = x + j y). Intervals N cannot be
     bounded on (a jump, N = 0 at an end, a turn left at the monotone width) and plants without poles and zeros
@@ -846,12 +847,16 @@ def seed_excluded(res: Residual, a: np.ndarray, v: np.ndarray, ln_n: np.ndarray,
         xa0, xa1, l0, l1 = npc[p]
         xv0, xv1, t0, t1, e, h = gpc[q]
         tests += 1
-        if max(_gap(l0, l1, t0, e), _gap(l0, l1, t1, e)) >= _SEED_MARGIN \
-                or chord_gap(l0, l1, t0, t1, e, h) >= _SEED_MARGIN:
+        lens = max(_gap(l0, l1, t0, e), _gap(l0, l1, t1, e))
+        if lens >= _SEED_MARGIN:
+            continue
+        chord = chord_gap(l0, l1, t0, t1, e, h)
+        if chord >= _SEED_MARGIN:
             continue
         if tests > _SEED_TESTS:
             return False
-        if math.hypot(l1.real - l0.real, _wrap(l1.imag - l0.imag)) >= e:  # the N piece's halves
+        # halve the piece whose uncertainty binds the better test: G's is h against its chord, e against the discs
+        if math.hypot(l1.real - l0.real, _wrap(l1.imag - l0.imag)) >= (h if chord >= lens else e):  # N's halves
             if n_child[p] < 0:
                 splits += 1
                 if splits > _SEED_SPLITS:

@@ -1209,15 +1209,18 @@ def _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg
         x, y = pn[top], pg[top]
         l0, l1, e = pl0[x], pl1[x], qe[y]
         tests += 1
-        if _npmax(_gap(l0, l1, qt0[y], e), _gap(l0, l1, qt1[y], e)) >= _SEED_MARGIN:
+        lens = _npmax(_gap(l0, l1, qt0[y], e), _gap(l0, l1, qt1[y], e))
+        if lens >= _SEED_MARGIN:
             continue
         if qh[y] != qh[y]:
             qh[y] = _chord_deviation(zeros, poles, delay, qv0[y], qv1[y])
-        if _chord_gap(l0, l1, qt0[y], qt1[y], e, qh[y]) >= _SEED_MARGIN:
+        chord = _chord_gap(l0, l1, qt0[y], qt1[y], e, qh[y])
+        if chord >= _SEED_MARGIN:
             continue
         if tests > _SEED_TESTS:
             return False
-        if math.hypot(l1.real - l0.real, _wrap(l1.imag - l0.imag)) >= e:  # the N piece's halves
+        # the piece whose uncertainty binds the better test: G's is h against its chord, e against the discs
+        if math.hypot(l1.real - l0.real, _wrap(l1.imag - l0.imag)) >= (qh[y] if chord >= lens else e):
             if pc[x] < 0:
                 splits += 1
                 if splits > _SEED_SPLITS:
