@@ -105,67 +105,61 @@ def _curve(plant, v: np.ndarray) -> np.ndarray:
     return -ln_g.real + 1j * (np.pi - ln_g.imag)
 
 
-def test_chord_deviation_bounds_the_curve_by_dense_sampling():
-    """j pi - ln G(e^v) stays within grid.chord_deviation of its chord on every interval: random plants (order 1-7,
-    dampings down to 1e-6, integrators, zeros, delays), intervals of 1e-3..0.5 in ln w anywhere near the roots;
-    the bound is tight to within a modest factor where the curvature is steady (not vacuous)."""
+def _random_pieces(seed: int, shortest: float, longest: float):
+    """(plant, v0, v1, chord deviation h, dense v, the curve there) on 300 random pieces of G: random plants (order
+    1-7, dampings down to 1e-6, integrators, zeros, delays), 5 intervals each of length shortest..longest (ln w)
+    anywhere near the roots."""
     from fuzz_loops import random_plant
     from dfloop.solve.grid import chord_deviation
 
-    rng = np.random.default_rng(31)
-    tight = 0
+    rng = np.random.default_rng(seed)
     for _ in range(60):
         G, _, _, T = random_plant(rng)
         plant = as_plant(delayed(G, T) if T else G)
         zeros, poles = plant.roots
         for _ in range(5):
             v0 = math.log(10 ** rng.uniform(-1.5, 1.5))
-            v1 = v0 + 10 ** rng.uniform(-3, math.log10(0.5))
-            h = chord_deviation(zeros, poles, float(plant.delay), v0, v1)
+            v1 = v0 + 10 ** rng.uniform(math.log10(shortest), math.log10(longest))
             v = np.linspace(v0, v1, 2001)
-            t = _curve(plant, v)
-            chord = t[0] + (t[-1] - t[0]) * (v - v0) / (v1 - v0)
-            dev = np.max(np.abs(t - chord))
-            assert dev <= h + 1e-13 * (1 + np.max(np.abs(t))), (G, T, v0, v1, dev, h)  # + this sampling's rounding
-            tight += dev >= h / 20
+            yield rng, plant, v0, v1, chord_deviation(zeros, poles, float(plant.delay), v0, v1), v, _curve(plant, v)
+
+
+def test_chord_deviation_bounds_the_curve_by_dense_sampling():
+    """j pi - ln G(e^v) stays within grid.chord_deviation of its chord on every interval of _random_pieces;
+    the bound is tight to within a modest factor where the curvature is steady (not vacuous)."""
+    tight = 0
+    for _, plant, v0, v1, h, v, t in _random_pieces(31, 1e-3, 0.5):
+        chord = t[0] + (t[-1] - t[0]) * (v - v0) / (v1 - v0)
+        dev = np.max(np.abs(t - chord))
+        assert dev <= h + 1e-13 * (1 + np.max(np.abs(t))), (plant, v0, v1, dev, h)  # + this sampling's rounding
+        tight += dev >= h / 20
     assert tight >= 30
 
 
 def test_chord_gap_is_a_lower_bound_on_the_distance_to_the_curve():
     """grid.chord_gap never exceeds the distance (arg modulo 2 pi) from a rectangle spanned by two points to the
-    densely sampled curve j pi - ln G over the interval, on random plants and rectangles placed near the curve;
+    densely sampled curve j pi - ln G over the interval, on _random_pieces and rectangles placed near the curve;
     and it separates pairs the two discs of radius e cannot (the reason it exists)."""
-    from fuzz_loops import random_plant
-    from dfloop.solve.grid import chord_deviation, chord_gap
+    from dfloop.solve.grid import chord_gap
     from dfloop.solve.roots import _gap
 
-    rng = np.random.default_rng(32)
     sharper = 0
-    for _ in range(60):
-        G, _, _, T = random_plant(rng)
-        plant = as_plant(delayed(G, T) if T else G)
-        zeros, poles = plant.roots
-        for _ in range(5):
-            v0 = math.log(10 ** rng.uniform(-1.5, 1.5))
-            v1 = v0 + 10 ** rng.uniform(-2.5, math.log10(0.3))
-            e = float(plant.log_variation(math.exp(v0), math.exp(v1)))
-            h = chord_deviation(zeros, poles, float(plant.delay), v0, v1)
-            v = np.linspace(v0, v1, 2001)
-            t = _curve(plant, v)
-            # a flat rectangle beside the curve's middle, rotated by 2 pi k in arg
-            mid = t[1000] + complex(rng.uniform(-0.2, 0.2), rng.choice([-1, 1]) * rng.uniform(0.0, 0.3))
-            mid += 2j * np.pi * int(rng.integers(-2, 3))
-            half = complex(rng.uniform(0, 0.3), rng.uniform(0, 0.05))
-            l0, l1 = mid - half, mid + half
-            x0, x1 = min(l0.real, l1.real), max(l0.real, l1.real)
-            y0, y1 = min(l0.imag, l1.imag), max(l0.imag, l1.imag)
-            dx = np.maximum(np.maximum(x0 - t.real, t.real - x1), 0.0)
-            dy = np.maximum(np.abs(np.angle(np.exp(1j * (t.imag - 0.5 * (y0 + y1))))) - 0.5 * (y1 - y0), 0.0)
-            true = np.min(np.hypot(dx, dy))
-            gap = chord_gap(l0, l1, complex(t[0]), complex(t[-1]), e, h)
-            assert gap <= true + 1e-12, (G, T, v0, v1, gap, true)
-            lens = max(_gap(l0, l1, complex(t[0]), e), _gap(l0, l1, complex(t[-1]), e))
-            sharper += gap >= 0.005 > lens
+    for rng, plant, v0, v1, h, v, t in _random_pieces(32, 10 ** -2.5, 0.3):
+        e = float(plant.log_variation(math.exp(v0), math.exp(v1)))
+        # a flat rectangle beside the curve's middle, rotated by 2 pi k in arg
+        mid = t[1000] + complex(rng.uniform(-0.2, 0.2), rng.choice([-1, 1]) * rng.uniform(0.0, 0.3))
+        mid += 2j * np.pi * int(rng.integers(-2, 3))
+        half = complex(rng.uniform(0, 0.3), rng.uniform(0, 0.05))
+        l0, l1 = mid - half, mid + half
+        x0, x1 = min(l0.real, l1.real), max(l0.real, l1.real)
+        y0, y1 = min(l0.imag, l1.imag), max(l0.imag, l1.imag)
+        dx = np.maximum(np.maximum(x0 - t.real, t.real - x1), 0.0)
+        dy = np.maximum(np.abs(np.angle(np.exp(1j * (t.imag - 0.5 * (y0 + y1))))) - 0.5 * (y1 - y0), 0.0)
+        true = np.min(np.hypot(dx, dy))
+        gap = chord_gap(l0, l1, complex(t[0]), complex(t[-1]), e, h)
+        assert gap <= true + 1e-12, (plant, v0, v1, gap, true)
+        lens = max(_gap(l0, l1, complex(t[0]), e), _gap(l0, l1, complex(t[-1]), e))
+        sharper += gap >= 0.005 > lens
     assert sharper >= 20
 
 
