@@ -283,3 +283,17 @@ def test_driver_windings_are_the_python_windings_on_every_cell(G, N):
     assert status == 0 and not suspects
     assert cells.tolist() == (ri * v.size + rj).tolist()
     assert np.all(np.abs(wind) == 1) and cells.size >= 1  # a cycle's cell is among them
+
+
+def test_the_python_driver_passes_over_the_cells_the_compiled_one_does(monkeypatch):
+    """The Python driver passes over the windings of the cells the compiled driver's _cell_apart proves free of
+    zeros (roots.cell_apart, or the compiled kernel on a compiled loop): on the textbook loops both paths spend the
+    same evaluations on their windings, seeds and refinements (a count that moves with every cell bisected)."""
+    for G, N in TEXTBOOK:
+        counts = []
+        for mode in ("0", "driver"):
+            monkeypatch.setenv("DFLOOP_COMPILED", mode)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                counts.append(df.predict_limit_cycles(G, N).n_evaluations)
+        assert counts[0] == counts[1], (G, N, counts)

@@ -893,6 +893,59 @@ def seed_excluded(res: Residual, a: np.ndarray, v: np.ndarray, ln_n: np.ndarray,
     return True
 
 
+def cell_apart(res: Residual, a: np.ndarray, v: np.ndarray, ln_n: np.ndarray, eps_a: np.ndarray, ln_g: np.ndarray,
+               eps_v: np.ndarray, i: int, j: int) -> bool:
+    """Whether the cell a[i]..a[i+1] x v[j]..v[j+1] provably holds no point where |1 + G N| is within 0.125 % of
+    1 + |G N|: :func:`seed_excluded`'s test of one pair of pieces (the cell's own), without halving. R then has no
+    zero in the cell: it winds 0 around it."""
+    plant = res.plant
+    if not plant.exact or plant.frequency_map is not None or res.frequency_dependent:
+        return False
+    if not (eps_a[i] <= STEP and a[i + 1] - a[i] > MONOTONE_WIDTH * (1 + abs(a[i]))):
+        return False
+    if not (math.isfinite(ln_n[i].real) and math.isfinite(ln_n[i + 1].real) and math.isfinite(eps_v[j])
+            and math.isfinite(ln_g[j].real) and math.isfinite(ln_g[j + 1].real)):
+        return False
+    l0, l1, e = complex(ln_n[i]), complex(ln_n[i + 1]), float(eps_v[j])
+    t0 = complex(-ln_g[j].real, math.pi - ln_g[j].imag)
+    t1 = complex(-ln_g[j + 1].real, math.pi - ln_g[j + 1].imag)
+    if max(_gap(l0, l1, t0, e), _gap(l0, l1, t1, e)) >= _SEED_MARGIN:
+        return True
+    zeros, poles = plant.roots
+    h = chord_deviation(zeros, poles, float(plant.delay), float(v[j]), float(v[j + 1]))
+    return chord_gap(l0, l1, t0, t1, e, h) >= _SEED_MARGIN
+
+
+def _winding_cells(res: Residual, a, v, P, cells, bounds):
+    """The candidate cells whose windings are computed: all but those with an edge step that turns R by pi/2 or
+    more (which the winding would bisect, evaluating G and N) that :func:`cell_apart` proves free of zeros of R
+    (they wind 0). The same windings and roots; fewer evaluations. Decided as the compiled driver decides: in its
+    kernel on a compiled loop once the driver is ready (``res.apart_cells``)."""
+    i, j = cells
+    if i.size == 0:
+        return cells
+    corners = [1.0 + P[i + di, j + dj] for di, dj in ((0, 0), (1, 0), (1, 1), (0, 1))]  # counter-clockwise
+    easy = np.ones(i.size, bool)
+    for q in range(4):  # every step turns R by less than pi/2 (with a margin): the winding passes it anyway
+        r0, r1 = corners[q], corners[(q + 1) % 4]
+        x = r1.real * r0.real + r1.imag * r0.imag
+        y = r1.imag * r0.real - r1.real * r0.imag
+        easy &= x > 1e-6 * np.abs(y)
+    hard = np.flatnonzero(~easy)
+    if hard.size == 0:
+        return cells
+    compiled = getattr(res, "apart_cells", None)
+    apart = None if compiled is None else compiled(a, v, P, i[hard], j[hard], bounds)
+    if apart is None:
+        eps_a, eps_v = bounds
+        ln_n, ln_g = clog(P.n), clog(P.g)
+        apart = np.array([cell_apart(res, a, v, ln_n, eps_a, ln_g, eps_v, ci, cj)
+                          for ci, cj in zip(i[hard].tolist(), j[hard].tolist())], bool)
+    keep = np.ones(i.size, bool)
+    keep[hard[apart]] = False
+    return i[keep], j[keep]
+
+
 def _refined_seeds(res: Residual, a, v, P, si: np.ndarray, sj: np.ndarray, bounds) -> np.ndarray:
     """The tangent seeds worth refining: a seed whose +-2-node box provably holds nothing the refinement could
     accept (:func:`seed_excluded`) is dropped, unless the wider +-3-node retry next to a jump of N could still
@@ -927,7 +980,10 @@ def find_roots(res: Residual, a: np.ndarray, v: np.ndarray, P: np.ndarray, tol: 
     the roots form a continuum (:func:`check_continuum`).
     """
     window = Box(a[0], a[-1], v[0], v[-1])
-    ii, jj, wind, suspects = grid_windings(res, a, v, P, cells)
+    wound = cells
+    if cells is not None and bounds is not None and isinstance(P, OuterProduct):
+        wound = _winding_cells(res, a, v, P, cells, bounds)  # cells proved free of zeros wind 0
+    ii, jj, wind, suspects = grid_windings(res, a, v, P, wound)
     if len(suspects) + np.count_nonzero(np.abs(wind) > 1) > _EARLY_CONTINUUM_CHECK:
         # many zeros on grid edges or multiple windings: look for a curve of zeros before isolating
         pts = np.array(suspects + list(zip((a[ii] + a[ii + 1]) / 2, (v[jj] + v[jj + 1]) / 2))).T

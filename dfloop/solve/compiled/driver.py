@@ -36,7 +36,8 @@ from ..._checks import memory_limit
 from ..grid import ANGLE_ROUNDING, BYTES_PER_POINT, SUM_ROUNDING, allpass_pairs, chord_deviation, chord_gap
 from .kernels import accepted, cabs, cdiv, element, plant, refine, slopes_at
 
-__all__ = ["solve_one", "solve_many", "solve_one_dispatcher", "solve_many_dispatcher", "kept_seeds", "kept_seeds_dispatcher", "FALLBACK", "MAX_ROOTS", "CONSTANTS", "STABLE", "UNSTABLE", "MARGINAL"]
+__all__ = ["solve_one", "solve_many", "solve_one_dispatcher", "solve_many_dispatcher", "kept_seeds", "kept_seeds_dispatcher",
+           "apart_cells", "apart_cells_dispatcher", "FALLBACK", "MAX_ROOTS", "CONSTANTS", "STABLE", "UNSTABLE", "MARGINAL"]
 
 # the constants of the Python driver this one mirrors (tests/test_compiled.py checks they are the same values)
 CONSTANTS = dict(
@@ -1718,6 +1719,40 @@ def kept_seeds(loop, a, v, n, g, eps_a, eps_v, si, sj):
 def kept_seeds_dispatcher():
     """The numba dispatcher of :func:`kept_seeds` (for the compile announcement)."""
     return _kept_seeds
+
+
+@njit(**_OPTS)
+def _apart_cells(zeros, poles, delay, a, v, n, g, eps_a, eps_v, ci, cj):
+    """roots._winding_cells for the Python driver on a compiled loop: the mask of the cells (ci, cj) that
+    :func:`_cell_apart` proves free of anything the refinement could accept, decided as :func:`_windings`
+    decides (from the same node logarithms)."""
+    nA, nv = a.size, v.size
+    ln_n = np.empty(nA, np.complex128)
+    rg = np.empty(nv)
+    for i in range(nA):
+        ln_n[i] = _clog(n[i])
+    for j in range(nv):
+        rg[j] = math.log(cabs(g[j]))
+    arg_g = np.full(nv, np.nan)
+    apart = np.zeros(ci.size, np.bool_)
+    for c in range(ci.size):
+        apart[c] = _cell_apart(zeros, poles, delay, a, v, ln_n, eps_a, g, rg, arg_g, eps_v, ci[c], cj[c])
+    return apart
+
+
+def apart_cells(loop, a, v, n, g, eps_a, eps_v, ci, cj):
+    """The cells (ci, cj) whose windings the Python driver on a compiled loop passes over (bool mask), as the
+    compiled driver does (``loop``: the residual's kernel arrays, :func:`.residual.compiled_loop`; a, v: the
+    grid; n, g: N and G at its nodes; eps_a, eps_v: its bounds)."""
+    zeros, poles, delay = loop[2:5]
+    f, c = np.ascontiguousarray, np.complex128
+    return _apart_cells(zeros, poles, float(delay), f(a, float), f(v, float), f(n, c), f(g, c), f(eps_a, float),
+                        f(eps_v, float), f(ci, np.int64), f(cj, np.int64))
+
+
+def apart_cells_dispatcher():
+    """The numba dispatcher of :func:`apart_cells` (for the compile announcement)."""
+    return _apart_cells
 
 
 # ------------------------------------------------------------------------------------------- the Python side

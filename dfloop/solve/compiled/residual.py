@@ -58,7 +58,7 @@ def _kernels(part: str | None = None) -> tuple:
     parallel form), or all (None)."""
     from . import driver
 
-    parts = {"driver": (driver.solve_one_dispatcher(), driver.kept_seeds_dispatcher()),
+    parts = {"driver": (driver.solve_one_dispatcher(), driver.kept_seeds_dispatcher(), driver.apart_cells_dispatcher()),
              "residual": (K.refine, K.evaluate_slopes, K.products, K.plant_values, K.element_values),
              "batch": (driver.solve_many_dispatcher(),)}
     return parts[part] if part is not None else sum(parts.values(), ())
@@ -284,6 +284,17 @@ class CompiledResidual(Residual):
         _announce_compile("driver")
         return kept_seeds(self._loop, a, v, P.n, P.g, bounds[0], bounds[1], si, sj)
 
+    def apart_cells(self, a, v, P, ci, cj, bounds) -> np.ndarray | None:
+        """The cells whose windings the Python driver passes over (:func:`dfloop.solve.roots._winding_cells`),
+        decided in the compiled driver's kernel as the compiled driver decides, or None (the Python decision)
+        while the compiled driver is not ready (as :meth:`kept_seeds`)."""
+        if not driver_wanted():
+            return None
+        from .driver import apart_cells
+
+        _announce_compile("driver")
+        return apart_cells(self._loop, a, v, P.n, P.g, bounds[0], bounds[1], ci, cj)
+
     def refine(self, a, v, box, tol: float, certified: bool = False):
         """:func:`dfloop.solve.roots.refine` in the kernels (point by point; the same iteration)."""
         a, v = np.array(a, float).ravel(), np.array(v, float).ravel()
@@ -381,6 +392,7 @@ def warmup() -> float:
         ga, gv = np.linspace(0.0, 1.0, 6), np.linspace(-1.0, 1.0, 6)  # the tangent seeds' exclusion
         P = OuterProduct(res._n(np.exp(ga), None), res._g(np.exp(gv)))
         res.kept_seeds(ga, gv, P, np.array([2]), np.array([3]), (np.full(5, 0.1), np.full(5, 0.1)))
+        res.apart_cells(ga, gv, P, np.array([2]), np.array([3]), (np.full(5, 0.1), np.full(5, 0.1)))
     parts = driver_parts(ct.tf([5.0], [1.0, 1.0, 0.0]), N)
     if parts is not None:  # the driver, for one loop and for a batch
         nan = float("nan")
