@@ -814,11 +814,12 @@ def seed_excluded(res: Residual, a: np.ndarray, v: np.ndarray, ln_n: np.ndarray,
     (:func:`~dfloop.solve.grid.chord_gap`). Every pair of an N piece and a G piece closer
     than that is replaced by the pairs of the halves of the piece whose uncertainty binds the better of the two
     tests (N's rectangle against G's chord deviation, or against its disc radius; N or G evaluated at the
-    midpoint the first time a piece is halved), with at most ``_SEED_SPLITS`` halvings and ``_SEED_TESTS`` pair tests.
-    When all pairs are ``_SEED_MARGIN`` apart, |ln(G N) - j pi| >= 0.005 throughout the box, so |1 + G N| / (1 + |G N|) >= 0.00125 > tol (the relative
-    residual is sqrt(sinh^2(x/2) + sin^2(y/2)) / cosh(x/2) at ln(G N) - j pi = x + j y). Intervals N cannot be
-    bounded on (a jump, N = 0 at an end, a turn left at the monotone width) and plants without poles and zeros
-    are never excluded. ln_n, ln_g: complex logs of N and G at the grid nodes; eps_a, eps_v: the grid's bounds.
+    midpoint the first time a piece is halved), with at most ``_SEED_SPLITS`` halvings and ``_SEED_TESTS`` pair
+    tests. When all pairs are ``_SEED_MARGIN`` apart, |ln(G N) - j pi| >= 0.005 throughout the box, so
+    |1 + G N| / (1 + |G N|) >= 0.00125 > tol (the relative residual is sqrt(sinh^2(x/2) + sin^2(y/2)) / cosh(x/2)
+    at ln(G N) - j pi = x + j y). Intervals N cannot be bounded on (a jump, N = 0 at an end, a turn left at the
+    monotone width) and plants without poles and zeros are never excluded. ln_n, ln_g: complex logs of N and G at
+    the grid nodes; eps_a, eps_v: the grid's bounds.
     """
     plant = res.plant
     if not plant.exact or plant.frequency_map is not None or res.frequency_dependent:

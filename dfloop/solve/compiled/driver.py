@@ -36,8 +36,9 @@ from ..._checks import memory_limit
 from ..grid import ANGLE_ROUNDING, BYTES_PER_POINT, SUM_ROUNDING, allpass_pairs, chord_deviation, chord_gap
 from .kernels import accepted, cabs, cdiv, element, plant, refine, slopes_at
 
-__all__ = ["solve_one", "solve_many", "solve_one_dispatcher", "solve_many_dispatcher", "kept_seeds", "kept_seeds_dispatcher",
-           "apart_cells", "apart_cells_dispatcher", "FALLBACK", "MAX_ROOTS", "CONSTANTS", "STABLE", "UNSTABLE", "MARGINAL"]
+__all__ = ["solve_one", "solve_many", "solve_one_dispatcher", "solve_many_dispatcher", "kept_seeds",
+           "kept_seeds_dispatcher", "apart_cells", "apart_cells_dispatcher", "FALLBACK", "MAX_ROOTS", "CONSTANTS",
+           "STABLE", "UNSTABLE", "MARGINAL"]
 
 # the constants of the Python driver this one mirrors (tests/test_compiled.py checks they are the same values)
 CONSTANTS = dict(
@@ -629,11 +630,11 @@ def _limit_reach(num, den, zeros, poles, delay, kind, p, v, g, eps_v, to_inf, c,
 
     The element's bound is c / A (tail, to_inf) or c A^2 + d (head); c NaN: the element states none. The
     minimum r over the refined frequencies is needed only as far as it moves the index read on the amplitude
-    grid: it is taken on the nodes first (G there is known: ``g`` is G at e^v, the same expression), then the refined frequencies of an interval are
-    evaluated only where the interval's exact variation bound eps (|ln G(w) - ln G(w_k)| <= eps) cannot keep
-    them above the threshold that would change the index, and there by halving blocks of them with the exact
-    bound of each block; the result is the one of the full evaluation (a skipped value is above the threshold, and
-    has room)."""
+    grid: it is taken on the nodes first (G there is known: ``g`` is G at e^v, the same expression), then the
+    refined frequencies of an interval are evaluated only where the interval's exact variation bound eps
+    (|ln G(w) - ln G(w_k)| <= eps) cannot keep them above the threshold that would change the index, and there by
+    halving blocks of them with the exact bound of each block; the result is the one of the full evaluation (a
+    skipped value is above the threshold, and has room)."""
     if c != c:
         return np.nan
     n0 = element(kind, p, np.inf if to_inf else 0.0)
@@ -1148,8 +1149,9 @@ def _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg
     """roots.seed_excluded: whether the box a[i0]..a[i1] x v[j0]..v[j1] provably holds no point where
     |1 + G N| is within 0.125 % of 1 + |G N| (nothing the refinement could accept): a pair of pieces is apart
     beyond the two discs of G's variation bound or beyond G's thickened chord (grid.chord_gap, its deviation
-    computed only where the discs do not already separate). The pieces of N and of G are binary trees (a piece halved once, its halves shared by every pair that reads them); arg_g: arg G at the
-    nodes, NaN where not yet computed (filled here)."""
+    computed only where the discs do not already separate). The pieces of N and of G are binary trees (a piece
+    halved once, its halves shared by every pair that reads them); arg_g: arg G at the nodes, NaN where not yet
+    computed (filled here)."""
     for j in range(j0, j1 + 1):
         if not math.isfinite(rg[j]):
             return False
