@@ -142,5 +142,6 @@ if __name__ == "__main__":
         out = pathlib.Path(__file__).parent / "results" / "bench_compiled.md"
         out.write_text("# Compiled pipeline vs python-control, the Python path and the floor\n\nCommand: "
                        f"`python benchmarks/bench_compiled.py --batch {BATCH} --write` (CPU times, best of 10 "
-                       f"runs for python-control (2 on the dense windows), 3 for the Python path, {COMPILED_REPEATS} compiled, 20 for the floor; "
-                       "one process, on a machine shared with other jobs).\n\n" + table + "\n")
+                       f"runs for python-control (2 on the dense windows), 3 for the Python path, "
+                       f"{COMPILED_REPEATS} compiled, 20 for the floor; one process, on a machine shared with other "
+                       "jobs).\n\n" + table + "\n")
