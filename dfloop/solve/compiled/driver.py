@@ -1683,18 +1683,25 @@ def _drive_many(num, n_num, den, n_den, zeros, n_zeros, poles, n_poles, delay, k
 
 
 @njit(**_OPTS)
+def _node_logs(n, g):
+    """ln N at the amplitude nodes, ln|G| at the frequency nodes (the real part of its complex log, as the driver
+    computes it) and arg G there, NaN until needed (the exclusions fill it)."""
+    ln_n = np.empty(n.size, np.complex128)
+    rg = np.empty(g.size)
+    for i in range(n.size):
+        ln_n[i] = _clog(n[i])
+    for j in range(g.size):
+        rg[j] = math.log(cabs(g[j]))
+    return ln_n, rg, np.full(g.size, np.nan)
+
+
+@njit(**_OPTS)
 def _kept_seeds(num, den, zeros, poles, delay, kind, p, a, v, n, g, eps_a, eps_v, si, sj):
     """roots._refined_seeds for the Python driver on a compiled loop: the mask of the tangent seeds (si, sj) worth
     refining, decided as :func:`_tangent_seeds` decides (the exclusion :func:`_no_root_in`, sound: a dropped
     seed's refinement could accept nothing, so the roots found are the same)."""
     nA, nv = a.size, v.size
-    ln_n = np.empty(nA, np.complex128)
-    rg = np.empty(nv)
-    for i in range(nA):
-        ln_n[i] = _clog(n[i])
-    for j in range(nv):
-        rg[j] = math.log(cabs(g[j]))
-    arg_g = np.full(nv, np.nan)
+    ln_n, rg, arg_g = _node_logs(n, g)
     keep = np.ones(si.size, np.bool_)
     for s in range(si.size):
         i, j = si[s], sj[s]
@@ -1728,14 +1735,7 @@ def _apart_cells(zeros, poles, delay, a, v, n, g, eps_a, eps_v, ci, cj):
     """roots._winding_cells for the Python driver on a compiled loop: the mask of the cells (ci, cj) that
     :func:`_cell_apart` proves free of anything the refinement could accept, decided as :func:`_windings`
     decides (from the same node logarithms)."""
-    nA, nv = a.size, v.size
-    ln_n = np.empty(nA, np.complex128)
-    rg = np.empty(nv)
-    for i in range(nA):
-        ln_n[i] = _clog(n[i])
-    for j in range(nv):
-        rg[j] = math.log(cabs(g[j]))
-    arg_g = np.full(nv, np.nan)
+    ln_n, rg, arg_g = _node_logs(n, g)
     apart = np.zeros(ci.size, np.bool_)
     for c in range(ci.size):
         apart[c] = _cell_apart(zeros, poles, delay, a, v, ln_n, eps_a, g, rg, arg_g, eps_v, ci[c], cj[c])
