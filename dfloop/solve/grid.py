@@ -28,7 +28,8 @@ from .._checks import memory_limit
 from .plant import Plant
 
 __all__ = ["STEP", "FD_MIN_WIDTH", "MONOTONE_WIDTH", "BYTES_PER_POINT", "ANGLE_ROUNDING", "SUM_ROUNDING", "resolve_plant",
-           "resolve_sampled", "node_terms", "allpass_pairs", "ALLPASS_MISMATCH", "chord_deviation", "chord_gap", "check_memory", "clog", "largest_step"]
+           "resolve_sampled", "node_terms", "allpass_pairs", "ALLPASS_MISMATCH", "chord_deviation", "chord_gap",
+           "check_memory", "clog", "largest_step"]
 
 STEP = 0.35
 """Largest change of the complex log of G (or N) allowed within one grid interval (|d ln| = |d ln|f|| + phase)."""

@@ -58,7 +58,8 @@ def _kernels(part: str | None = None) -> tuple:
     parallel form), or all (None)."""
     from . import driver
 
-    parts = {"driver": (driver.solve_one_dispatcher(), driver.kept_seeds_dispatcher(), driver.apart_cells_dispatcher()),
+    parts = {"driver": (driver.solve_one_dispatcher(), driver.kept_seeds_dispatcher(),
+                        driver.apart_cells_dispatcher()),
              "residual": (K.refine, K.evaluate_slopes, K.products, K.plant_values, K.element_values),
              "batch": (driver.solve_many_dispatcher(),)}
     return parts[part] if part is not None else sum(parts.values(), ())
