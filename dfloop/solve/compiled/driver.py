@@ -309,6 +309,24 @@ def _unique(x):
 
 
 @njit(**_OPTS)
+def _merge_unique(x, y):
+    """The distinct values of two ascending int arrays, ascending (what _unique gives for their concatenation)."""
+    out = np.empty(x.size + y.size, np.int64)
+    p = q = k = 0
+    while p < x.size or q < y.size:
+        if q == y.size or (p < x.size and x[p] <= y[q]):
+            z = x[p]
+            p += 1
+        else:
+            z = y[q]
+            q += 1
+        if k == 0 or out[k - 1] != z:
+            out[k] = z
+            k += 1
+    return out[:k]
+
+
+@njit(**_OPTS)
 def _sign(x):
     if x != x:
         return x
@@ -1272,12 +1290,10 @@ def _tangent_seeds(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n
     nc, nv, nA, n_wind = cells.size, v.size, a.size, wind_cells.size
     n_points = 0
     # tangent seeds: local minima of m below the threshold among the corners of the candidate cells
-    nodes = np.empty(4 * nc, np.int64)
-    for c in range(nc):
-        i, j = cells[c] // nv, cells[c] % nv
-        nodes[c], nodes[nc + c] = i * nv + j, i * nv + j + 1
-        nodes[2 * nc + c], nodes[3 * nc + c] = (i + 1) * nv + j, (i + 1) * nv + j + 1
-    nodes = _unique(nodes)
+    # a cell's flat index is its lower-left corner's (i nv + j), and the cells ascend: the corners are the union
+    # of four ascending runs, merged in two steps
+    lower = _merge_unique(cells, cells + 1)
+    nodes = _merge_unique(lower, lower + nv)
     excl = np.empty(16 * n_wind, np.int64)
     n_ex = 0
     for c in range(n_wind):
@@ -1292,11 +1308,15 @@ def _tangent_seeds(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n
     excl = excl[_order(excl)]
     seeds = np.empty(nodes.size, np.int64)
     n_seed = 0
+    i, row_start = 0, 0  # the nodes ascend: their row follows without a division
     for node in nodes:
         q = _bisect(excl, node, False)
         if q < n_ex and excl[q] == node:
             continue
-        i, j = node // nv, node % nv
+        while node >= row_start + nv:
+            i += 1
+            row_start += nv
+        j = node - row_start
         x = _m(n[i] * g[j])
         if x >= _TANGENT:
             continue
