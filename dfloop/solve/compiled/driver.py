@@ -818,6 +818,7 @@ def _candidate_cells(ln_n, eps_a, rg, g, eps_v):
     out = np.empty(64, np.int64)
     n_out = 0
     for i in range(na):
+        row_start = n_out
         rn = ln_n[i].real
         reach = eps_a[i] + emax
         slack = 1e-9 * (abs(rn) + reach)
@@ -859,8 +860,18 @@ def _candidate_cells(ln_n, eps_a, rg, g, eps_v):
                     out = grow
                 out[n_out] = i * (nv + 1) + j  # flat index in the node grid
                 n_out += 1
-    out = out[:n_out]
-    return (out if scan else out[_order(out)]), arg_g
+        if not scan and n_out - row_start > 1:  # this row's cells came in the order of ln|G|: sorted here, so
+            if n_out - row_start > 32:            # all are (the rows ascend); a long row by the merge sort
+                seg = out[row_start:n_out].copy()
+                out[row_start:n_out] = seg[_order(seg)]
+            else:
+                for q in range(row_start + 1, n_out):
+                    x, k = out[q], q
+                    while k > row_start and out[k - 1] > x:
+                        out[k] = out[k - 1]
+                        k -= 1
+                    out[k] = x
+    return out[:n_out], arg_g
 
 
 @njit(**_OPTS)
