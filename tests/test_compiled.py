@@ -297,3 +297,67 @@ def test_the_python_driver_passes_over_the_cells_the_compiled_one_does(monkeypat
                 warnings.simplefilter("ignore")
                 counts.append(df.predict_limit_cycles(G, N).n_evaluations)
         assert counts[0] == counts[1], (G, N, counts)
+
+
+def test_the_limit_reach_index_found_by_bisection_is_the_scans():
+    """driver._reach_index bisects the amplitude grid for the first point where the element's bound c / A (tail)
+    or c A^2 + d (head) passes the threshold; it must read the index (and threshold) a scan of every point reads,
+    for bounds and thresholds across the grid's whole range, at its ends and beyond, and with no crossing at all."""
+    from dfloop.solve.compiled.driver import _REACH, _reach_index
+
+    def scan(c, d, half, to_inf):
+        if to_inf:
+            for i, A in enumerate(_REACH):
+                if c / A < half:
+                    return i, c / A
+            return -1, np.inf
+        for i, A in enumerate(_REACH):
+            if not (c * (A * A) + d < half):
+                return (-1, np.inf) if i == 0 else (i - 1, c * (_REACH[i - 1] ** 2) + d)
+        return -1, c * (_REACH[-1] ** 2) + d
+
+    rng = np.random.default_rng(4)
+    cases = [(c, d, h) for c, d, h in zip(10.0 ** rng.uniform(-300, 300, 150), 10.0 ** rng.uniform(-320, 5, 150),
+                                            10.0 ** rng.uniform(-300, 300, 150))]
+    cases += [(1.0, 0.0, 1e-320), (1.0, 0.0, np.inf), (0.0, 0.0, 1.0), (1e300, 1e300, 1e-300), (1.0, 0.0, np.nan),
+              (_REACH[17], 0.0, 1.0), (1.0, 0.0, 1.0 / _REACH[4000])]
+    hits = 0
+    with np.errstate(over="ignore", invalid="ignore"):
+        for c, d, half in cases:
+            for to_inf in (True, False):
+                got, want = _reach_index(c, d, half, to_inf), scan(c, d, half, to_inf)
+                assert got[0] == want[0] and (got[1] == want[1] or (np.isnan(got[1]) and np.isnan(want[1]))), \
+                    (c, d, half, to_inf, got, want)
+                hits += got[0] > 0
+    assert hits >= 100
+
+
+def test_the_driver_finds_the_jumps_the_python_driver_finds():
+    """driver._near_jump reads a dominant step of P = N G in a patch from N's and G's own steps (every column's
+    steps along A are |G_j| times N's, every row's along w |N_i| times G's); roots._near_jump does the same on an
+    OuterProduct. Both must find what roots.dominant_steps finds on the patch of the full outer product, on random
+    samples with planted jumps, flat stretches and zeros (and find jumps often, and not always)."""
+    from dfloop.solve.compiled.driver import _near_jump
+    from dfloop.solve.roots import OuterProduct, _near_jump as python_near_jump, dominant_steps
+
+    rng = np.random.default_rng(8)
+    found = 0
+    for trial in range(400):
+        na, nv = int(rng.integers(3, 14)), int(rng.integers(3, 14))
+        n = np.exp(np.cumsum(rng.normal(0, 0.05, na)) + 1j * np.cumsum(rng.normal(0, 0.05, na)))
+        g = np.exp(np.cumsum(rng.normal(0, 0.05, nv)) + 1j * np.cumsum(rng.normal(0, 0.05, nv)))
+        g *= 10 ** rng.uniform(-3, 3)
+        if trial % 3 == 0:  # a jump of N
+            n[int(rng.integers(1, na)):] *= rng.uniform(1.5, 3.0)
+        if trial % 5 == 0:  # a jump of G
+            g[int(rng.integers(1, nv)):] *= np.exp(1j * rng.uniform(0.5, 2.0))
+        if trial % 7 == 0:  # G zero on a stretch
+            g[:int(rng.integers(1, nv))] = 0
+        i, j = int(rng.integers(0, na)), int(rng.integers(0, nv))
+        r0, r1, c0, c1 = max(i - 4, 0), min(i + 5, na), max(j - 4, 0), min(j + 5, nv)
+        patch = np.outer(n, g)[r0:r1, c0:c1]
+        want = bool(dominant_steps(patch).any() or dominant_steps(patch.T).any())
+        assert _near_jump(n, g, r0, r1, c0, c1) == want, trial
+        assert python_near_jump(OuterProduct(n, g), np.array([i]), np.array([j]), 3)[0] == want, trial
+        found += want
+    assert 50 <= found <= 350

@@ -198,3 +198,33 @@ def test_cells_the_compiled_windings_pass_over_as_empty_are_empty_by_brute_force
         assert not _cell_apart(zeros, poles, float(res.plant.delay), a, v, ln_n, eps_a, g, ln_g.real, arg_g, eps_v,
                                i, j)
         assert not cell_apart(res, a, v, ln_n, eps_a, ln_g, eps_v, i, j)
+
+
+def test_a_pair_with_close_ends_is_one_no_test_separates():
+    """seed_excluded (and the compiled _no_root_in) end a box's search at once at a pair whose N end lies within the
+    margin of a G end (_close_ends): that must be a pair neither test can ever separate, so the answer is the one
+    the search would reach at its budget. On _random_pieces with N pieces placed near the curve's ends: whenever the
+    ends are close, both the discs and the thickened chord fail; the compiled kernel decides alike; and both
+    outcomes occur (not vacuous)."""
+    from dfloop.solve.compiled.driver import _close_ends as compiled_close_ends
+    from dfloop.solve.grid import chord_gap
+    from dfloop.solve.roots import _SEED_MARGIN, _close_ends, _gap
+
+    close = far = 0
+    for rng, plant, v0, v1, h, v, t in _random_pieces(41, 10 ** -2.5, 0.3):
+        e = float(plant.log_variation(math.exp(v0), math.exp(v1)))
+        t0, t1 = complex(t[0]), complex(t[-1])
+        end = t0 if rng.random() < 0.5 else t1
+        l0 = end + 0.006 * complex(*rng.standard_normal(2)) + 2j * np.pi * int(rng.integers(-1, 2))
+        l1 = l0 + complex(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3))
+        if rng.random() < 0.5:
+            l0, l1 = l1, l0
+        got = _close_ends(l0, l1, t0, t1)
+        assert compiled_close_ends(l0, l1, t0, t1) == got
+        if got:
+            close += 1
+            assert max(_gap(l0, l1, t0, e), _gap(l0, l1, t1, e)) < _SEED_MARGIN
+            assert chord_gap(l0, l1, t0, t1, e, h) < _SEED_MARGIN
+        else:
+            far += 1
+    assert close >= 30 and far >= 30

@@ -737,11 +737,21 @@ def _linear_guess(P: np.ndarray, i: np.ndarray, j: np.ndarray, cells: Box) -> tu
 
 
 def _near_jump(P: np.ndarray, i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
-    """Whether a dominant step of P (:func:`dominant_steps`) lies within n nodes of each node (i, j)."""
+    """Whether a dominant step of P (:func:`dominant_steps`) lies within n nodes of each node (i, j).
+
+    For an :class:`OuterProduct` P = N G, every column's steps along the amplitudes are |G_j| times N's own steps,
+    so a step dominates its neighbours in some column exactly when it does in N's samples (and G is not 0 in every
+    column of the patch); along the frequencies likewise with G's samples: two 1-D tests per node instead of one
+    per row and column of its patch (the compiled driver's ``_near_jump`` decides alike)."""
     out = np.zeros(i.size, bool)
-    for k, (x, y) in enumerate(zip(i, j)):
-        patch = P[max(x - n - 1, 0):x + n + 2, max(y - n - 1, 0):y + n + 2]
-        out[k] = dominant_steps(patch).any() or dominant_steps(patch.T).any()
+    for k, (x, y) in enumerate(zip(i.tolist(), j.tolist())):
+        rows, cols = slice(max(x - n - 1, 0), x + n + 2), slice(max(y - n - 1, 0), y + n + 2)
+        if isinstance(P, OuterProduct):
+            pn, pg = P.n[rows, None], P.g[cols, None]
+            out[k] = (np.any(pg) and dominant_steps(pn).any()) or (np.any(pn) and dominant_steps(pg).any())
+        else:
+            patch = P[rows, cols]
+            out[k] = dominant_steps(patch).any() or dominant_steps(patch.T).any()
     return out
 
 
@@ -815,9 +825,10 @@ def seed_excluded(res: Residual, a: np.ndarray, v: np.ndarray, ln_n: np.ndarray,
     than that is replaced by the pairs of the halves of the piece whose uncertainty binds the better of the two
     tests (N's rectangle against G's chord deviation, or against its disc radius; N or G evaluated at the
     midpoint the first time a piece is halved), with at most ``_SEED_SPLITS`` halvings and ``_SEED_TESTS`` pair
-    tests. When all pairs are ``_SEED_MARGIN`` apart, |ln(G N) - j pi| >= 0.005 throughout the box, so
-    |1 + G N| / (1 + |G N|) >= 0.00125 > tol (the relative residual is sqrt(sinh^2(x/2) + sin^2(y/2)) / cosh(x/2)
-    at ln(G N) - j pi = x + j y). Intervals N cannot be bounded on (a jump, N = 0 at an end, a turn left at the
+    tests; a pair one of whose N ends lies within ``_SEED_MARGIN`` of one of its G ends ends the search at once
+    (:func:`_close_ends`: no halving could separate it). When all pairs are ``_SEED_MARGIN`` apart,
+    |ln(G N) - j pi| >= 0.005 throughout the box, so |1 + G N| / (1 + |G N|) >= 0.00125 > tol (the relative
+    residual is sqrt(sinh^2(x/2) + sin^2(y/2)) / cosh(x/2) at ln(G N) - j pi = x + j y). Intervals N cannot be bounded on (a jump, N = 0 at an end, a turn left at the
     monotone width) and plants without poles and zeros are never excluded. ln_n, ln_g: complex logs of N and G at
     the grid nodes; eps_a, eps_v: the grid's bounds.
     """
@@ -854,7 +865,7 @@ def seed_excluded(res: Residual, a: np.ndarray, v: np.ndarray, ln_n: np.ndarray,
         chord = chord_gap(l0, l1, t0, t1, e, h)
         if chord >= _SEED_MARGIN:
             continue
-        if tests > _SEED_TESTS:
+        if tests > _SEED_TESTS or _close_ends(l0, l1, t0, t1):
             return False
         # halve the piece whose uncertainty binds the better test: G's is h against its chord, e against the discs
         if math.hypot(l1.real - l0.real, _wrap(l1.imag - l0.imag)) >= (h if chord >= lens else e):  # N's halves
@@ -892,6 +903,14 @@ def seed_excluded(res: Residual, a: np.ndarray, v: np.ndarray, ln_n: np.ndarray,
                 g_child += [-1, -1]
             pairs += [(p, g_child[q]), (p, g_child[q] + 1)]
     return True
+
+
+def _close_ends(l0: complex, l1: complex, t0: complex, t1: complex) -> bool:
+    """Whether an end of the N piece (l0, l1) lies within ``_SEED_MARGIN`` of an end of the G piece (t0, t1), arg
+    modulo 2 pi: then the box holds a point where ln N and j pi - ln G are that close, every pair of pieces holding
+    both fails both tests of :func:`seed_excluded` (each disc, and the thickened chord, holds its G end), and no
+    number of halvings can prove the box: the search would end at its budget with the same answer."""
+    return any(math.hypot(l.real - t.real, _wrap(l.imag - t.imag)) < _SEED_MARGIN for l in (l0, l1) for t in (t0, t1))
 
 
 def cell_apart(res: Residual, a: np.ndarray, v: np.ndarray, ln_n: np.ndarray, eps_a: np.ndarray, ln_g: np.ndarray,

@@ -603,22 +603,27 @@ def _resolve_element(kind, p, x):
 @njit(**_OPTS)
 def _reach_index(c, d, half, to_inf):
     """The index predict._limit_reach reads on its amplitude grid for the bound c / A (to_inf) or c A^2 + d, and
-    the threshold t with: every r with 0.5 r > t (and r <= 2 half) gives the same index; -1: no index (None)."""
+    the threshold t with: every r with 0.5 r > t (and r <= 2 half) gives the same index; -1: no index (None).
+
+    Found by bisection: with c, d >= 0 (the elements' bounds) the bound is monotone along the grid in floating
+    point too (correctly rounded products, sums and quotients are monotone), so the first grid point where the
+    test changes is the one a scan of every point finds."""
     n = _REACH.size
+    lo, hi = 0, n  # the first index where the test holds (to_inf: below half; head: no longer below half)
+    while lo < hi:
+        mid = (lo + hi) // 2
+        A = _REACH[mid]
+        hit = c / A < half if to_inf else not (c * (A * A) + d < half)
+        if hit:
+            hi = mid
+        else:
+            lo = mid + 1
     if to_inf:
-        for i in range(n):
-            if c / _REACH[i] < half:
-                return i, c / _REACH[i]
+        return (lo, c / _REACH[lo]) if lo < n else (-1, np.inf)
+    if lo == 0:
         return -1, np.inf
-    for i in range(n):
-        A = _REACH[i]
-        if not (c * (A * A) + d < half):
-            if i == 0:
-                return -1, np.inf
-            B = _REACH[i - 1]
-            return i - 1, c * (B * B) + d
-    B = _REACH[n - 1]
-    return -1, c * (B * B) + d
+    B = _REACH[lo - 1]
+    return (lo - 1 if lo < n else -1), c * (B * B) + d
 
 
 @njit(**_OPTS)
@@ -936,26 +941,34 @@ def _edge_phases(num, den, delay, kind, p, continuous, a0, v0, a1, v1, R0, R1):
 
 
 @njit(**_OPTS)
-def _dominant_any(n, g, r0, r1, c0, c1, along_rows):
-    """Whether roots.dominant_steps finds a jump in the patch P[r0:r1, c0:c1] of P = n g (outer product) along
-    axis 0 (along_rows) or 1."""
-    nr, nc = (r1 - r0, c1 - c0) if along_rows else (c1 - c0, r1 - r0)
-    if nr - 1 < 2:
+def _dominant_steps(x, k0, k1):
+    """Whether roots.dominant_steps finds a step of the samples x[k0:k1] larger than ``_DOMINANCE`` times both
+    neighbouring steps (the first and the last step compared with their one neighbour)."""
+    m = k1 - k0 - 1
+    if m < 2:
         return False
-    d = np.empty(nr - 1)
-    for col in range(nc):
-        for k in range(nr - 1):
-            if along_rows:
-                d[k] = cabs(n[r0 + k + 1] * g[c0 + col] - n[r0 + k] * g[c0 + col])
-            else:
-                d[k] = cabs(n[r0 + col] * g[c0 + k + 1] - n[r0 + col] * g[c0 + k])
-        last = nr - 2
-        for k in range(nr - 1):
-            before = d[1] if k == 0 else d[k - 1]
-            after = d[k + 1] if k < last else d[last - 1]
-            if d[k] > _DOMINANCE * _npmax(before, after):
-                return True
+    d = np.empty(m)
+    for k in range(m):
+        d[k] = cabs(x[k0 + k + 1] - x[k0 + k])
+    for k in range(m):
+        before = d[1] if k == 0 else d[k - 1]
+        after = d[k + 1] if k < m - 1 else d[m - 2]
+        if d[k] > _DOMINANCE * _npmax(before, after):
+            return True
     return False
+
+
+@njit(**_OPTS)
+def _near_jump(n, g, r0, r1, c0, c1):
+    """roots._near_jump on the patch P[r0:r1, c0:c1] of P = n g (outer product): whether a step of P along either
+    axis dominates its neighbours. Along the amplitudes every column's steps are |G_c| times N's steps, so one
+    column's test is N's own (and a column where G is 0 has no step); along the frequencies likewise with G."""
+    any_g = any_n = False
+    for c in range(c0, c1):
+        any_g |= g[c] != 0
+    for r in range(r0, r1):
+        any_n |= n[r] != 0
+    return (any_g and _dominant_steps(n, r0, r1)) or (any_n and _dominant_steps(g, c0, c1))
 
 
 @njit(**_OPTS)
@@ -1163,6 +1176,18 @@ def _gap(l0, l1, t, e):
 
 
 @njit(**_OPTS)
+def _close_ends(l0, l1, t0, t1):
+    """Whether an end of the N piece (l0, l1) lies within ``_SEED_MARGIN`` of an end of the G piece (t0, t1), arg
+    modulo 2 pi: a point of the box where the curves are that close, so no halving can prove the box (every pair
+    of pieces holding both points fails both tests), and :func:`_no_root_in` would fail at its budget anyway."""
+    for l in (l0, l1):
+        for t in (t0, t1):
+            if math.hypot(l.real - t.real, _wrap(l.imag - t.imag)) < _SEED_MARGIN:
+                return True
+    return False
+
+
+@njit(**_OPTS)
 def _push(pn, pg, top, x, y):
     """Push the pair (x, y) on the stack (pn, pg) of size top, growing it when full."""
     if top == pn.size:
@@ -1249,7 +1274,7 @@ def _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg
         chord = _chord_gap(l0, l1, qt0[y], qt1[y], e, qh[y])
         if chord >= _SEED_MARGIN:
             continue
-        if tests > _SEED_TESTS:
+        if tests > _SEED_TESTS or _close_ends(l0, l1, qt0[y], qt1[y]):
             return False
         # the piece whose uncertainty binds the better test: G's is h against its chord, e against the discs
         if math.hypot(l1.real - l0.real, _wrap(l1.imag - l0.imag)) >= (qh[y] if chord >= lens else e):
@@ -1351,7 +1376,7 @@ def _tangent_seeds(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n
         if _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg, arg_g, eps_v,
                        max(i - 2, 0), min(i + 2, nA - 1), max(j - 2, 0), min(j + 2, nv - 1)):
             r0, r1, c0, c1 = max(i - 4, 0), min(i + 5, nA), max(j - 4, 0), min(j + 5, nv)
-            if not (_dominant_any(n, g, r0, r1, c0, c1, True) or _dominant_any(n, g, r0, r1, c0, c1, False)):
+            if not _near_jump(n, g, r0, r1, c0, c1):
                 continue  # no wider retry either
             if _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg, arg_g, eps_v,
                            max(i - 3, 0), min(i + 3, nA - 1), max(j - 3, 0), min(j + 3, nv - 1)):
@@ -1379,10 +1404,7 @@ def _tangent_seeds(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n
                 continue
             i, j = seeds[s] // nv, seeds[s] % nv
             r0, r1, c0, c1 = max(i - 4, 0), min(i + 5, nA), max(j - 4, 0), min(j + 5, nv)
-            near = False
-            for along in (True, False):
-                near |= _dominant_any(n, g, r0, r1, c0, c1, along)
-            if near:
+            if _near_jump(n, g, r0, r1, c0, c1):
                 wa, wv = np.array([a[i]]), np.array([v[j]])
                 w0a, w1a = np.array([a[max(i - 3, 0)]]), np.array([a[min(i + 3, nA - 1)]])
                 w0v, w1v = np.array([v[max(j - 3, 0)]]), np.array([v[min(j + 3, nv - 1)]])
@@ -1739,10 +1761,9 @@ def _kept_seeds(num, den, zeros, poles, delay, kind, p, a, v, n, g, eps_a, eps_v
         if _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg, arg_g, eps_v,
                        max(i - 2, 0), min(i + 2, nA - 1), max(j - 2, 0), min(j + 2, nv - 1)):
             r0, r1, c0, c1 = max(i - 4, 0), min(i + 5, nA), max(j - 4, 0), min(j + 5, nv)
-            near = _dominant_any(n, g, r0, r1, c0, c1, True) or _dominant_any(n, g, r0, r1, c0, c1, False)
-            keep[s] = near and not _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg,
-                                               arg_g, eps_v, max(i - 3, 0), min(i + 3, nA - 1), max(j - 3, 0),
-                                               min(j + 3, nv - 1))
+            keep[s] = _near_jump(n, g, r0, r1, c0, c1) and not _no_root_in(
+                zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg, arg_g, eps_v, max(i - 3, 0),
+                min(i + 3, nA - 1), max(j - 3, 0), min(j + 3, nv - 1))
     return keep
 
 
