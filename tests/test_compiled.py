@@ -361,3 +361,36 @@ def test_the_driver_finds_the_jumps_the_python_driver_finds():
         assert python_near_jump(OuterProduct(n, g), np.array([i]), np.array([j]), 3)[0] == want, trial
         found += want
     assert 50 <= found <= 350
+
+
+def test_the_grids_phase_wrap_and_hypotenuse_are_the_same_bits_in_both_drivers():
+    """grid.wrap_phase and grid.hypot (the grids' rules, written as exact IEEE operations so the compiled driver's
+    _wrapped and _hypot give the same bits) agree bit for bit with their compiled forms (the wrap of a difference
+    of two angles, |d| <= 2 pi), stay within a few ulp of
+    np.angle(np.exp(1j d)) and np.hypot, and keep their NaN and infinity semantics, over the whole range."""
+    from dfloop.solve.compiled.driver import _hypot, _wrapped
+    from dfloop.solve.grid import hypot, wrap_phase
+
+    rng = np.random.default_rng(12)
+    d = np.concatenate([rng.uniform(-2 * np.pi, 2 * np.pi, 20000), rng.uniform(-50, 50, 2000),
+                        [np.pi, -np.pi, 2 * np.pi, -2 * np.pi, 0.0, np.nan, np.inf, -np.inf, 1e300]])
+    got, compiled = wrap_phase(d), np.array([_wrapped(x) for x in d])
+    near = ~(np.abs(d) > 2 * np.pi)  # a difference of two angles: exact there (beyond, both round sin, cos, atan2)
+    assert np.array_equal(got[near], compiled[near], equal_nan=True)
+    assert np.allclose(got[~near], compiled[~near], rtol=0, atol=1e-13, equal_nan=True)
+    with np.errstate(invalid="ignore"):
+        ref = np.angle(np.exp(1j * d))
+    assert np.array_equal(np.isnan(got), np.isnan(ref))
+    turn = np.abs(got - ref)
+    turn = np.minimum(turn, np.abs(turn - 2 * np.pi))  # pi and -pi are the same phase
+    assert np.nanmax(turn) <= 1e-14
+    x = np.concatenate([rng.standard_normal(20000) * 10.0 ** rng.uniform(-200, 200, 20000),
+                        [np.inf, -np.inf, np.nan, 0.0, 1e-300, 1e300, np.nan]])
+    y = np.concatenate([rng.standard_normal(20000) * 10.0 ** rng.uniform(-3, 3, 20000),
+                        [np.nan, 1.0, np.inf, 0.0, 1e-300, 1e300, 2.0]])
+    got = hypot(x, y)
+    assert np.array_equal(got, [_hypot(a, b) for a, b in zip(x, y)], equal_nan=True)
+    ref = np.hypot(x, y)
+    assert np.array_equal(np.isnan(got), np.isnan(ref)) and np.array_equal(np.isinf(got), np.isinf(ref))
+    fin = np.isfinite(ref) & (ref > 0)
+    assert np.max(np.abs(got[fin] - ref[fin]) / ref[fin]) <= 4.5e-16

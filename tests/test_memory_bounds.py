@@ -176,3 +176,23 @@ def test_numeric_df_streams_amplitudes_and_shows_progress(monkeypatch):
     assert calls[-1] == ["NumericDF (static): 1001 amplitudes", 1001, 1001]
     monkeypatch.setattr(numeric, "_CHUNK_VALUES", 10**9)
     assert np.array_equal(chunked, static(B))
+
+
+def test_the_environment_is_read_as_os_environ_reads_it(monkeypatch):
+    """_checks.environ (read on every solver call: the memory bound, DFLOOP_COMPILED) gives what os.environ.get
+    gives, for set, changed, non-ASCII and removed variables; and the memory bound follows DFLOOP_MEMORY_LIMIT from
+    one call to the next."""
+    from dfloop._checks import environ, memory_limit
+
+    name = "DFLOOP_TEST_ENVIRON"
+    monkeypatch.delenv(name, raising=False)
+    assert environ(name) is None
+    for value in ("1", "", "driver", "caf\u00e9 \u2713", "0"):
+        monkeypatch.setenv(name, value)
+        assert environ(name) == value == __import__("os").environ.get(name)
+    monkeypatch.delenv(name)
+    assert environ(name) is None
+    monkeypatch.setenv("DFLOOP_MEMORY_LIMIT", "0.5")
+    assert memory_limit() == 2**29
+    monkeypatch.setenv("DFLOOP_MEMORY_LIMIT", "2")
+    assert memory_limit() == 2**31

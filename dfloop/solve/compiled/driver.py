@@ -199,8 +199,23 @@ def _clog(z):
 
 
 @njit(**_OPTS)
+def _hypot(x, y):
+    """grid.hypot: sqrt(x^2 + y^2) where max(|x|, |y|) lies in (1e-150, 1e150), math.hypot elsewhere."""
+    big = _npmax(abs(x), abs(y))
+    if 1e-150 < big < 1e150:
+        return math.sqrt(x * x + y * y)
+    return math.hypot(x, y)
+
+
+@njit(**_OPTS)
 def _wrapped(d):
-    """np.angle(np.exp(1j * d)): a phase difference wrapped to (-pi, pi]."""
+    """grid.wrap_phase: a phase difference wrapped into [-pi, pi] by one turn (exact where |d| <= 2 pi)."""
+    if d > _PI and d <= _TWO_PI:
+        return d - _TWO_PI
+    if d < -_PI and d >= -_TWO_PI:
+        return d + _TWO_PI
+    if abs(d) <= _TWO_PI or d != d:
+        return d
     return math.atan2(math.sin(d), math.cos(d))
 
 
@@ -210,7 +225,7 @@ def _dlog(l1, l0, wrapped):
     dre = l1.real - l0.real
     if dre != dre:
         dre = 0.0
-    return math.hypot(dre, wrapped)
+    return _hypot(dre, wrapped)
 
 
 @njit(**_OPTS)
@@ -410,7 +425,7 @@ def _resolve_plant(zeros, poles, delay, v):
             rise, fall = rise + slack, fall + slack
             mag = _npmax(rise, fall)
             if wide and tame and w1 <= _TAME and mag > _STEP:
-                # e = hypot(arg, mag) >= mag > _STEP (arg is not NaN here): split whatever the phase bound
+                # e = _hypot(arg, mag) >= mag > _STEP (arg is not NaN here): split whatever the phase bound
                 # (a split interval's eps is not kept)
                 split[i] = True
                 n_split += 1
@@ -438,7 +453,7 @@ def _resolve_plant(zeros, poles, delay, v):
             else:
                 pos, neg = _row_sum(b3, nr), _row_sum(b4, nr)
             arg = _npmax(pos, -neg + delay * (w1 - w0)) * scale + margin
-            e = math.hypot(arg, mag)
+            e = _hypot(arg, mag)
             eps[i] = e
             split[i] = (e > _STEP) and wide
             n_split += split[i]

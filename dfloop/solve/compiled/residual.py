@@ -16,10 +16,10 @@ Levenberg-Marquardt refinement compiled. Each part announces its first compile (
 from __future__ import annotations
 
 import dataclasses
-import os
 
 import numpy as np
 
+from ..._checks import environ
 from ...progress import announce_compile
 from ..plant import Plant
 from ..roots import Residual
@@ -68,7 +68,8 @@ def _kernels(part: str | None = None) -> tuple:
 def mode() -> str:
     """The value of ``DFLOOP_COMPILED`` (``"1"`` when unset): read once per call of the solver and handed down
     (the environment may change between calls, e.g. in tests)."""
-    return os.environ.get("DFLOOP_COMPILED", "1")
+    value = environ("DFLOOP_COMPILED")
+    return "1" if value is None else value
 
 
 def enabled(mode_: str | None = None) -> bool:
