@@ -6,7 +6,8 @@ a bound ``eps`` on |ln f(x) - ln f(x_left)| for all x in it, and a grid cell (i,
 1 + G N only if ln(N_i G_j) lies within eps_a[i] + eps_v[j] of j pi (mod 2 pi j): every other cell is
 excluded by that certificate, so its winding number is exactly 0 (see ``_kernels.candidate_cells``).
 
-- Rational G (tf, ss): the bound is exact, from the poles and zeros (:meth:`Plant.log_variation`).
+- Rational G (tf, ss): the bound is certified, from the poles and zeros: an upper bound within a few % of the exact
+  variation (:meth:`Plant.log_variation`), in rational arithmetic (:func:`_interval_bound`).
 - Callable or frd G, and N along A: sampled. Each interval is checked at its midpoint and at its golden
   section point; it is split while the path through either point is longer than ``STEP``. A phase that
   turns by 2 pi k (+ a little) between two samples can wrap to small steps at both check points (a relay
@@ -28,7 +29,7 @@ from .._checks import memory_limit
 from .plant import Plant
 
 __all__ = ["hypot", "wrap_phase", "STEP", "FD_MIN_WIDTH", "MONOTONE_WIDTH", "BYTES_PER_POINT", "ANGLE_ROUNDING",
-           "SUM_ROUNDING", "resolve_plant", "resolve_sampled", "node_terms", "allpass_pairs", "ALLPASS_MISMATCH",
+           "SUM_ROUNDING", "TERM_ROUNDING", "TAN_OK", "resolve_plant", "resolve_sampled", "node_terms", "allpass_pairs", "ALLPASS_MISMATCH",
            "chord_deviation", "chord_gap", "check_memory", "clog", "largest_step"]
 
 STEP = 0.35
@@ -215,16 +216,23 @@ def resolve_sampled(f: Callable[[np.ndarray], np.ndarray], x: np.ndarray, name: 
 
 
 ANGLE_ROUNDING = 4e-15
-"""Bound (rad) on the rounding error of one factor's turn over an interval when it is taken as the difference of
-the factor's angles at the interval's two nodes (:func:`node_terms`), added per root to the interval bound of
-:func:`resolve_plant`. Each angle is atan(t), t = (w - y) / x: t carries a relative error of at most 2u
-(u = 2^-53 ~ 1.1e-16: the subtraction and the division), which moves atan(t) by at most
-2u |t| / (1 + t^2) <= u; atan itself is within 4 ulp (numpy's vectorised arctan; libm's, used by the compiled
-driver, within 1 ulp) of a value below pi/2 in magnitude, i.e. within 4 * 2.2e-16; so each angle is within
-1.0e-15 of the exact one, their difference (rounded once more, by at most u pi) within 2.4e-15 of the exact turn."""
+"""Bound (rad) on the rounding error of one factor's turn where :func:`resolve_plant`'s bound takes it exactly, as
+atan2(x h, x^2 + p0 p1) (a root on the imaginary axis, or an interval the factor turns by more than ~1.3 rad on:
+see ``TAN_OK``): atan2 is within 4 ulp (numpy's vectorised version; libm's, used by the compiled driver, within
+1 ulp) of a value below pi in magnitude, and its arguments' rounding moves it by a few ulp more there; added per
+root to the interval bound."""
 SUM_ROUNDING = 2.3e-16
-"""Relative bound per term on the rounding of the sums of turns in :func:`resolve_plant`'s bound (the sum of n
-non-negative terms in floating point is within (n - 1) u of the exact sum; 2.3e-16 > 2u)."""
+"""Relative bound per term on the rounding of the sums of turns and of magnitude changes in :func:`resolve_plant`'s
+bound (the sum of n non-negative terms in floating point is within (n - 1) u of the exact sum; 2.3e-16 > 2u)."""
+TERM_ROUNDING = 2e-14
+"""Relative bound on the rounding of one factor's term in :func:`resolve_plant`'s bound (u = 2^-53 ~ 1.1e-16):
+the magnitude term is a product of two quotients of correctly rounded differences and hypotenuses (within ~12 u);
+the turn's tangent x h / (x^2 + p0 p1) is within 7 u where p0 p1 >= 0, and within 4 u / ``TAN_OK`` + 3 u (71 u)
+where the sum in its denominator cancels down to ``TAN_OK`` of its terms' size. Applied as a factor (1 + 2e-14)."""
+TAN_OK = 1.0 / 16
+"""The turn of a factor over an interval is bounded by its tangent x h / D (D = x^2 + p0 p1) where
+D > TAN_OK (x^2 + |p0 p1|); elsewhere (only where the interval straddles the root's frequency and the factor
+turns by more than atan(15) ~ 1.5 rad) it is taken exactly by atan2."""
 
 
 ALLPASS_MISMATCH = 1e-9
@@ -331,69 +339,87 @@ def chord_gap(l0: complex, l1: complex, t0: complex, t1: complex, e: float, h: f
 
 
 def node_terms(plant: Plant, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """ln|j nu - r| and the angle of j nu - r on its continuous branch, at each frequency of w (rad/s, shape (k,))
-    for each root r of a rational plant (zeros, then poles; nu = w, or the plant's frequency map of it): two
-    arrays (k, number of roots). For r = -x + jy the factor j nu - r = x + j (nu - y) moves along a vertical
-    line: its angle is atan((nu - y) / x) up to a constant, continuous and monotone in nu (x != 0); it is 0 for a
-    root on the imaginary axis (x = 0), whose turn :func:`resolve_plant` takes per interval."""
+    """The terms of each factor j nu - r of a rational plant at the frequencies w (rad/s, shape (k,); nu = w, or
+    the plant's frequency map of it), for each root r = -x + jy (zeros, then poles): p = nu - y and the modulus
+    d = |j nu - r| = hypot(x, p) (:func:`hypot`), two arrays (k, number of roots). :func:`_interval_bound` bounds
+    each factor's change over an interval from the terms of its two ends, with no logarithm or arctangent."""
     zeros, poles = plant.roots
     r = np.concatenate([zeros, poles])
     nu = np.asarray(w if plant.frequency_map is None else plant.frequency_map(w), float)[:, None]
-    x, y = -r.real, r.imag
-    with np.errstate(divide="ignore", invalid="ignore"):
-        mag = 0.5 * np.log(x * x + (nu - y) ** 2)
-        angle = np.where(x != 0, np.arctan((nu - y) / np.where(x != 0, x, 1.0)), 0.0)
-    return mag, angle
+    p = nu - r.imag
+    return p, hypot(-r.real, p)
 
 
-def _interval_bound(plant: Plant, nu0, nu1, m0, m1, t0, t1, pairs) -> np.ndarray:
-    """:meth:`Plant.log_variation` on the intervals [nu0, nu1] (mapped frequencies, shape (k,)) from the node terms
-    of their ends (:func:`node_terms`, shapes (k, roots)): each factor's turn is the difference of its angles at
-    the two ends (exactly its atan2 turn of log_variation, up to rounding: ``ANGLE_ROUNDING`` per root and
-    ``SUM_ROUNDING`` per term are added, so the bound stays an upper bound), except for roots on the imaginary
-    axis, whose turn is log_variation's atan2 (0, or pi where the interval passes the root, where the magnitude
-    bound is infinite anyway). The magnitudes of all-pass pairs (a Pade delay's mirrored roots) are counted by
-    their joint bound (``pairs`` = :func:`allpass_pairs` of the plant), not root by root: their moduli cancel."""
+def _interval_bound(plant: Plant, nu0, nu1, p0, p1, d0, d1, pairs) -> np.ndarray:
+    """An upper bound on :meth:`Plant.log_variation` on the intervals [nu0, nu1] (mapped frequencies, shape (k,))
+    from the node terms of their ends (:func:`node_terms`, shapes (k, roots)), in rational arithmetic only.
+
+    For the factor j nu - r = x + j p, p = nu - y, over an interval of width h = nu1 - nu0:
+
+    - its modulus d moves monotonically where the interval does not straddle y (p0 >= 0 or p1 <= 0), by
+      |ln(d1 / d0)| = t <= sinh t = (d1^2 - d0^2) / (2 d0 d1) = h |p0 + p1| / (2 d0 d1) in magnitude (rising where
+      p0 >= 0); where it straddles y (p0 < 0 < p1) it falls to |x| and rises again, by at most
+      sinh(ln(d0 / |x|)) = p0^2 / (2 |x| d0) and p1^2 / (2 |x| d1);
+    - its angle turns by atan2(x h, D), D = x^2 + p0 p1, which is at most its tangent x h / D in magnitude where
+      D > 0: the bound takes the tangent where D > ``TAN_OK`` (x^2 + |p0 p1|), atan2 itself elsewhere (a root on
+      the imaginary axis, or a turn above ~1.5 rad).
+
+    Each factor's change t on an interval of the grid (|d ln G| <= ``STEP`` = 0.35) is at most ``STEP``, where
+    sinh t / t <= 1.021 and tan t / t <= 1.043: the bound exceeds the exact variation by at most 4.3 % there (plus
+    the rounding margins), by much less where several factors share the step.
+    The magnitudes of all-pass pairs (a Pade delay's mirrored roots) are counted by their joint bound (``pairs`` =
+    :func:`allpass_pairs` of the plant), not root by root: their moduli cancel. The rounding of every term
+    (``TERM_ROUNDING``), of the sums (``SUM_ROUNDING``) and of the exact turns (``ANGLE_ROUNDING``) is added, so
+    the bound stays an upper bound. The compiled driver computes the same expressions (IEEE arithmetic and square
+    roots, correctly rounded in both), so both get the same bits."""
     zeros, poles = plant.roots
     r = np.concatenate([zeros, poles])
     nr = r.size
     paired, slack = pairs
     sign = np.concatenate([np.ones(zeros.size), -np.ones(poles.size)])
-    x, y = -r.real, r.imag
-    w0, w1 = nu0[:, None], nu1[:, None]
-    turn = sign * (t1 - t0)
-    axis = x == 0
-    if axis.any():
-        xa, ya = x[axis], y[axis]
-        turn[:, axis] = sign[axis] * np.arctan2(xa * (w1 - w0), xa * xa + (w0 - ya) * (w1 - ya))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inside = (w0 < y) & (y < w1)
-        low = np.where(inside, np.log(np.abs(x)), np.minimum(m0, m1))
-        up, down = m1 - low, m0 - low  # total rise and fall of ln|jw - r| on the interval
+    x = -r.real
+    h = (nu1 - nu0)[:, None]
+    scale = 1.0 + SUM_ROUNDING * (nr + 1) + TERM_ROUNDING
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        ax = np.abs(x)
+        inside = (p0 < 0) & (p1 > 0)
+        mono = 0.5 * (h / d0) * (np.abs(p1 + p0) / d1)
+        rising = p0 >= 0
+        up = np.where(inside, 0.5 * (p1 / ax) * (p1 / d1), np.where(rising, mono, 0.0))
+        down = np.where(inside, 0.5 * (p0 / ax) * (p0 / d0), np.where(rising, 0.0, mono))
         up, down = np.where(paired, 0.0, up), np.where(paired, 0.0, down)  # all-pass pairs: by the slack
-        rise = np.where(sign > 0, up, down).sum(axis=-1) + slack
-        fall = np.where(sign > 0, down, up).sum(axis=-1) + slack
+        rise = np.where(sign > 0, up, down).sum(axis=-1) * scale + slack
+        fall = np.where(sign > 0, down, up).sum(axis=-1) * scale + slack
+        pp = p0 * p1
+        xx = x * x
+        D = xx + pp
+        tangent = D > TAN_OK * (xx + np.abs(pp))
+        turn = np.where(tangent, x * h / D, 0.0)
+    if not tangent.all():
+        far = ~tangent
+        turn[far] = np.arctan2(np.broadcast_to(x * h, far.shape)[far], D[far])
+    turn = sign * turn
     delay_turn = plant.delay * (nu1 - nu0)
     arg = np.maximum(np.where(turn > 0, turn, 0).sum(axis=-1), -np.where(turn < 0, turn, 0).sum(axis=-1) + delay_turn)
-    arg = arg * (1.0 + SUM_ROUNDING * (nr + 1)) + ANGLE_ROUNDING * nr
+    arg = arg * scale + ANGLE_ROUNDING * nr
     return hypot(arg, np.maximum(rise, fall))
 
 
 def resolve_plant(plant: Plant, v: np.ndarray, step: float = STEP):
     """Frequency nodes (ln w) resolving G: exact bound for rational G, sampled (with slopes) otherwise.
 
-    For rational G, each interval's bound is :meth:`Plant.log_variation`'s, evaluated from terms computed once per
-    node (:func:`node_terms`: ln|jw - r| and the angle of jw - r for each root r) and differenced per interval, with
-    a margin for the rounding of the differenced angles (:func:`_interval_bound`).
+    For rational G, each interval's bound is an upper bound on :meth:`Plant.log_variation`'s (within a few % of
+    it), from terms computed once per node (:func:`node_terms`: nu - y and |jw - r| for each root r = -x + jy) and
+    combined per interval in rational arithmetic, with margins for rounding (:func:`_interval_bound`).
     Returns (nodes, G at nodes, eps per interval, number of evaluations of G, uncertified intervals (k, 2)).
     """
     if not plant.exact:
         return resolve_sampled(plant, v, "G along omega", step, slopes=True)
     v = np.asarray(v, float)
     w = np.exp(v)
-    mag, angle = node_terms(plant, w)
+    tp, td = node_terms(plant, w)
     nu = w if plant.frequency_map is None else np.asarray(plant.frequency_map(w), float)
-    tx, tnu, tm, ta = [v], [nu], [mag], [angle]  # the node table, one block per round
+    tx, tnu, tp, td = [v], [nu], [tp], [td]  # the node table, one block per round
     n_nodes = v.size
     done_i, done_eps = [np.zeros(1, np.int64)], [np.empty(0)]
     i0, i1 = np.arange(v.size - 1), np.arange(1, v.size)  # table indices of the live intervals' ends
@@ -401,20 +427,20 @@ def resolve_plant(plant: Plant, v: np.ndarray, step: float = STEP):
     for _ in range(_MAX_ROUNDS):
         if i0.size == 0:
             break
-        X, NU, M, T = (np.concatenate(t) if len(t) > 1 else t[0] for t in (tx, tnu, tm, ta))
-        tx, tnu, tm, ta = [X], [NU], [M], [T]
+        X, NU, PT, DT = (np.concatenate(t) if len(t) > 1 else t[0] for t in (tx, tnu, tp, td))
+        tx, tnu, tp, td = [X], [NU], [PT], [DT]
         x0, x1 = X[i0], X[i1]
-        eps = _interval_bound(plant, NU[i0], NU[i1], M[i0], M[i1], T[i0], T[i1], pairs)
+        eps = _interval_bound(plant, NU[i0], NU[i1], PT[i0], PT[i1], DT[i0], DT[i1], pairs)
         split = (eps > step) & (x1 - x0 > _MIN_WIDTH * (1 + np.abs(x0)))
         done_i.append(i1[~split])
         done_eps.append(eps[~split])
         xm = 0.5 * (x0[split] + x1[split])
         wm = np.exp(xm)
-        mm, am = node_terms(plant, wm)
+        pm, dm = node_terms(plant, wm)
         tx.append(xm)
         tnu.append(wm if plant.frequency_map is None else np.asarray(plant.frequency_map(wm), float))
-        tm.append(mm)
-        ta.append(am)
+        tp.append(pm)
+        td.append(dm)
         im = np.arange(n_nodes, n_nodes + xm.size)
         n_nodes += xm.size
         i0, i1 = np.concatenate([i0[split], im]), np.concatenate([im, i1[split]])

@@ -5,7 +5,8 @@ amplitude-only element with a compiled form (:mod:`.kinds`). It runs the Python 
 floating-point expressions in the same order (numpy's reduction order, complex division, ``linspace``):
 
 1. the default frequency window two decades beyond the poles and zeros (numpy's, as the Plant has them);
-2. G's grid, refined from the exact bound on its variation (:meth:`~dfloop.solve.plant.Plant.log_variation`);
+2. G's grid, refined from the certified bound on its variation (``grid._interval_bound``, above
+   :meth:`~dfloop.solve.plant.Plant.log_variation`);
 3. the default amplitude window (``predict._default_amplitude_window`` with ``_limit_reach``), N's breakpoints as
    nodes and N's grid (``grid.resolve_sampled`` with ``monotone=True``);
 4. the candidate cells (``_kernels.candidate_cells``), their windings with the edge bisection of
@@ -33,7 +34,8 @@ import numpy as np
 from numba import njit, prange
 
 from ..._checks import memory_limit
-from ..grid import ANGLE_ROUNDING, BYTES_PER_POINT, SUM_ROUNDING, allpass_pairs, chord_deviation, chord_gap
+from ..grid import (ANGLE_ROUNDING, BYTES_PER_POINT, SUM_ROUNDING, TAN_OK, TERM_ROUNDING, allpass_pairs,
+                    chord_deviation, chord_gap)
 from .kernels import accepted, cabs, cdiv, element, plant, refine, slopes_at
 
 __all__ = ["solve_one", "solve_many", "solve_one_dispatcher", "solve_many_dispatcher", "kept_seeds",
@@ -72,6 +74,7 @@ _WIN_LO = 10.0 ** -CONSTANTS["DECADES"]
 _WIN_HI = 10.0 ** CONSTANTS["DECADES"]
 _TWO_PI = 2.0 * np.pi
 _PI = np.pi
+_TAN_OK = TAN_OK
 _TAME = 1e100  # bound on |roots| and w below which the phase bound of an interval cannot be NaN
 _MAX_PAIRWISE = 128  # roots of a plant beyond which the numpy reduction order is not mirrored (a fallback)
 
@@ -128,7 +131,8 @@ def _npmin(x, y):
 
 @njit(**_OPTS)
 def _pairwise(x, lo, n):
-    """numpy's pairwise sum of x[lo:lo + n] (n <= 128: one block of eight accumulators)."""
+    """numpy's pairwise sum of x[lo:lo + n] (n <= 128: one block of eight accumulators; in order below 8 terms),
+    as numpy sums the rows of a C-contiguous array along its last axis (numpy 2)."""
     if n < 8:
         res = -0.0
         for i in range(n):
@@ -152,14 +156,6 @@ def _pairwise(x, lo, n):
         res += x[lo + i]
         i += 1
     return res
-
-
-@njit(**_OPTS)
-def _row_sum(x, n):
-    """numpy's sum of x[:n] along a reduced axis: the first element plus the pairwise sum of the others."""
-    if n == 0:
-        return 0.0
-    return x[0] + _pairwise(x, 1, n - 1)
 
 
 @njit(**_OPTS)
@@ -356,10 +352,10 @@ def _resolve_plant(zeros, poles, delay, v):
     """grid.resolve_plant for a rational G: (nodes, e^nodes, eps per interval, status).
 
     The intervals of a round are the ones of the Python version, in its order, each bounded by
-    grid._interval_bound's expressions. Every node (its w = e^x, and ln|jw - r| and the angle of jw - r for each
-    root r: grid.node_terms) is computed once, in a table the intervals index (a split adds its midpoint): the
-    same expression at the same w gives the same value. The loops are written out here, with no call that takes
-    an array (numba does not inline such calls across functions, and each one pays reference counting)."""
+    grid._interval_bound's expressions. Every node (its w = e^x, and w - y and |jw - r| for each root r = -x + jy:
+    grid.node_terms) is computed once, in a table the intervals index (a split adds its midpoint): the same
+    expression at the same w gives the same value. The loops are written out here, with no call that takes an
+    array (numba does not inline such calls across functions, and each one pays reference counting)."""
     rr = np.concatenate((zeros, poles))
     nz = zeros.size
     nr = rr.size
@@ -371,19 +367,20 @@ def _resolve_plant(zeros, poles, delay, v):
     tame = math.isfinite(delay)
     for k in range(nr):
         tame &= abs(xr[k]) <= _TAME and abs(yr[k]) <= _TAME
-    scale, margin = 1.0 + SUM_ROUNDING * (nr + 1), ANGLE_ROUNDING * nr  # rounding of the differenced angles
+    scale, margin = 1.0 + SUM_ROUNDING * (nr + 1) + TERM_ROUNDING, ANGLE_ROUNDING * nr  # rounding margins
     paired, slack = _allpass_pairs(zeros, poles)  # all-pass pairs: magnitudes by their joint bound
     cap = 2 * v.size + 16
-    # the node table: x, e^x, ln|jw - r|, angle of jw - r
-    tx, tw, tm, ta = np.empty(cap), np.empty(cap), np.empty((cap, nr)), np.empty((cap, nr))
+    # the node table: x, e^x, w - y, |jw - r| (unused, and not computed, for an all-pass pair's roots)
+    tx, tw, tp, td = np.empty(cap), np.empty(cap), np.empty((cap, nr)), np.empty((cap, nr))
     n_nodes = v.size
     for i in range(n_nodes):
         w = math.exp(v[i])
         tx[i], tw[i] = v[i], w
-        for k in range(nr):  # grid.node_terms (0 on the imaginary axis; an all-pass pair's magnitudes unused)
+        for k in range(nr):  # grid.node_terms
+            pk = w - yr[k]
+            tp[i, k] = pk
             if not paired[k]:
-                tm[i, k] = 0.5 * math.log(xr[k] * xr[k] + (w - yr[k]) * (w - yr[k]))
-            ta[i, k] = math.atan((w - yr[k]) / xr[k]) if xr[k] != 0 else 0.0
+                td[i, k] = _hypot(xr[k], pk)
     out_n = np.empty(2 * v.size + 16, np.int64)  # the finished nodes (table indices) and intervals
     out_e = np.empty(2 * v.size + 16)
     out_n[0] = 0
@@ -401,28 +398,33 @@ def _resolve_plant(zeros, poles, delay, v):
         for i in range(m):
             p, q = i0[i], i1[i]
             w0, w1 = tw[p], tw[q]
+            h = w1 - w0
             wide = tx[q] - tx[p] > _MIN_WIDTH * (1 + abs(tx[p]))
             for k in range(nr):  # grid._interval_bound, one root at a time (zeros +, poles -): magnitudes ...
                 if paired[k]:
                     up = down = 0.0
                 else:
-                    x, y = xr[k], yr[k]
-                    m0, m1 = tm[p, k], tm[q, k]
-                    low = math.log(abs(x)) if (w0 < y and y < w1) else _npmin(m0, m1)
-                    up, down = m1 - low, m0 - low
+                    p0, p1 = tp[p, k], tp[q, k]
+                    d0, d1 = td[p, k], td[q, k]
+                    if p0 < 0 and p1 > 0:  # the interval straddles y: down to |x| and up again
+                        ax = abs(xr[k])
+                        up, down = 0.5 * (p1 / ax) * (p1 / d1), 0.5 * (p0 / ax) * (p0 / d0)
+                    else:
+                        mono = 0.5 * (h / d0) * (abs(p1 + p0) / d1)
+                        if p0 >= 0:
+                            up, down = mono, 0.0
+                        else:
+                            up, down = 0.0, mono
                 b1[k] = up if k < nz else down
                 b2[k] = down if k < nz else up
-            if nr == 0:
-                rise = fall = 0.0
-            elif nr <= 8:  # numpy's sum along the last axis: the first term plus the others in order
-                rise, fall = -0.0, -0.0
-                for k in range(1, nr):
+            if nr < 8:  # numpy's sum along the last axis (pairwise: in order below 8 terms)
+                rise = fall = -0.0
+                for k in range(nr):
                     rise += b1[k]
                     fall += b2[k]
-                rise, fall = b1[0] + rise, b2[0] + fall
             else:
-                rise, fall = _row_sum(b1, nr), _row_sum(b2, nr)
-            rise, fall = rise + slack, fall + slack
+                rise, fall = _pairwise(b1, 0, nr), _pairwise(b2, 0, nr)
+            rise, fall = rise * scale + slack, fall * scale + slack
             mag = _npmax(rise, fall)
             if wide and tame and w1 <= _TAME and mag > _STEP:
                 # e = _hypot(arg, mag) >= mag > _STEP (arg is not NaN here): split whatever the phase bound
@@ -430,29 +432,27 @@ def _resolve_plant(zeros, poles, delay, v):
                 split[i] = True
                 n_split += 1
                 continue
-            for k in range(nr):  # ... then phases: the difference of the node angles (atan2 on the imaginary axis)
-                x, y = xr[k], yr[k]
-                if x != 0:
-                    turn = ta[q, k] - ta[p, k]
-                elif (w0 - y) * (w1 - y) > 0:  # atan2(+-0, positive) = +-0: no turn either sign (an integrator)
-                    turn = 0.0
+            for k in range(nr):  # ... then phases: the tangent of the turn, or the turn itself by atan2
+                x = xr[k]
+                pp = tp[p, k] * tp[q, k]
+                xx = x * x
+                den = xx + pp
+                if den > _TAN_OK * (xx + abs(pp)):
+                    turn = x * h / den
                 else:
-                    turn = math.atan2(x * (w1 - w0), x * x + (w0 - y) * (w1 - y))
+                    turn = math.atan2(x * h, den)
                 if k >= nz:
                     turn = -turn
                 b3[k] = turn if turn > 0 else 0.0
                 b4[k] = turn if turn < 0 else 0.0
-            if nr == 0:
-                pos = neg = 0.0
-            elif nr <= 8:
-                pos, neg = -0.0, -0.0
-                for k in range(1, nr):
+            if nr < 8:
+                pos = neg = -0.0
+                for k in range(nr):
                     pos += b3[k]
                     neg += b4[k]
-                pos, neg = b3[0] + pos, b4[0] + neg
             else:
-                pos, neg = _row_sum(b3, nr), _row_sum(b4, nr)
-            arg = _npmax(pos, -neg + delay * (w1 - w0)) * scale + margin
+                pos, neg = _pairwise(b3, 0, nr), _pairwise(b4, 0, nr)
+            arg = _npmax(pos, -neg + delay * h) * scale + margin
             e = _hypot(arg, mag)
             eps[i] = e
             split[i] = (e > _STEP) and wide
@@ -464,10 +464,10 @@ def _resolve_plant(zeros, poles, delay, v):
             out_n, out_e = on, oe
         if n_nodes + n_split > tx.size:
             grow = max(2 * tx.size, n_nodes + n_split)
-            gx, gw, gm, ga = np.empty(grow), np.empty(grow), np.empty((grow, nr)), np.empty((grow, nr))
+            gx, gw, gp, gd = np.empty(grow), np.empty(grow), np.empty((grow, nr)), np.empty((grow, nr))
             gx[:n_nodes], gw[:n_nodes] = tx[:n_nodes], tw[:n_nodes]
-            gm[:n_nodes], ga[:n_nodes] = tm[:n_nodes], ta[:n_nodes]
-            tx, tw, tm, ta = gx, gw, gm, ga
+            gp[:n_nodes], gd[:n_nodes] = tp[:n_nodes], td[:n_nodes]
+            tx, tw, tp, td = gx, gw, gp, gd
         n0, n1 = np.empty(2 * n_split, np.int64), np.empty(2 * n_split, np.int64)
         k = 0
         for i in range(m):
@@ -477,9 +477,10 @@ def _resolve_plant(zeros, poles, delay, v):
                 w = math.exp(xm)
                 tx[n_nodes], tw[n_nodes] = xm, w
                 for r in range(nr):
+                    pk = w - yr[r]
+                    tp[n_nodes, r] = pk
                     if not paired[r]:
-                        tm[n_nodes, r] = 0.5 * math.log(xr[r] * xr[r] + (w - yr[r]) * (w - yr[r]))
-                    ta[n_nodes, r] = math.atan((w - yr[r]) / xr[r]) if xr[r] != 0 else 0.0
+                        td[n_nodes, r] = _hypot(xr[r], pk)
                 n0[k], n1[k] = p, n_nodes
                 n0[n_split + k], n1[n_split + k] = n_nodes, q
                 n_nodes += 1
