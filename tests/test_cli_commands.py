@@ -197,18 +197,27 @@ def test_cli_loading_gives_table_builds_a_progress_bar_unless_the_scene_sets_one
     assert load_scene("backlash_servo", progress=True).element.h == 1.0  # no progress parameter: nothing added
 
 
-def test_warmup_leaves_every_compiled_kernel_ready(capsys):
+def test_warmup_leaves_every_compiled_kernel_ready(capsys, monkeypatch):
     """`dfloop warmup` runs each compiling entry point once and says so; afterwards a prediction announces no
-    compile (its kernels are compiled in this process or cached on disk)."""
+    compile (its kernels are compiled in this process or cached on disk). Run as a user runs it: the default
+    DFLOOP_COMPILED, not the suite's "driver"."""
     import control as ct
 
     import dfloop as df
 
+    monkeypatch.setenv("DFLOOP_COMPILED", "1")
     assert main(["warmup"]) == 0
     out = capsys.readouterr().out.splitlines()
     assert [line.split(":")[0] for line in out] == ["solver kernels (predict_limit_cycles)",
                                                    "exact engines (exact_cycle)", "simulation (verify_cycle)",
                                                    "impact kernels (DynamicBacklash tables)"]
     assert all(line.endswith(" s") and "ready in" in line for line in out)
+    # every kernel of the compiled path is loaded in this process, the driver's helpers for the Python driver
+    # too (they are used only once the driver is ready: warmup must compile them itself, or a single call on a
+    # fresh installation would keep taking the Python driver)
+    from dfloop.solve.compiled.residual import _kernels
+
+    assert all(d.signatures for d in _kernels())
     assert len(df.predict_limit_cycles(ct.tf([5], [1, 1, 0]), df.Saturation(1.0))) >= 0
-    assert "compiling" not in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "compiling" not in err and "not compiled" not in err

@@ -209,9 +209,9 @@ class GridReport:
     shape : (int, int)
         Final (amplitudes, frequencies) grid size.
     frequency_rule, amplitude_rule : str
-        How each axis was resolved: ``"exact"`` (bound from G's poles and zeros), ``"sampled"`` (dense
-        scan with midpoint and golden-section aliasing check), or for a frequency-dependent N the sampled
-        rules applied to G N along omega and to N along A.
+        How each axis was resolved: ``"exact"`` (a certified bound from G's poles and zeros, no sampling),
+        ``"sampled"`` (dense scan with midpoint and golden-section aliasing check), or for a frequency-dependent N
+        the sampled rules applied to G N along omega and to N along A.
     max_step_frequency, max_step_amplitude : float
         The largest bound left on |d ln G| (|d ln G N| for a frequency-dependent N) resp. |d ln N| within
         one interval of the axis (jumps of N, which no refinement shrinks, excepted: ``n_jumps`` counts

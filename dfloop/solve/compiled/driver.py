@@ -809,32 +809,25 @@ def _amplitude_rows(kind, p, cand, n, known, i, g_lo, g_hi):
 # ------------------------------------------------------------------------------------------ cells and windings
 
 
-_SCAN_ROWS = 16  # up to this many amplitude intervals the candidate cells are found by a scan of every cell
-
-
 @njit(**_OPTS)
 def _candidate_cells(ln_n, eps_a, rg, g, eps_v):
     """_kernels.candidate_cells: sorted flat indices i * n_nodes_v + j of the cells that may hold a root, and
     arg G at the nodes where it was needed (NaN elsewhere).
 
     rg: ln|G| at the frequency nodes (the real part of grid.clog(G)); arg G, its imaginary part, is computed only
-    at the nodes of cells whose real parts pass, once each. Few amplitude intervals (<= _SCAN_ROWS): every cell
-    is scanned for the window [lo, hi] of the sorted search (the same cells, found without a sort)."""
+    at the nodes of cells whose real parts pass, once each. ln|G| is sorted once (a natural merge sort: one pass
+    where |G| is monotone), and each row reads the nodes within its reach by bisection."""
     na, nv = ln_n.size - 1, rg.size - 1
     if na < 1 or nv < 1:
         return np.empty(0, np.int64), np.full(nv + 1, np.nan)
     emax = -np.inf
     for j in range(nv):
         emax = _npmax(emax, eps_v[j])
-    scan = na <= _SCAN_ROWS
-    order = np.empty(0, np.int64)
-    srt, srt_e = rg[:0], rg[:0]
-    if not scan:  # ln|G| sorted, with eps_v in the same order: the search reads both in sequence
-        order = _order(rg[:nv])
-        srt = np.empty(nv)
-        srt_e = np.empty(nv)
-        for q in range(nv):
-            srt[q], srt_e[q] = rg[order[q]], eps_v[order[q]]
+    order = _order(rg[:nv])  # ln|G| sorted, with eps_v in the same order: the search reads both in sequence
+    srt = np.empty(nv)
+    srt_e = np.empty(nv)
+    for q in range(nv):
+        srt[q], srt_e[q] = rg[order[q]], eps_v[order[q]]
     arg_g = np.full(nv + 1, np.nan)
     out = np.empty(64, np.int64)
     n_out = 0
@@ -848,25 +841,12 @@ def _candidate_cells(ln_n, eps_a, rg, g, eps_v):
             lo = -np.inf
         if hi != hi:
             hi = np.inf
-        start, stop = 0, nv
-        if not scan:
-            start = _bisect(srt, lo, False)
-            stop = _bisect(srt, hi, True)
-        for q in range(start, stop):
-            if scan:
-                j = q
-                if not (lo <= rg[j] and rg[j] <= hi):
-                    continue
-                re = rn + rg[j]
-                e = eps_a[i] + eps_v[j]
-                if abs(re) > e:
-                    continue
-            else:
-                re = rn + srt[q]
-                e = eps_a[i] + srt_e[q]
-                if abs(re) > e:
-                    continue
-                j = order[q]
+        for q in range(_bisect(srt, lo, False), _bisect(srt, hi, True)):
+            re = rn + srt[q]
+            e = eps_a[i] + srt_e[q]
+            if abs(re) > e:
+                continue
+            j = order[q]
             if arg_g[j] != arg_g[j]:
                 arg_g[j] = _angle(g[j])
             im = ln_n[i].imag + arg_g[j] - _PI
@@ -881,8 +861,8 @@ def _candidate_cells(ln_n, eps_a, rg, g, eps_v):
                     out = grow
                 out[n_out] = i * (nv + 1) + j  # flat index in the node grid
                 n_out += 1
-        if not scan and n_out - row_start > 1:  # this row's cells came in the order of ln|G|: sorted here, so
-            if n_out - row_start > 32:            # all are (the rows ascend); a long row by the merge sort
+        if n_out - row_start > 1:  # this row's cells came in the order of ln|G|: sorted here, so all are (the
+            if n_out - row_start > 32:  # rows ascend); a long row by the merge sort
                 seg = out[row_start:n_out].copy()
                 out[row_start:n_out] = seg[_order(seg)]
             else:

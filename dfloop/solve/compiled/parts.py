@@ -52,7 +52,8 @@ def plant_part(G):
         return None
     if getattr(G, "ninputs", 1) != 1 or getattr(G, "noutputs", 1) != 1 or getattr(G, "dt", 0) not in (0, None):
         return None
-    num, den = G.num[0][0], G.den[0][0]
+    arrays = getattr(G, "num_array", None)  # python-control >= 0.10: the coefficient arrays, without num's lists
+    num, den = (arrays[0, 0], G.den_array[0, 0]) if arrays is not None else (G.num[0][0], G.den[0][0])
     key = None
     if type(num) is np.ndarray and type(den) is np.ndarray and num.ndim == 1 and den.ndim == 1:
         key = (num.dtype.str, num.tobytes(), den.dtype.str, den.tobytes(), delay)  # as given: no conversion
@@ -84,6 +85,8 @@ def _first_nonzero(c: list) -> int:
 
 
 _NOTHING = object()
+_UNIT = np.ones(1)  # the amplitude at which the element's bound constants are read (read-only: ~1 us per np.ones)
+_UNIT.flags.writeable = False
 
 
 def element_part(N, form_of):
@@ -129,10 +132,10 @@ def _element_part(N, form, cls):
     kind = KINDS[form[0]]
     lo, hi = (float(x) for x in N.amplitude_domain())  # the class's own: 0-d arrays
     ln_lo, ln_hi = (float(np.log(x)) if x > 0 else -math.inf for x in (lo, hi))  # np.log(0) = -inf
-    tail = N.tail_bound(np.ones(1))
+    tail = N.tail_bound(_UNIT)
     tail_c = np.nan if tail is None else float(tail[0])
     head_c = head_d = np.nan
-    if N.head_bound(np.ones(1)) is not None:
+    if N.head_bound(_UNIT) is not None:
         if not isinstance(N, CubicStiffness):
             return None
         head_c, head_d = 0.75 * (1 + 1e-12) * abs(N.k3), float(4 * np.spacing(N.k1))

@@ -89,7 +89,7 @@ def driver_wanted(mode_: str | None = None) -> bool:
 
     ``DFLOOP_COMPILED=0``: never. ``DFLOOP_COMPILED=driver``: always (compiling it first if needed, announced).
     Otherwise (the default): when the driver is ready, compiled in this process or in numba's on-disk cache (after
-    ``dfloop warmup``, a batch, or any earlier process that compiled it). A fresh installation does not make a
+    ``dfloop warmup``, or any earlier process that compiled it). A fresh installation does not make a
     single call wait about ``COMPILE_SECONDS`` for it: the call runs the Python driver on the compiled residual
     (the same algorithm; results agree to 1e-12, tests/test_compiled.py), and says once that ``dfloop warmup``
     compiles the driver. Batches (:func:`dfloop.predict_many`) compile it, announced: their loops amortise it.
@@ -393,11 +393,15 @@ def warmup() -> float:
         res.refine(a, v, Box(-1.0, 1.0, 0.0, 1.0), 1e-10, True)
         ga, gv = np.linspace(0.0, 1.0, 6), np.linspace(-1.0, 1.0, 6)  # the tangent seeds' exclusion
         P = OuterProduct(res._n(np.exp(ga), None), res._g(np.exp(gv)))
-        res.kept_seeds(ga, gv, P, np.array([2]), np.array([3]), (np.full(5, 0.1), np.full(5, 0.1)))
-        res.apart_cells(ga, gv, P, np.array([2]), np.array([3]), (np.full(5, 0.1), np.full(5, 0.1)))
     parts = driver_parts(ct.tf([5.0], [1.0, 1.0, 0.0]), N)
-    if parts is not None:  # the driver, for one loop and for a batch
+    if parts is not None:  # the driver, for one loop and for a batch, and its kernels for the Python driver
         nan = float("nan")
         run_driver(*parts, nan, nan, nan, nan, 8, 16, 1e-10, 1e-4)
         run_batch([parts], [(nan, nan, nan, nan)], 8, 16, 1e-10, 1e-4)
+        if loop is not None:  # called directly: the residual's methods use them only once the driver is ready
+            from .driver import apart_cells, kept_seeds
+
+            args = (loop, ga, gv, P.n, P.g, np.full(5, 0.1), np.full(5, 0.1), np.array([2]), np.array([3]))
+            kept_seeds(*args)
+            apart_cells(*args)
     return time.perf_counter() - t0
