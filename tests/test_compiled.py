@@ -158,12 +158,12 @@ def test_the_compiled_path_is_the_default_and_the_python_one_a_switch(monkeypatc
     assert type(residual_for(plant, df.Relay())) is Residual
 
 
-def _status(G, N, **windows) -> int:
+def _status(G, N, grid=(64, 256), **windows) -> int:
     """The compiled driver's status on the loop (0: it answered; otherwise why it left it to the Python driver)."""
     parts = driver_parts(G, N)
     assert parts is not None
     w = [windows.get(k, np.nan) for k in ("w_lo", "w_hi", "A_lo", "A_hi")]
-    return int(run_driver(*parts, *w, 64, 256, 1e-10, 1e-4)[0])
+    return int(run_driver(*parts, *w, *grid, 1e-10, 1e-4)[0])
 
 
 def test_the_driver_answers_the_common_case_and_agrees_with_the_python_path(monkeypatch):
@@ -184,14 +184,87 @@ def test_fallback_cases_give_the_python_answer(monkeypatch):
         ref, got = _solve(G, N, monkeypatch, False), _solve(G, N, monkeypatch, True)
         assert got.amplitude_window == ref.amplitude_window and got.window_source == ref.window_source
         assert len(got) == len(ref) == 0
-    # a cell that winds twice: two roots in one grid cell (a coarse grid over a double crossing)
-    G, N = ct.tf([1], [1, 2, 2, 1]) * ct.tf(*ct.pade(5, 4)) * 4, df.Backlash(h=1.0)
-    status = _status(G, N)
-    ref, got = _solve(G, N, monkeypatch, False), _solve(G, N, monkeypatch, True)
-    assert [(c.amplitude, c.frequency, c.stability) for c in got] == pytest.approx(
-        [(c.amplitude, c.frequency, c.stability) for c in ref], rel=1e-12) if status else True
     assert driver_parts(lambda w: 1 / (1j * w + 1), df.Relay()) is None
     assert driver_parts(ct.tf([1], [1, 1]), NumericDF(lambda x: np.clip(x, -1, 1))) is None
+
+
+# sampled servo loops K e^{-s tau} / (s (0.5 s + 1)) with a backlash of clearance h, on a coarse 8 x 32 grid, where
+# the Python driver isolates: a cell of winding +1 or -1 whose refinement from the linear model's root fails, and a
+# tangent seed that refines to a root (its box then isolated around it)
+ISOLATED = [(5.9381, 1.9171, 0.03864, "failed"), (6.0036, 0.9781, 0.03173, "failed"),
+            (6.6324, 1.0271, 0.00705, "seed"), (5.8881, 1.5638, 0.03646, "seed")]
+
+
+@pytest.mark.parametrize("K, h, tau, branch", ISOLATED)
+def test_the_driver_isolates_where_the_python_driver_does(K, h, tau, branch, monkeypatch):
+    """Where a refinement fails or a seed refines to a root, the compiled driver isolates the box itself
+    (quadrisection by windings): it answers, with the Python driver's cycles, labels and evaluation count."""
+    from dfloop.solve import roots
+
+    G, N = delayed(ct.tf([K], [0.5, 1, 0]), tau), df.Backlash(h=h)
+    seen = []
+    real = roots._isolate
+
+    def spy(res, box, window, tol, hint=None):
+        seen.append("seed" if hint is not None else "failed")
+        return real(res, box, window, tol, hint)
+
+    monkeypatch.setattr(roots, "_isolate", spy)
+    ref = _solve(G, N, monkeypatch, False, grid=(8, 32))
+    assert branch in seen  # the branch this loop exercises
+    monkeypatch.setenv("DFLOOP_COMPILED", "driver")
+    assert _status(G, N, grid=(8, 32)) == 0
+    got = _solve(G, N, monkeypatch, True, grid=(8, 32))
+    assert got.n_evaluations == ref.n_evaluations
+    assert _same(G, N, monkeypatch, grid=(8, 32)) == len(ref) >= 1
+
+
+def test_the_compiled_isolation_is_the_python_isolation_on_any_box():
+    """driver._isolate against roots._isolate on boxes of random size and place around the cycles of loops with
+    one to three cycles (boxes holding several roots, of winding 0, +-1 or +-2, cut by the window), with and
+    without a hint, the Python one on the compiled residual: the same roots bit for bit, the same evaluation count, or the compiled one's status 2 exactly
+    where the Python one meets an edge zero, a jump or an unresolved box."""
+    from dfloop.solve.compiled.driver import _isolate
+    from dfloop.solve.roots import Box, _isolate as py_isolate
+
+    rng = np.random.default_rng(7)
+    compared = several = fallbacks = 0
+    for G, N in TEXTBOOK:
+        N = df.as_element(N)
+        cycles = df.predict_limit_cycles(G, N)
+        if not len(cycles):
+            continue
+        gpart, npart = driver_parts(G, N)
+        a_w, v_w = np.log(cycles.amplitude_window), np.log(cycles.omega_window)
+        window = np.array([a_w[0], a_w[1], v_w[0], v_w[1]])
+        ca, cv = np.log([c.amplitude for c in cycles]), np.log([c.frequency for c in cycles])
+        for trial in range(13):
+            k = rng.integers(ca.size)
+            half_a, half_v = 10 ** rng.uniform(-3, 0, size=2)
+            box = [max(ca[k] - half_a * rng.uniform(0.1, 1.9), window[0]), min(ca[k] + half_a, window[1]),
+                   max(cv[k] - half_v * rng.uniform(0.1, 1.9), window[2]), min(cv[k] + half_v, window[3])]
+            if trial == 12:  # every cycle in one box
+                box = [max(ca.min() - 0.1, window[0]), min(ca.max() + 0.2, window[1]),
+                       max(cv.min() - 0.15, window[2]), min(cv.max() + 0.1, window[3])]
+            hint = (ca[k], cv[k]) if trial % 3 == 0 else None
+            res = residual_for(as_plant(G), N)  # its kernels: G, N and the refinement are the driver's
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                fa, fv, crossings = py_isolate(res, Box(*box), Box(*window), 1e-10, hint=hint)
+            status, ga, gv, gvals, n_points = _isolate(
+                gpart[0], gpart[1], gpart[2], gpart[3], float(gpart[4]), npart[0], npart[1], npart[2], npart[3],
+                npart[4], *box, window, 1e-10, hint is not None, *(hint or (0.0, 0.0)))
+            if status:
+                assert status == 2 and (crossings or res.unresolved or res.n_points != n_points)
+                fallbacks += 1
+                continue
+            assert not crossings and not res.unresolved
+            assert n_points == res.n_points
+            assert np.array_equal(ga, fa) and np.array_equal(gv, fv)  # the same kernels: the same bits
+            assert np.allclose(gvals[0], -1, atol=1e-9)  # G N at the roots: 1 + G N = 0
+            compared += 1
+            several += len(set(np.round(fa, 6))) > 1
+    assert compared >= 100 and several >= 3, (compared, several, fallbacks)
 
 
 def test_driver_constants_are_the_python_drivers():
@@ -277,11 +350,11 @@ def test_driver_windings_are_the_python_windings_on_every_cell(G, N):
     flat = ii * v.size + jj
     ln_n, ln_g = clog(n), clog(g)
     eps_a = np.full(a.size - 1, np.inf)  # no bound on N's pieces: every cell goes through the windings themselves
-    cells, status, _ = _windings(gpart[0], gpart[1], gpart[2], gpart[3], float(gpart[4]), npart[0], npart[1], npart[2],
+    cells, windings, status, _ = _windings(gpart[0], gpart[1], gpart[2], gpart[3], float(gpart[4]), npart[0], npart[1], npart[2],
                                  a, v, n, g, flat, ln_n, eps_a, ln_g.real, np.full(v.size, np.nan), np.full(v.size - 1, 1.0))
     ri, rj, wind, suspects = grid_windings(res, a, v, np.outer(n, g), cells=(ii, jj))
     assert status == 0 and not suspects
-    assert cells.tolist() == (ri * v.size + rj).tolist()
+    assert cells.tolist() == (ri * v.size + rj).tolist() and windings.tolist() == wind.tolist()
     assert np.all(np.abs(wind) == 1) and cells.size >= 1  # a cycle's cell is among them
 
 

@@ -10,14 +10,16 @@ floating-point expressions in the same order (numpy's reduction order, complex d
 3. the default amplitude window (``predict._default_amplitude_window`` with ``_limit_reach``), N's breakpoints as
    nodes and N's grid (``grid.resolve_sampled`` with ``monotone=True``);
 4. the candidate cells (``_kernels.candidate_cells``), their windings with the edge bisection of
-   ``roots.edge_phases``, the refinement of single-winding cells (``roots.refine``), the tangent seeds and their
+   ``roots.edge_phases``, the refinement of single-winding cells (``roots.refine``), the isolation
+   (``roots._isolate``: quadrisection by windings) of the cells that wind more than once, of those whose
+   refinement fails and of the neighbourhood of a tangent seed that refines to a root, the tangent seeds and their
    refinement (with the wider retry next to a jump), the continuum test, ``roots.merge``;
 5. the residual-bound acceptance, the Loeb classification (``stability.label_roots``), the merge of marginal
    roots and the order of the result (``predict._build``).
 
-Whenever the Python driver would take a branch this one does not carry (a cell of winding other than +-1, a
-failed refinement, a root on a grid edge, a tangent seed that refines to a root, a degenerate root that may sit
-on a continuum, a work bound, a non-finite value, an input the Python path rejects), it stops with a non-zero
+Whenever the Python driver would take a branch this one does not carry (many cells winding more than once, a
+root on a grid edge or an edge zero or a jump of N met in an isolation, a degenerate root that may sit on a
+continuum, a work bound, a non-finite value, an input the Python path rejects), it stops with a non-zero
 status and :func:`dfloop.predict_limit_cycles` runs the Python driver instead: a different route, never a
 different answer. The elementary functions (exp, log, atan2, pow) come from the platform's libm here and
 possibly from numpy's SIMD versions in the Python path, so results agree to rounding (tests/test_compiled.py
@@ -48,7 +50,7 @@ CONSTANTS = dict(
     MAX_POINTS=2_000_000, SPLIT_PHASE=np.pi / 2, MAX_EDGE_DEPTH=50, MAX_SEGMENTS=4_000_000, JUMP_LENGTH=1e-9,
     JUMP_SIZE=1e-3, JUMP_KEEP=0.9, TANGENT_THRESHOLD=0.1, MAX_TANGENT_SEEDS=5000, MERGE_RADIUS=1e-12,
     JUMP_DOMINANCE=4.0, DEGENERATE_SIN=1e-4, DECADES=2.0, EDGE_TOL=1e-9, SEED_MARGIN=0.005, SEED_SPLITS=64,
-    SEED_TESTS=4096)
+    SEED_TESTS=4096, MAX_ISOLATE_DEPTH=40, MAX_LIVE_BOXES=4096, EARLY_CONTINUUM_CHECK=64)
 _STEP = CONSTANTS["STEP"]
 _GOLDEN = CONSTANTS["GOLDEN"]
 _MONOTONE_WIDTH = CONSTANTS["MONOTONE_WIDTH"]
@@ -63,6 +65,9 @@ _JUMP_SIZE = CONSTANTS["JUMP_SIZE"]
 _JUMP_KEEP = CONSTANTS["JUMP_KEEP"]
 _TANGENT = CONSTANTS["TANGENT_THRESHOLD"]
 _MAX_SEEDS = CONSTANTS["MAX_TANGENT_SEEDS"]
+_MAX_ISOLATE_DEPTH = CONSTANTS["MAX_ISOLATE_DEPTH"]
+_MAX_LIVE_BOXES = CONSTANTS["MAX_LIVE_BOXES"]
+_EARLY_CONTINUUM_CHECK = CONSTANTS["EARLY_CONTINUUM_CHECK"]
 _MERGE_RADIUS = CONSTANTS["MERGE_RADIUS"]
 _DOMINANCE = CONSTANTS["JUMP_DOMINANCE"]
 _DEGENERATE_SIN = CONSTANTS["DEGENERATE_SIN"]
@@ -87,8 +92,9 @@ _REACH = np.logspace(-300, 300, 12001)
 MAX_ROOTS = 64
 """Roots one loop of a batch may hold (more: that loop falls back to the Python driver)."""
 
-FALLBACK = {1: "a cell winds other than once", 2: "a single-winding cell's refinement failed",
-            3: "a root on a grid edge", 4: "a tangent seed refined to a root", 5: "a degenerate root (continuum?)",
+FALLBACK = {1: "many cells wind more than once (a continuum?)",
+            2: "a root's isolation met an edge zero, a jump of N or a work bound",
+            3: "a root on a grid edge", 5: "a degenerate root (continuum?)",
             6: "a work bound", 7: "a non-finite value", 8: "an input the Python path rejects",
             9: "a marginal or on-edge case", 10: "too many roots for the batch", 11: "a plant of high order"}
 """Why the compiled driver left a loop to the Python driver (status codes)."""
@@ -1043,8 +1049,8 @@ def _cell_apart(zeros, poles, delay, a, v, ln_n, eps_a, g, rg, arg_g, eps_v, i, 
 
 @njit(**_OPTS)
 def _windings(num, den, zeros, poles, delay, kind, p, continuous, a, v, n, g, cells, ln_n, eps_a, rg, arg_g, eps_v):
-    """roots.grid_windings on the candidate cells (flat indices): (cells of winding +-1, status, points evaluated);
-    status 1 for a winding of another size, 3 for a root on an edge.
+    """roots.grid_windings on the candidate cells (flat indices): (cells of non-zero winding, their windings,
+    status, points evaluated); status 3 for a root on an edge.
 
     A cell whose four edge steps all turn R by less than pi/2 (with a margin: Re(R1 conj R0) > 1e-6 |Im(..)|)
     winds 0 and splits no edge (its four principal steps sum to exactly 0 of the 2 pi k they must add up to):
@@ -1105,27 +1111,127 @@ def _windings(num, den, zeros, poles, delay, kind, p, continuous, a, v, n, g, ce
                                                       hR0, hR1)
         n_points += n_terms
         if status:
-            return np.empty(0, np.int64), status, n_points
+            return np.empty(0, np.int64), np.empty(0, np.int64), status, n_points
         if n_sus:
-            return np.empty(0, np.int64), 3, n_points
+            return np.empty(0, np.int64), np.empty(0, np.int64), 3, n_points
         k = 0
         for e in range(4 * nc):
             if hard[e]:
                 d[e] = tot[k]
                 k += 1
     wind_cells = np.empty(nc, np.int64)
+    windings = np.empty(nc, np.int64)
     n_wind = 0
     for c in range(nc):
         w = np.rint((((d[c] + d[nc + c]) + d[2 * nc + c]) + d[3 * nc + c]) / _TWO_PI)
         if w != 0:
-            if abs(w) != 1:
-                return np.empty(0, np.int64), 1, n_points
             wind_cells[n_wind] = cells[c]
+            windings[n_wind] = int(w)
             n_wind += 1
-    wind_cells = wind_cells[:n_wind]
-    return wind_cells, 0, n_points
+    return wind_cells[:n_wind], windings[:n_wind], 0, n_points
 
 
+
+
+@njit(**_OPTS)
+def _box_windings(num, den, delay, kind, p, continuous, ka0, ka1, kv0, kv1):
+    """roots.box_windings: (windings, status, points evaluated); status 2 where an edge holds a zero of R or meets
+    a discontinuity of N (the Python driver records suspects and jump crossings there)."""
+    k = ka0.size
+    ca = np.concatenate((ka0, ka1, ka1, ka0))
+    cv = np.concatenate((kv0, kv0, kv1, kv1))
+    R = np.empty(4 * k, np.complex128)
+    for e in range(4 * k):
+        R[e] = 1.0 + plant(num, den, delay, math.exp(cv[e])) * element(kind, p, math.exp(ca[e]))
+    nxt = np.concatenate((np.arange(k, 4 * k), np.arange(k)))
+    tot, n_sus, n_jump, n_terms, status = _edge_phases(num, den, delay, kind, p, continuous, ca, cv, ca[nxt],
+                                                       cv[nxt], R, R[nxt])
+    wind = np.empty(k, np.int64)
+    if status == 0 and (n_sus or n_jump):
+        status = 2
+    for c in range(k):
+        wind[c] = int(np.rint((((tot[c] + tot[k + c]) + tot[2 * k + c]) + tot[3 * k + c]) / _TWO_PI))
+    return wind, status, 4 * k + n_terms
+
+
+@njit(**_OPTS)
+def _isolate(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, a0, a1, v0, v1, window, tol,
+             hinted, hint_a, hint_v):
+    """roots._isolate of the box [a0, a1] x [v0, v1] on its common path: quadrisected until its roots sit in boxes
+    of winding +-1, those refined (certified) from their centres in the box grown by half, a failed one quadrisected
+    further; with a hint (``hinted``: a root refined at (hint_a, hint_v)), the boxes of winding 0 holding it are
+    followed too, to the depth bound, where what is left is refined in boxes grown by their size. Returns (status,
+    roots a, roots v, their values (5, k), points evaluated), the roots in the order the Python driver finds them.
+    Status 2 wherever that driver takes another branch: an edge zero or a discontinuity of N met (suspects, jump
+    crossings), more live boxes than its bound, a box of winding +-1 left at the depth bound without a root (its
+    chase, or a box it records as unresolved)."""
+    win_a0, win_a1, win_v0, win_v1 = window[0], window[1], window[2], window[3]
+    qa0, qa1, qv0, qv1 = np.array([a0]), np.array([a1]), np.array([v0]), np.array([v1])
+    q_wind = np.zeros(1, np.int64)
+    fa, fv = np.empty(0), np.empty(0)
+    fvals = np.empty((5, 0), np.complex128)
+    n_points = 0
+    for _ in range(_MAX_ISOLATE_DEPTH):
+        if qa0.size == 0:
+            break
+        am, vm = (qa0 + qa1) / 2, (qv0 + qv1) / 2
+        ka0, ka1 = np.concatenate((qa0, am, qa0, am)), np.concatenate((am, qa1, am, qa1))
+        kv0, kv1 = np.concatenate((qv0, qv0, vm, vm)), np.concatenate((vm, vm, qv1, qv1))
+        wind, status, n_box = _box_windings(num, den, delay, kind, p, continuous, ka0, ka1, kv0, kv1)
+        n_points += n_box
+        if status:
+            return status, fa, fv, fvals, n_points
+        k = ka0.size
+        single = np.abs(wind) == 1
+        ns = int(single.sum())
+        if ns:
+            idx = np.nonzero(single)[0]
+            sa, sv = np.empty(ns), np.empty(ns)
+            lo_a, hi_a, lo_v, hi_v = np.empty(ns), np.empty(ns), np.empty(ns), np.empty(ns)
+            for q in range(ns):
+                c = idx[q]
+                sa[q], sv[q] = (ka0[c] + ka1[c]) / 2, (kv0[c] + kv1[c]) / 2
+                ga, gv = (ka1[c] - ka0[c]) * 0.5, (kv1[c] - kv0[c]) * 0.5
+                lo_a[q], hi_a[q] = _npmax(ka0[c] - ga, win_a0), _npmin(ka1[c] + ga, win_a1)
+                lo_v[q], hi_v[q] = _npmax(kv0[c] - gv, win_v0), _npmin(kv1[c] + gv, win_v1)
+            ra, rv, ok, vals, evaluated = refine(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, sa, sv, lo_a,
+                                                 hi_a, lo_v, hi_v, tol, True)
+            n_points += evaluated
+            good = np.zeros(ns, np.bool_)
+            for q in range(ns):
+                c = idx[q]
+                ga, gv = (ka1[c] - ka0[c]) * 1e-9, (kv1[c] - kv0[c]) * 1e-9
+                good[q] = ok[q] and (_npmax(ka0[c] - ga, win_a0) <= ra[q] <= _npmin(ka1[c] + ga, win_a1)
+                                     and _npmax(kv0[c] - gv, win_v0) <= rv[q] <= _npmin(kv1[c] + gv, win_v1))
+                single[c] = good[q]  # failed refinements are subdivided further
+            sel = np.nonzero(good)[0]
+            fa, fv = np.concatenate((fa, ra[sel])), np.concatenate((fv, rv[sel]))
+            fvals = np.concatenate((fvals, _columns(vals, sel)), axis=1)
+        live = ~single & (wind != 0)
+        if hinted:
+            for c in range(k):
+                live[c] |= wind[c] == 0 and ka0[c] <= hint_a <= ka1[c] and kv0[c] <= hint_v <= kv1[c]
+        keep = np.nonzero(live)[0]
+        if keep.size > _MAX_LIVE_BOXES:
+            return 2, fa, fv, fvals, n_points
+        qa0, qa1, qv0, qv1, q_wind = ka0[keep], ka1[keep], kv0[keep], kv1[keep], wind[keep]
+    nq = qa0.size
+    if nq:  # the depth bound: what is left is a multiple root smaller than the boxes, refined in them grown
+        lo_a, hi_a, lo_v, hi_v = np.empty(nq), np.empty(nq), np.empty(nq), np.empty(nq)
+        for q in range(nq):
+            ga, gv = qa1[q] - qa0[q], qv1[q] - qv0[q]
+            lo_a[q], hi_a[q] = _npmax(qa0[q] - ga, win_a0), _npmin(qa1[q] + ga, win_a1)
+            lo_v[q], hi_v[q] = _npmax(qv0[q] - gv, win_v0), _npmin(qv1[q] + gv, win_v1)
+        ra, rv, ok, vals, evaluated = refine(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, (qa0 + qa1) / 2,
+                                             (qv0 + qv1) / 2, lo_a, hi_a, lo_v, hi_v, tol, False)
+        n_points += evaluated
+        for q in range(nq):
+            if not ok[q] and q_wind[q] != 0:
+                return 2, fa, fv, fvals, n_points
+        sel = np.nonzero(ok)[0]
+        fa, fv = np.concatenate((fa, ra[sel])), np.concatenate((fv, rv[sel]))
+        fvals = np.concatenate((fvals, _columns(vals, sel)), axis=1)
+    return 0, fa, fv, fvals, n_points
 
 
 @njit(**_OPTS)
@@ -1316,11 +1422,12 @@ def _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg
 @njit(**_OPTS)
 def _tangent_seeds(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n, g, cells, wind_cells, tol, ln_n,
                    eps_a, rg, arg_g, eps_v):
-    """The tangent seeds of roots.find_roots and their refinement (with the wider retry next to a jump):
-    (status, points evaluated); status 4 when a seed refines to a root (the Python driver isolates there).
+    """The tangent seeds of roots.find_roots and their refinement (with the wider retry next to a jump): (status,
+    points evaluated, the seeds that refined to a root: their (a, v), values (5, k) and boxes (a0, a1, v0, v1)).
     Seeds whose boxes provably hold nothing a refinement could accept (:func:`_no_root_in`) are not refined."""
     nc, nv, nA, n_wind = cells.size, v.size, a.size, wind_cells.size
     n_points = 0
+    none = np.empty(0)
     # tangent seeds: local minima of m below the threshold among the corners of the candidate cells
     # a cell's flat index is its lower-left corner's (i nv + j), and the cells ascend: the corners are the union
     # of four ascending runs, merged in two steps
@@ -1365,7 +1472,7 @@ def _tangent_seeds(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n
             seeds[n_seed] = node
             n_seed += 1
     if n_seed > _MAX_SEEDS:
-        return 6, n_points
+        return 6, n_points, none, none, np.empty((5, 0), np.complex128), none, none, none, none
     n_kept = 0
     for s in range(n_seed):  # roots.seed_excluded: no refinement of the seed could succeed
         i, j = seeds[s] // nv, seeds[s] % nv
@@ -1388,28 +1495,27 @@ def _tangent_seeds(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n
             ta[s], tv[s] = a[i], v[j]
             b0a[s], b1a[s] = a[max(i - 2, 0)], a[min(i + 2, nA - 1)]
             b0v[s], b1v[s] = v[max(j - 2, 0)], v[min(j + 2, nv - 1)]
-        xa, xv, tok, _, evaluated = refine(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, ta, tv,
-                                           b0a, b1a, b0v, b1v, tol, False)
+        xa, xv, tok, tvals, evaluated = refine(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, ta, tv,
+                                               b0a, b1a, b0v, b1v, tol, False)
         n_points += evaluated
         for s in range(n_seed):
-            if tok[s]:
-                return 4, n_points
-        for s in range(n_seed):
             pinned = xa[s] == b0a[s] or xa[s] == b1a[s] or xv[s] == b0v[s] or xv[s] == b1v[s]
-            if not pinned:
+            if tok[s] or not pinned:
                 continue
             i, j = seeds[s] // nv, seeds[s] % nv
             r0, r1, c0, c1 = max(i - 4, 0), min(i + 5, nA), max(j - 4, 0), min(j + 5, nv)
-            if _near_jump(n, g, r0, r1, c0, c1):
-                wa, wv = np.array([a[i]]), np.array([v[j]])
-                w0a, w1a = np.array([a[max(i - 3, 0)]]), np.array([a[min(i + 3, nA - 1)]])
-                w0v, w1v = np.array([v[max(j - 3, 0)]]), np.array([v[min(j + 3, nv - 1)]])
-                _, _, wok, _, evaluated = refine(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, wa, wv,
-                                                 w0a, w1a, w0v, w1v, tol, False)
+            if _near_jump(n, g, r0, r1, c0, c1):  # one more try in a wider box
+                b0a[s], b1a[s] = a[max(i - 3, 0)], a[min(i + 3, nA - 1)]
+                b0v[s], b1v[s] = v[max(j - 3, 0)], v[min(j + 3, nv - 1)]
+                wa, wv, wok, wvals, evaluated = refine(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi,
+                                                       np.array([a[i]]), np.array([v[j]]), b0a[s:s + 1],
+                                                       b1a[s:s + 1], b0v[s:s + 1], b1v[s:s + 1], tol, False)
                 n_points += evaluated
-                if wok[0]:
-                    return 4, n_points
-    return 0, n_points
+                xa[s], xv[s], tok[s] = wa[0], wv[0], wok[0]
+                tvals[:, s] = wvals[:, 0]
+        hit = np.nonzero(tok)[0]
+        return (0, n_points, xa[hit], xv[hit], _columns(tvals, hit), b0a[hit], b1a[hit], b0v[hit], b1v[hit])
+    return 0, n_points, none, none, np.empty((5, 0), np.complex128), none, none, none, none
 
 
 @njit(**_OPTS)
@@ -1636,14 +1742,21 @@ def _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom
     nc = cells.size
     it[4] = nc
     n_points = 0
-    wind_cells, status, n_terms = _windings(num, den, zeros, poles, delay, kind, p, continuous, a, v, n, g, cells,
-                                            ln_n, eps_a, rg, arg_g, eps_v)
+    nz_cells, windings, status, n_terms = _windings(num, den, zeros, poles, delay, kind, p, continuous, a, v, n, g,
+                                                    cells, ln_n, eps_a, rg, arg_g, eps_v)
     n_points += n_terms
     if status:
         return status, fl, it, empty
+    n_hard = 0
+    for c in range(nz_cells.size):
+        n_hard += abs(windings[c]) != 1
+    if n_hard > _EARLY_CONTINUUM_CHECK:
+        return 1, fl, it, empty  # the Python driver looks for a curve of zeros first
+    wind_cells = nz_cells[np.abs(windings) == 1]
     n_wind = wind_cells.size
     # refinement of the single-winding cells from the linear model's root, in the cell grown by half
     win_a0, win_a1, win_v0, win_v1 = a[0], a[nA - 1], v[0], v[nv - 1]
+    window = np.array([win_a0, win_a1, win_v0, win_v1])
     sa, sv = np.empty(n_wind), np.empty(n_wind)
     lo_a, hi_a, lo_v, hi_v = np.empty(n_wind), np.empty(n_wind), np.empty(n_wind), np.empty(n_wind)
     for c in range(n_wind):
@@ -1670,24 +1783,47 @@ def _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom
     ra, rv, ok, vals, evaluated = refine(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, sa, sv, lo_a, hi_a,
                                          lo_v, hi_v, tol, False)
     n_points += evaluated
+    failed = np.zeros(n_wind, np.bool_)
     for c in range(n_wind):
         i, j = wind_cells[c] // nv, wind_cells[c] % nv
         cl_a, ch_a, cl_v, ch_v = a[i], a[i + 1], v[j], v[j + 1]
         ga, gv = (ch_a - cl_a) * 1e-9, (ch_v - cl_v) * 1e-9
         inside = (_npmax(cl_a - ga, win_a0) <= ra[c] <= _npmin(ch_a + ga, win_a1)
                   and _npmax(cl_v - gv, win_v0) <= rv[c] <= _npmin(ch_v + gv, win_v1))
-        if not (ok[c] and inside):
-            return 2, fl, it, empty
-    status, n_seed_points = _tangent_seeds(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n, g, cells,
-                                           wind_cells, tol, ln_n, eps_a, rg, arg_g, eps_v)
+        failed[c] = not (ok[c] and inside)
+    kept = np.nonzero(~failed)[0]
+    ra, rv, vals = ra[kept], rv[kept], _columns(vals, kept)
+    # cells winding more than once, then the single-winding cells whose refinement failed: isolated (roots._isolate)
+    for box_cells in (nz_cells[np.abs(windings) != 1], wind_cells[failed]):
+        for c in range(box_cells.size):
+            i, j = box_cells[c] // nv, box_cells[c] % nv
+            status, xa, xv, xvals, n_iso = _isolate(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi,
+                                                    a[i], a[i + 1], v[j], v[j + 1], window, tol, False, 0.0, 0.0)
+            n_points += n_iso
+            if status:
+                return status, fl, it, empty
+            ra, rv = np.concatenate((ra, xa)), np.concatenate((rv, xv))
+            vals = np.concatenate((vals, xvals), axis=1)
+    status, n_seed_points, ta, tv, tvals, b0a, b1a, b0v, b1v = _tangent_seeds(
+        num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n, g, cells, nz_cells, tol, ln_n, eps_a, rg, arg_g,
+        eps_v)
     n_points += n_seed_points
     if status:
         return status, fl, it, empty
-    if n_wind == 0:
+    # a seed that refined to a root the windings did not show: everything in its box isolated, then the root itself
+    for s in range(ta.size):
+        status, xa, xv, xvals, n_iso = _isolate(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi,
+                                                b0a[s], b1a[s], b0v[s], b1v[s], window, tol, True, ta[s], tv[s])
+        n_points += n_iso
+        if status:
+            return status, fl, it, empty
+        ra, rv = np.concatenate((ra, xa, ta[s:s + 1])), np.concatenate((rv, xv, tv[s:s + 1]))
+        vals = np.concatenate((vals, xvals, tvals[:, s:s + 1]), axis=1)
+    if ra.size == 0:
         it[6] = n_points
         return 0, fl, it, empty
     status, rejected, n_fin, out = _finish(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, ra, rv, vals,
-                                           np.array([win_a0, win_a1, win_v0, win_v1]), tol, marginal_tol)
+                                           window, tol, marginal_tol)
     n_points += n_fin
     if status:
         return status, fl, it, empty
