@@ -160,8 +160,8 @@ def _labelled(label: str, index: int, exc: BaseException) -> Exception:
 def _predict_loops(start: int, chunk: Sequence, options: dict, keep: Callable | None = None,
                    label: str = "predict_many") -> list:
     """``[keep(predict_limit_cycles(G, N, **options)) for G, N in chunk]``, the loops the compiled driver applies to
-    in one parallel call of it (:func:`dfloop.solve.predict.predict_chunk`: the same results); a failure names
-    the loop's index in the whole batch."""
+    in one call of it, run by threads over the cores (:func:`dfloop.solve.predict.predict_chunk`: the same
+    results); a failure names the loop's index in the whole batch."""
     for i, loop in enumerate(chunk):
         if not (isinstance(loop, (tuple, list)) and len(loop) == 2):
             raise ValueError(f"{label}, item {start + i}: a loop must be a pair (G, N); got {type(loop).__name__}")

@@ -71,3 +71,33 @@ def test_batch_keep_and_the_python_path_agree(monkeypatch):
     assert ok.sum() >= 20
     assert np.all(np.abs(fast[ok] / slow[ok] - 1) <= 1e-12)
     assert not math.isnan(float(np.nanmax(fast)))
+
+
+_FORKED = """
+import multiprocessing, sys
+import numpy as np
+from concurrent.futures import ProcessPoolExecutor
+sys.path.insert(0, {examples!r})
+from dfloop.batch import predict_many
+from monte_carlo_servo import sample, stable_amplitude
+loops = list(sample(48, 11))
+here = predict_many(loops, keep=stable_amplitude, progress=False)  # 48 loops: the batch's threads are started
+with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("fork")) as ex:
+    there = predict_many(loops, keep=stable_amplitude, executor=ex, chunksize=24, progress=False)
+assert np.array_equal(np.array(here), np.array(there), equal_nan=True), (here, there)
+assert np.isfinite(here).sum() >= 10
+print("same")
+"""
+
+
+def test_a_forked_worker_runs_batches_after_its_parent_did():
+    """The batch's threads do not survive a fork: a process pool forked after its parent ran a batch on them
+    starts its own, and gets the parent's results (not a batch waiting forever on threads that are not there). Run
+    in a fresh interpreter, killed if it waits."""
+    import os
+    import subprocess
+
+    code = _FORKED.format(examples=str(Path(__file__).parents[1] / "examples"))
+    env = dict(os.environ, DFLOOP_COMPILED="driver")
+    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0 and done.stdout.strip() == "same", done.stderr[-2000:]

@@ -434,7 +434,7 @@ def _compiled_driver(G, N, omega, amplitude, na: int, nw: int, tol: float, margi
 def predict_chunk(loops, *, omega=None, amplitude=None, grid=(64, 256), tol: float = 1e-10,
                   marginal_tol: float = MARGINAL_TOL, exact: bool = False, errors=None) -> list:
     """:func:`predict_limit_cycles` for each loop (G, N) of ``loops``, with the same options: the loops the
-    compiled driver applies to run in one call of it, in parallel over the cores (:func:`.compiled.run_batch`),
+    compiled driver applies to run in one call of it, shared among threads over the cores (:func:`.compiled.run_batch`),
     the others, and those it leaves to the Python driver, one by one. The results are the ones of
     ``predict_limit_cycles(G, N, ...)`` for each loop (the same code computes them).
 

@@ -25,15 +25,17 @@ different answer. The elementary functions (exp, log, atan2, pow) come from the 
 possibly from numpy's SIMD versions in the Python path, so results agree to rounding (tests/test_compiled.py
 compares both on many loops to 1e-12).
 
-:func:`solve_many` runs the same driver over a batch of loops in one call, in parallel over the cores
-(``prange``); each loop is independent and computed exactly as :func:`solve_one` computes it.
+:func:`solve_many` runs the same driver over a batch of loops, its row ranges shared among threads (the kernel
+releases the GIL); each loop is independent and computed exactly as :func:`solve_one` computes it.
 """
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-from numba import njit, prange
+from numba import config as numba_config, njit
 
 from ..._checks import memory_limit
 from ..grid import (ANGLE_ROUNDING, BYTES_PER_POINT, SUM_ROUNDING, TAN_OK, TERM_ROUNDING, allpass_pairs,
@@ -1839,18 +1841,14 @@ def _drive_one(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi,
                   head_d, bp, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit, bytes_per_point)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", parallel=True)
-def _drive_many(num, n_num, den, n_den, zeros, n_zeros, poles, n_poles, delay, kind, p, continuous, ln_lo, ln_hi,
+@njit(**_OPTS)
+def _drive_rows(num, n_num, den, n_den, zeros, n_zeros, poles, n_poles, delay, kind, p, continuous, ln_lo, ln_hi,
                 dom_lo, dom_hi, tail_c, head_c, head_d, bp, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol,
-                mem_limit, bytes_per_point):
-    """_drive over the loops of a batch (rows of the arguments; num, den padded), in parallel."""
-    L = delay.size
-    status = np.zeros(L, np.int64)
-    fl = np.empty((L, 10))
-    it = np.empty((L, 9), np.int64)
-    roots = np.empty((L, MAX_ROOTS, 10), np.complex128)
-    count = np.zeros(L, np.int64)
-    for k in prange(L):
+                mem_limit, bytes_per_point, start, stop, status, fl, it, roots, count):
+    """_drive over the loops start..stop - 1 of a batch (rows of the arguments; num, den padded), written into
+    their rows of the outputs (status, floats, ints, roots (L, MAX_ROOTS, 10), root counts). Releases the GIL:
+    threads run disjoint row ranges at once."""
+    for k in range(start, stop):
         s, f, i, r = _drive(num[k, :n_num[k]].copy(), den[k, :n_den[k]].copy(), zeros[k, :n_zeros[k]].copy(),
                             poles[k, :n_poles[k]].copy(), delay[k], kind[k], p[k].copy(),
                             continuous[k], ln_lo[k], ln_hi[k], dom_lo[k], dom_hi[k], tail_c[k], head_c[k],
@@ -1861,10 +1859,10 @@ def _drive_many(num, n_num, den, n_den, zeros, n_zeros, poles, n_poles, delay, k
         status[k] = s
         fl[k] = f
         it[k] = i
+        count[k] = 0
         if s == 0:
             count[k] = r.shape[0]
             roots[k, :r.shape[0]] = r
-    return status, fl, it, roots, count
 
 
 @njit(**_OPTS)
@@ -1951,7 +1949,7 @@ def solve_one_dispatcher():
 
 def solve_many_dispatcher():
     """The numba dispatcher of the batch driver (for the compile announcement)."""
-    return _drive_many
+    return _drive_rows
 
 
 def solve_one(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, mem_limit=None):
@@ -1963,9 +1961,26 @@ def solve_one(gpart, npart, w_lo, w_hi, A_lo, A_hi, na, nw, tol, marginal_tol, m
                       float(memory_limit() if mem_limit is None else mem_limit), _BYTES_PER_POINT)
 
 
+_TASKS_PER_THREAD = 4  # a batch in about this many tasks per thread, taken as threads free up (balanced load) ...
+_MIN_ROWS = 16  # ... of at least this many loops (a task costs ~50 us of CPU: dispatch and the threads' hand-off)
+_POOL: list = []  # the batch's thread pool and its size, created at its first use (one per process)
+if hasattr(os, "register_at_fork"):  # a forked worker process (a process pool) has none of its parent's threads
+    os.register_at_fork(after_in_child=_POOL.clear)
+
+
+def _pool() -> tuple[ThreadPoolExecutor, int]:
+    """The threads that run a batch's row ranges, and how many: numba's thread count (``NUMBA_NUM_THREADS``, the
+    cores by default). The kernel releases the GIL, so they run at once; a waiting thread sleeps (numba's OpenMP
+    layer spins instead, which cost a 2-core machine ~10-40 us of CPU per loop between batch calls)."""
+    if not _POOL:
+        threads = max(1, int(numba_config.NUMBA_NUM_THREADS))
+        _POOL.extend((ThreadPoolExecutor(threads, thread_name_prefix="dfloop-batch"), threads))
+    return _POOL[0], _POOL[1]
+
+
 def solve_many(parts, windows, na, nw, tol, marginal_tol):
-    """The driver over loops [(gpart, npart), ...] with windows [(w_lo, w_hi, A_lo, A_hi), ...] in one parallel
-    call: arrays (status, floats, ints, roots (L, MAX_ROOTS, 10), root counts)."""
+    """The driver over loops [(gpart, npart), ...] with windows [(w_lo, w_hi, A_lo, A_hi), ...], its rows shared
+    among the threads of :func:`_pool`: arrays (status, floats, ints, roots (L, MAX_ROOTS, 10), root counts)."""
     L = len(parts)
     padded = []
     for q in range(4):  # num, den, zeros, poles: rows padded to the longest, with their lengths
@@ -1986,6 +2001,17 @@ def solve_many(parts, windows, na, nw, tol, marginal_tol):
         for q in range(8):
             cols[1 + q][k] = npart[3 + q]
     win = np.asarray(windows, float).reshape(L, 4)
-    return _drive_many(*padded, cols[0], kind, p, cont, *cols[1:9], win[:, 0].copy(),
-                       win[:, 1].copy(), win[:, 2].copy(), win[:, 3].copy(), int(na), int(nw), float(tol),
-                       float(marginal_tol), float(memory_limit()), _BYTES_PER_POINT)
+    out = (np.zeros(L, np.int64), np.empty((L, 10)), np.empty((L, 9), np.int64),
+           np.empty((L, MAX_ROOTS, 10), np.complex128), np.zeros(L, np.int64))
+    args = (*padded, cols[0], kind, p, cont, *cols[1:9], win[:, 0].copy(), win[:, 1].copy(), win[:, 2].copy(),
+            win[:, 3].copy(), int(na), int(nw), float(tol), float(marginal_tol), float(memory_limit()),
+            _BYTES_PER_POINT)
+    pool, threads = _pool()
+    rows = max(_MIN_ROWS, -(-L // (_TASKS_PER_THREAD * threads)))
+    tasks = [(s, min(s + rows, L)) for s in range(0, L, rows)]
+    if len(tasks) == 1:
+        _drive_rows(*args, *tasks[0], *out)
+    else:
+        for done in [pool.submit(_drive_rows, *args, lo, hi, *out) for lo, hi in tasks]:
+            done.result()
+    return out

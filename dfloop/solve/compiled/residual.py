@@ -46,8 +46,8 @@ COMPILE_SECONDS = 50
 """About how long compiling the driver takes once per installation (s; benchmarks/bench_startup.py)."""
 RESIDUAL_SECONDS = 6
 """About how long compiling the compiled residual's kernels takes (s; benchmarks/bench_startup.py)."""
-BATCH_COMPILE_SECONDS = 20
-"""About how long the batch driver (parallel over the cores) adds to it (s; benchmarks/bench_startup.py)."""
+BATCH_COMPILE_SECONDS = 6
+"""About how long the batch driver (the rows of a batch, run by threads) adds to it (s; benchmarks/bench_startup.py)."""
 _CHECK_W = np.array([0.37, 1.0, 2.9])  # frequencies (rad/s) where the extracted coefficients are checked
 _MEMO_BATCH, _MEMO_SIZE = 64, 8192  # refined batches remembered (as Residual.slopes does)
 
@@ -55,7 +55,7 @@ _MEMO_BATCH, _MEMO_SIZE = 64, 8192  # refined batches remembered (as Residual.sl
 def _kernels(part: str | None = None) -> tuple:
     """The numba dispatchers of one part of the compiled path: ``"driver"`` (a whole call), ``"residual"`` (the
     kernels of the Python driver's compiled residual, where the driver hands over), ``"batch"`` (the driver's
-    parallel form), or all (None)."""
+    form over the rows of a batch), or all (None)."""
     from . import driver
 
     parts = {"driver": (driver.solve_one_dispatcher(), driver.kept_seeds_dispatcher(),
@@ -356,7 +356,7 @@ def _load_solve_one():
 
 
 def run_batch(parts, windows, na, nw, tol, marginal_tol):
-    """The compiled driver over many loops in one parallel call (:func:`.driver.solve_many`), announcing a first
+    """The compiled driver over many loops, shared among threads (:func:`.driver.solve_many`), announcing a first
     compile: arrays (status, floats, ints, roots, root counts), one row per loop."""
     from .driver import solve_many
 
