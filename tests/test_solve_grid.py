@@ -161,6 +161,45 @@ def test_interval_bound_is_above_the_exact_variation_and_within_a_few_percent():
     assert n_checked > 5000
 
 
+def test_the_drivers_one_interval_bound_is_above_the_exact_variation_and_within_a_few_percent():
+    # driver._variation_bound (the rational bound of one interval, used where the default amplitude window skips
+    # blocks of refined frequencies) against the exact variation's bound, a pure delay included: never below it,
+    # within tan t / t of it on intervals where it is at most STEP (plus the turns' rounding margin)
+    from dfloop.solve.compiled.driver import _variation_bound
+
+    rng = np.random.default_rng(23)
+    n_checked = 0
+    for _ in range(100):
+        zeros, poles = _random_roots(rng, rng.integers(0, 4)), _random_roots(rng, rng.integers(4, 7))
+        plant = as_plant(ct.tf(np.real(np.poly(zeros)) if zeros.size else [1.0], np.real(np.poly(poles))))
+        z, p = (np.ascontiguousarray(r, complex) for r in plant.roots)
+        delay = rng.choice([0.0, 10 ** rng.uniform(-3, 1)])
+        special = np.abs(np.concatenate([z, p]).imag)
+        w0 = np.concatenate([10 ** rng.uniform(-3, 3, 40), special[special > 0] * (1 - 10 ** rng.uniform(-9, -1))])
+        w1 = w0 * np.exp(10 ** rng.uniform(-12, 0.3, w0.size))
+        eps = np.array([_variation_bound(z, p, delay, a, b) for a, b in zip(w0, w1)])
+        exact = _variation_reference(plant, w0, w1)
+        if delay:  # the delay's turn joins the negative turns (G's phase falls by delay * h more)
+            zz, pp = plant.roots
+            r = np.concatenate([zz, pp])
+            sign = np.concatenate([np.ones(zz.size), -np.ones(pp.size)])
+            x, y = -r.real, r.imag
+            h, q0, q1 = (w1 - w0)[:, None], w0[:, None] - y, w1[:, None] - y
+            turn = sign * np.arctan2(x * h, x * x + q0 * q1)
+            arg = np.maximum(np.where(turn > 0, turn, 0).sum(-1), -np.where(turn < 0, turn, 0).sum(-1) + delay * h[:, 0])
+            mag = np.sqrt(np.maximum(exact ** 2 - np.maximum(np.where(turn > 0, turn, 0).sum(-1),
+                                                              -np.where(turn < 0, turn, 0).sum(-1)) ** 2, 0))
+            exact = np.hypot(arg, mag)
+        finite = np.isfinite(exact)
+        assert np.array_equal(np.isfinite(eps), finite)
+        assert np.all(eps[finite] >= exact[finite] * (1 - 1e-12))
+        small = finite & (exact <= grid.STEP)
+        margin = grid.ANGLE_ROUNDING * (z.size + p.size)
+        assert np.all(eps[small] <= exact[small] * (math.tan(grid.STEP) / grid.STEP) * (1 + 1e-12) + margin)
+        n_checked += small.sum()
+    assert n_checked > 2000
+
+
 def test_compiled_grid_is_the_python_grid_bit_for_bit_from_the_same_nodes():
     # the compiled driver's G grid computes grid._interval_bound's IEEE expressions (and numpy's summation order):
     # from the same initial nodes, the same nodes, and the same bounds wherever the nodes' e^v agree (libm's exp
