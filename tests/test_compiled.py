@@ -467,3 +467,19 @@ def test_the_grids_phase_wrap_and_hypotenuse_are_the_same_bits_in_both_drivers()
     assert np.array_equal(np.isnan(got), np.isnan(ref)) and np.array_equal(np.isinf(got), np.isinf(ref))
     fin = np.isfinite(ref) & (ref > 0)
     assert np.max(np.abs(got[fin] - ref[fin]) / ref[fin]) <= 4.5e-16
+
+
+def test_a_plant_is_converted_once_whatever_its_coefficients_dtype():
+    """The driver's plant part is remembered by the coefficients as given (integer ones too, as tf([1], [1, 3, 2, 0])
+    stores them), and two plants whose coefficients differ only in dtype or byte order are not confused."""
+    from dfloop.solve.compiled.parts import plant_part
+
+    ints = ct.tf([1], [1, 3, 2, 0])
+    assert ints.num_array[0, 0].dtype.kind == "i"
+    first = plant_part(ints)
+    assert plant_part(ct.tf([1], [1, 3, 2, 0])) is first  # a new object, the same contents: no conversion
+    floats = plant_part(ct.tf([1.0], [1.0, 3.0, 2.0, 0.0]))
+    assert floats is not first and all(np.array_equal(x, y) for x, y in zip(floats[:4], first[:4]))
+    swapped = ct.tf(np.array([1.0], ">f8"), np.array([1.0, 3.0, 2.0, 0.0], ">f8"))
+    got = plant_part(swapped)
+    assert got is None or all(np.array_equal(x, y) for x, y in zip(got[:4], first[:4]))

@@ -17,7 +17,6 @@ from .kinds import KINDS
 __all__ = ["plant_part", "element_part"]
 
 
-_FLOAT = np.dtype(float)  # numpy's float64 dtype (a singleton: compared by identity)
 _CACHE_SIZE = 256  # plants and elements remembered by their contents (repeated calls skip the conversion)
 _PLANTS: dict = {}
 _ELEMENTS: dict = {}
@@ -56,9 +55,8 @@ def plant_part(G):
     arrays = getattr(G, "num_array", None)  # python-control >= 0.10: the coefficient arrays, without num's lists
     num, den = (arrays[0, 0], G.den_array[0, 0]) if arrays is not None else (G.num[0][0], G.den[0][0])
     key = None
-    if type(num) is np.ndarray and type(den) is np.ndarray and num.dtype is _FLOAT and den.dtype is _FLOAT \
-            and num.ndim == 1 and den.ndim == 1:
-        key = (num.tobytes(), den.tobytes(), delay)  # float64 as python-control stores them: no conversion
+    if type(num) is np.ndarray and type(den) is np.ndarray and num.ndim == 1 and den.ndim == 1:
+        key = (num.dtype, num.tobytes(), den.dtype, den.tobytes(), delay)  # as given: no conversion
         hit = _PLANTS.get(key)
         if hit is not None:
             return hit
