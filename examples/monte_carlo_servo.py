@@ -10,7 +10,7 @@ the cycle amplitudes at the backlash input (mrad).
 
 Run: python examples/monte_carlo_servo.py [--samples N] [--workers W] [--seed S] [--out FILE]
 (default 2000 samples in this process, where the compiled driver already solves each chunk of 256 loops in
-parallel over the cores; ``--samples 100000`` is the full study, about 0.3 ms of CPU per loop
+parallel over the cores; ``--samples 100000`` is the full study, about 0.2 ms of CPU per loop
 (benchmarks/bench_compiled.py, whose batch is these loops: P(stable cycle) = 0.632); ``--workers W`` spreads the
 chunks over W processes instead, e.g. one per machine of a cluster; the figure goes to FILE, default
 monte_carlo_servo.png in the system's temporary directory)
