@@ -109,10 +109,22 @@ def _random_roots(rng, n):
     return np.array(out[:n], complex)
 
 
-def _variation_reference(plant, w0, w1):
+def _random_intervals(rng, n):
+    """A random plant (:func:`_random_roots`: 0-3 zeros, 4-6 poles) and n random intervals [w0, w1] of it plus one
+    just below each root's frequency: wide, narrow down to 1e-12 (relative), straddling roots' frequencies."""
+    zeros, poles = _random_roots(rng, rng.integers(0, 4)), _random_roots(rng, rng.integers(4, 7))
+    plant = as_plant(ct.tf(np.real(np.poly(zeros)) if zeros.size else [1.0], np.real(np.poly(poles))))
+    z, p = plant.roots
+    special = np.abs(np.concatenate([z, p]).imag)
+    w0 = np.concatenate([10 ** rng.uniform(-3, 3, n), special[special > 0] * (1 - 10 ** rng.uniform(-9, -1))])
+    return plant, w0, w0 * np.exp(10 ** rng.uniform(-12, 0.3, w0.size))
+
+
+def _variation_reference(plant, w0, w1, delay=0.0):
     """Plant.log_variation recomputed so that it stays accurate on tiny intervals: each factor's change of ln|jw - r|
     as 0.5 log1p of the exact relative change of |jw - r|^2 (h (p0 + p1) / d0^2, or p^2 / x^2 down to the
-    minimum), its turn as atan2(x h, x^2 + p0 p1), h = w1 - w0 (differences of logarithms lose ~1e-16 absolute)."""
+    minimum), its turn as atan2(x h, x^2 + p0 p1), h = w1 - w0 (differences of logarithms lose ~1e-16 absolute);
+    a pure delay's turn delay * h joins the negative turns."""
     z, p = plant.roots
     r = np.concatenate([z, p])
     sign = np.concatenate([np.ones(z.size), -np.ones(p.size)])
@@ -127,7 +139,7 @@ def _variation_reference(plant, w0, w1):
     turn = sign * np.arctan2(x * h, x * x + p0 * p1)
     rise = np.where(sign > 0, up, down).sum(-1)
     fall = np.where(sign > 0, down, up).sum(-1)
-    arg = np.maximum(np.where(turn > 0, turn, 0).sum(-1), -np.where(turn < 0, turn, 0).sum(-1))
+    arg = np.maximum(np.where(turn > 0, turn, 0).sum(-1), -np.where(turn < 0, turn, 0).sum(-1) + delay * h[:, 0])
     return np.hypot(arg, np.maximum(rise, fall))
 
 
@@ -140,12 +152,8 @@ def test_interval_bound_is_above_the_exact_variation_and_within_a_few_percent():
     rng = np.random.default_rng(11)
     n_checked = 0
     for _ in range(150):
-        zeros, poles = _random_roots(rng, rng.integers(0, 4)), _random_roots(rng, rng.integers(4, 7))
-        plant = as_plant(ct.tf(np.real(np.poly(zeros)) if zeros.size else [1.0], np.real(np.poly(poles))))
+        plant, w0, w1 = _random_intervals(rng, 60)
         z, p = plant.roots
-        special = np.abs(np.concatenate([z, p]).imag)
-        w0 = np.concatenate([10 ** rng.uniform(-3, 3, 60), special[special > 0] * (1 - 10 ** rng.uniform(-9, -1))])
-        w1 = w0 * np.exp(10 ** rng.uniform(-12, 0.3, w0.size))
         p0, d0 = grid.node_terms(plant, w0)
         p1, d1 = grid.node_terms(plant, w1)
         eps = grid._interval_bound(plant, w0, w1, p0, p1, d0, d1, grid.allpass_pairs(z, p))
@@ -170,26 +178,11 @@ def test_the_drivers_one_interval_bound_is_above_the_exact_variation_and_within_
     rng = np.random.default_rng(23)
     n_checked = 0
     for _ in range(100):
-        zeros, poles = _random_roots(rng, rng.integers(0, 4)), _random_roots(rng, rng.integers(4, 7))
-        plant = as_plant(ct.tf(np.real(np.poly(zeros)) if zeros.size else [1.0], np.real(np.poly(poles))))
+        plant, w0, w1 = _random_intervals(rng, 40)
         z, p = (np.ascontiguousarray(r, complex) for r in plant.roots)
         delay = rng.choice([0.0, 10 ** rng.uniform(-3, 1)])
-        special = np.abs(np.concatenate([z, p]).imag)
-        w0 = np.concatenate([10 ** rng.uniform(-3, 3, 40), special[special > 0] * (1 - 10 ** rng.uniform(-9, -1))])
-        w1 = w0 * np.exp(10 ** rng.uniform(-12, 0.3, w0.size))
         eps = np.array([_variation_bound(z, p, delay, a, b) for a, b in zip(w0, w1)])
-        exact = _variation_reference(plant, w0, w1)
-        if delay:  # the delay's turn joins the negative turns (G's phase falls by delay * h more)
-            zz, pp = plant.roots
-            r = np.concatenate([zz, pp])
-            sign = np.concatenate([np.ones(zz.size), -np.ones(pp.size)])
-            x, y = -r.real, r.imag
-            h, q0, q1 = (w1 - w0)[:, None], w0[:, None] - y, w1[:, None] - y
-            turn = sign * np.arctan2(x * h, x * x + q0 * q1)
-            arg = np.maximum(np.where(turn > 0, turn, 0).sum(-1), -np.where(turn < 0, turn, 0).sum(-1) + delay * h[:, 0])
-            mag = np.sqrt(np.maximum(exact ** 2 - np.maximum(np.where(turn > 0, turn, 0).sum(-1),
-                                                              -np.where(turn < 0, turn, 0).sum(-1)) ** 2, 0))
-            exact = np.hypot(arg, mag)
+        exact = _variation_reference(plant, w0, w1, delay)
         finite = np.isfinite(exact)
         assert np.array_equal(np.isfinite(eps), finite)
         assert np.all(eps[finite] >= exact[finite] * (1 - 1e-12))
