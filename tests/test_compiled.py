@@ -280,6 +280,8 @@ def test_driver_constants_are_the_python_drivers():
                 roots._JUMP_KEEP, roots._TANGENT_THRESHOLD, roots._MAX_TANGENT_SEEDS, roots._MERGE_RADIUS,
                 roots._JUMP_DOMINANCE, roots._DEGENERATE_SIN, roots._SEED_MARGIN, roots._SEED_SPLITS,
                 roots._SEED_TESTS)
+    assert (C["MAX_ISOLATE_DEPTH"], C["MAX_LIVE_BOXES"], C["EARLY_CONTINUUM_CHECK"]) == (
+        roots._MAX_ISOLATE_DEPTH, roots._MAX_LIVE_BOXES, roots._EARLY_CONTINUUM_CHECK)
     from dfloop.solve import plant
 
     assert C["DECADES"] == plant._DECADES_BEYOND_FEATURES
