@@ -361,7 +361,7 @@ def test_driver_windings_are_the_python_windings_on_every_cell(G, N):
 
 
 def test_the_python_driver_passes_over_the_cells_the_compiled_one_does(monkeypatch):
-    """The Python driver passes over the windings of the cells the compiled driver's _cell_apart proves free of
+    """The Python driver passes over the windings of the cells the compiled driver's _cells_apart proves free of
     zeros (roots.cell_apart, or the compiled kernel on a compiled loop): on the textbook loops both paths spend the
     same evaluations on their windings, seeds and refinements (a count that moves with every cell bisected)."""
     for G, N in TEXTBOOK:

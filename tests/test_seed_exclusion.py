@@ -165,11 +165,11 @@ def test_chord_gap_is_a_lower_bound_on_the_distance_to_the_curve():
 
 @pytest.mark.parametrize("k", range(len(LOOPS)))
 def test_cells_the_compiled_windings_pass_over_as_empty_are_empty_by_brute_force(k):
-    """The windings skip a cell that driver._cell_apart (compiled driver) or roots.cell_apart (Python driver)
+    """The windings skip a cell that driver._cells_apart (compiled driver) or roots.cell_apart (Python driver)
     proves free of anything the refinement could accept (so of roots: its winding is 0): sampled densely, such a
     cell's relative residual stays above 0.00125; the two decide alike (from the same bounds; their logarithms may
     differ in the last place); and the test applies to many cells of these grids (not vacuous)."""
-    from dfloop.solve.compiled.driver import _cell_apart
+    from dfloop.solve.compiled.driver import _cells_apart
     from dfloop.solve.roots import cell_apart
 
     G, N, A_win, w_win = LOOPS[k]
@@ -177,26 +177,29 @@ def test_cells_the_compiled_windings_pass_over_as_empty_are_empty_by_brute_force
     zeros, poles = (np.ascontiguousarray(r, complex) for r in res.plant.roots)
     ln_n, ln_g = clog(n), clog(g)
     arg_g = np.full(v.size, np.nan)
+
+    def compiled_apart(ci, cj):
+        return _cells_apart(zeros, poles, float(res.plant.delay), a, v, ln_n, eps_a, g, ln_g.real, arg_g, eps_v,
+                            np.asarray(ci, np.int64), np.asarray(cj, np.int64))
+
+    ci, cj = (x.ravel() for x in np.meshgrid(np.arange(a.size - 1), np.arange(v.size - 1), indexing="ij"))
+    mask = compiled_apart(ci, cj)
     apart = differ = 0
-    for i in range(a.size - 1):
-        for j in range(v.size - 1):
-            compiled = _cell_apart(zeros, poles, float(res.plant.delay), a, v, ln_n, eps_a, g, ln_g.real, arg_g,
-                                   eps_v, i, j)
-            python = cell_apart(res, a, v, ln_n, eps_a, ln_g, eps_v, i, j)
-            differ += compiled != python
-            if not (compiled or python):
-                continue
-            apart += 1
-            if (i * 7 + j) % 5:  # a fifth of them sampled densely (the suite's time)
-                continue
-            aa, vv = np.meshgrid(np.linspace(a[i], a[i + 1], 21), np.linspace(v[j], v[j + 1], 21))
-            P = res.terms(aa.ravel(), vv.ravel())
-            assert (np.abs(1 + P) / (1 + np.abs(P))).min() >= 0.00125, (k, i, j)
+    for i, j, compiled in zip(ci.tolist(), cj.tolist(), mask.tolist()):
+        python = cell_apart(res, a, v, ln_n, eps_a, ln_g, eps_v, i, j)
+        differ += compiled != python
+        if not (compiled or python):
+            continue
+        apart += 1
+        if (i * 7 + j) % 5:  # a fifth of them sampled densely (the suite's time)
+            continue
+        aa, vv = np.meshgrid(np.linspace(a[i], a[i + 1], 21), np.linspace(v[j], v[j + 1], 21))
+        P = res.terms(aa.ravel(), vv.ravel())
+        assert (np.abs(1 + P) / (1 + np.abs(P))).min() >= 0.00125, (k, i, j)
     assert apart >= 0.5 * (a.size - 1) * (v.size - 1) and differ <= 0.001 * apart
     for c in df.predict_limit_cycles(G, N, amplitude=A_win, omega=w_win):  # a cycle's own cell is never passed over
         i, j = np.searchsorted(a, math.log(c.amplitude)) - 1, np.searchsorted(v, math.log(c.frequency)) - 1
-        assert not _cell_apart(zeros, poles, float(res.plant.delay), a, v, ln_n, eps_a, g, ln_g.real, arg_g, eps_v,
-                               i, j)
+        assert not compiled_apart([i], [j])[0]
         assert not cell_apart(res, a, v, ln_n, eps_a, ln_g, eps_v, i, j)
 
 

@@ -539,7 +539,11 @@ def _turns(l0, lg, lm, l1, w_g0, w_1m):
 
 @njit(**_OPTS)
 def _resolve_element(kind, p, x):
-    """grid.resolve_sampled(N, x, monotone=True) for an amplitude-only N: (nodes, N at nodes, eps, n_eval, status)."""
+    """grid.resolve_sampled(N, x, monotone=True) for an amplitude-only N: (nodes, N at nodes, eps, n_eval, status).
+
+    The rounds are the Python version's, in its order; the live intervals of a round and of the next are kept in
+    two sets of work arrays that swap roles (grown by doubling when a round outgrows them), so a round allocates
+    nothing."""
     m = x.size
     fx = np.empty(m, np.complex128)
     for i in range(m):
@@ -550,23 +554,27 @@ def _resolve_element(kind, p, x):
     out_x, out_f, out_e = np.empty(cap), np.empty(cap, np.complex128), np.empty(cap)
     out_x[0], out_f[0] = x[0], fx[0]
     n_out = 1
-    x0, x1 = x[:-1].copy(), x[1:].copy()
-    l0 = np.empty(m - 1, np.complex128)
-    l1 = np.empty(m - 1, np.complex128)
+    # live intervals (x0, x1, ln N at both ends, N at the right end), this round's and the next's, and this
+    # round's midpoints, their N and ln N, the intervals' eps and split flags: rows of two work arrays
+    fb, cb = np.empty((6, cap)), np.empty((8, cap), np.complex128)
+    x0, x1, nx0, nx1, xm, eps = fb[0], fb[1], fb[2], fb[3], fb[4], fb[5]
+    l0, l1, nl0, nl1, f1, nf1, fm, lm = cb[0], cb[1], cb[2], cb[3], cb[4], cb[5], cb[6], cb[7]
+    split = np.empty(cap, np.bool_)
     for i in range(m - 1):
+        x0[i], x1[i] = x[i], x[i + 1]
         l0[i], l1[i] = _clog(fx[i]), _clog(fx[i + 1])
-    f1 = fx[1:].copy()
+        f1[i] = fx[i + 1]
+    k = m - 1
     n_eval = m
     settled = False
     for _ in range(_MAX_ROUNDS):
-        k = x0.size
         if k == 0:
             settled = True
             break
         n_eval += 2 * k
-        xm, fm, lm = np.empty(k), np.empty(k, np.complex128), np.empty(k, np.complex128)
-        eps = np.empty(k)
-        split = np.empty(k, np.bool_)
+        if k > xm.size:
+            xm, fm, lm = np.empty(2 * k), np.empty(2 * k, np.complex128), np.empty(2 * k, np.complex128)
+            eps, split = np.empty(2 * k), np.empty(2 * k, np.bool_)
         n_split = 0
         for i in range(k):
             dx = x1[i] - x0[i]
@@ -593,9 +601,10 @@ def _resolve_element(kind, p, x):
             ox, of, oe = np.empty(grow), np.empty(grow, np.complex128), np.empty(grow)
             ox[:n_out], of[:n_out], oe[:n_out] = out_x[:n_out], out_f[:n_out], out_e[:n_out]
             out_x, out_f, out_e = ox, of, oe
-        nx0, nx1 = np.empty(2 * n_split), np.empty(2 * n_split)
-        nl0, nl1 = np.empty(2 * n_split, np.complex128), np.empty(2 * n_split, np.complex128)
-        nf1 = np.empty(2 * n_split, np.complex128)
+        if 2 * n_split > nx0.size:
+            grow = 4 * n_split
+            nx0, nx1 = np.empty(grow), np.empty(grow)
+            nl0, nl1, nf1 = np.empty(grow, np.complex128), np.empty(grow, np.complex128), np.empty(grow, np.complex128)
         j = 0
         for i in range(k):
             if split[i]:
@@ -607,8 +616,9 @@ def _resolve_element(kind, p, x):
                 out_x[n_out], out_f[n_out] = x1[i], f1[i]
                 out_e[n_out - 1] = eps[i]
                 n_out += 1
-        x0, x1, l0, l1, f1 = nx0, nx1, nl0, nl1, nf1
-        if n_out + x0.size > _MAX_POINTS:
+        x0, x1, l0, l1, f1, nx0, nx1, nl0, nl1, nf1 = nx0, nx1, nl0, nl1, nf1, x0, x1, l0, l1, f1
+        k = 2 * n_split
+        if n_out + k > _MAX_POINTS:
             return out_x[:1], out_f[:1], out_e[:0], n_eval, 6
     if not settled:
         return out_x[:1], out_f[:1], out_e[:0], n_eval, 6
@@ -651,17 +661,9 @@ def _reach_index(c, d, half, to_inf):
 
 
 @njit(**_OPTS)
-def _fine_value(num, den, delay, n0, vf, slack):
-    """(room / (|G| (1 + slack)), ok, G) at one fine frequency of predict._limit_reach; ok False where that
-    function gives up (G N_lim not finite, or no room)."""
-    g = plant(num, den, delay, math.exp(vf))
-    val, ok = _room(g, n0, slack)
-    return val, ok, g
-
-
-@njit(**_OPTS)
 def _room(g, n0, slack):
-    """(room / (|G| (1 + slack)), ok) of :func:`_fine_value` with G known."""
+    """(room / (|G| (1 + slack)), ok) at one refined frequency of predict._limit_reach, G known there: ok False where
+    that function gives up (G N_lim not finite, or no room)."""
     P = g * n0
     if not (math.isfinite(P.real) and math.isfinite(P.imag)):
         return np.nan, False
@@ -721,7 +723,8 @@ def _limit_reach(num, den, zeros, poles, delay, kind, p, v, g, eps_v, to_inf, c,
             nb -= 1
             q0, q1 = bq0[nb], bq1[nb]
             x0 = v[i] + (v[i + 1] - v[i]) * (q0 * step_t)
-            val, ok, g0 = _fine_value(num, den, delay, n0, x0, slack)
+            g0 = plant(num, den, delay, math.exp(x0))
+            val, ok = _room(g0, n0, slack)
             if not ok:
                 return np.nan
             r = _npmin(r, val)
@@ -778,7 +781,11 @@ def _amplitude_window(num, den, zeros, poles, delay, kind, p, v, g, g_abs, eps_v
     known = np.zeros(nc, np.bool_)
     i0, i1 = -1, -1
     for i in range(nc - 1):
-        lo_row, hi_row = _amplitude_rows(kind, p, cand, n, known, i, g_lo, g_hi)
+        for k in (i, i + 1):  # N at the candidates not evaluated yet
+            if not known[k]:
+                n[k] = element(kind, p, cand[k])
+                known[k] = True
+        lo_row, hi_row = _amplitude_rows(n[i], n[i + 1], g_lo, g_hi)
         if lo_row or hi_row:
             i0 = i if lo_row else i + 1
             break
@@ -790,7 +797,11 @@ def _amplitude_window(num, den, zeros, poles, delay, kind, p, v, g, g_abs, eps_v
             return 0.0, 0.0, 2, top, bottom, 8
         return cand[0], cand[nc - 1], 1, top, bottom, 0
     for i in range(nc - 2, -1, -1):
-        lo_row, hi_row = _amplitude_rows(kind, p, cand, n, known, i, g_lo, g_hi)
+        for k in (i, i + 1):  # N at the candidates not evaluated yet
+            if not known[k]:
+                n[k] = element(kind, p, cand[k])
+                known[k] = True
+        lo_row, hi_row = _amplitude_rows(n[i], n[i + 1], g_lo, g_hi)
         if lo_row or hi_row:
             i1 = i + 1 if hi_row else i
             break
@@ -798,17 +809,13 @@ def _amplitude_window(num, den, zeros, poles, delay, kind, p, v, g, g_abs, eps_v
 
 
 @njit(**_OPTS)
-def _amplitude_rows(kind, p, cand, n, known, i, g_lo, g_hi):
-    """Whether the interval between candidates i and i + 1 marks row i and row i + 1 as rows where |G N| can
-    reach 1 (predict._default_amplitude_window: N there in the band 1/2..2 of |G|'s range, or crossing 1, and
-    varying), N evaluated at the candidates not known yet."""
-    for k in (i, i + 1):
-        if not known[k]:
-            n[k] = element(kind, p, cand[k])
-            known[k] = True
-    m0, m1 = cabs(n[i]), cabs(n[i + 1])
+def _amplitude_rows(n0, n1, g_lo, g_hi):
+    """Whether the interval between two candidates, with N = n0 and n1 there, marks its lower and its upper
+    candidate as rows where |G N| can reach 1 (predict._default_amplitude_window: N there in the band 1/2..2 of
+    |G|'s range, or crossing 1, and varying). Scalars only: a call per interval pays no reference counting."""
+    m0, m1 = cabs(n0), cabs(n1)
     cross = (_npmin(m1, m0) * g_lo <= 1.0) and (_npmax(m1, m0) * g_hi >= 1.0)
-    varying = cabs(n[i + 1] - n[i]) > 1e-9 * m0
+    varying = cabs(n1 - n0) > 1e-9 * m0
     band0 = (m0 * g_lo <= 2.0) and (m0 * g_hi >= 0.5)
     band1 = (m1 * g_lo <= 2.0) and (m1 * g_hi >= 0.5)
     return (band0 or cross) and varying, (band1 or cross) and varying
@@ -885,62 +892,77 @@ def _candidate_cells(ln_n, eps_a, rg, g, eps_v):
 
 @njit(**_OPTS)
 def _edge_phases(num, den, delay, kind, p, continuous, a0, v0, a1, v1, R0, R1):
-    """roots.edge_phases: (phase changes, suspects, discontinuities met, points evaluated, status)."""
+    """roots.edge_phases: (phase changes, suspects, discontinuities met, points evaluated, status).
+
+    The depths are the Python version's, in its order; the segments of a depth and of the next are kept in two
+    sets of work arrays that swap roles (grown when a depth outgrows them), so a depth allocates nothing."""
     m = a0.size
     total = np.zeros(m)
-    seg = np.arange(m)
+    level = np.empty(m)
+    cap = 2 * m + 16
+    # this depth's segments and the next's (rows of three work arrays), the phase steps and split flags
+    fb, cb, ib = np.empty((9, cap)), np.empty((4, cap), np.complex128), np.empty((2, cap), np.int64)
+    ca0, cv0, ca1, cv1, na0, nv0, na1, nv1, d = fb[0], fb[1], fb[2], fb[3], fb[4], fb[5], fb[6], fb[7], fb[8]
+    cR0, cR1, nR0, nR1 = cb[0], cb[1], cb[2], cb[3]
+    cseg, nseg = ib[0], ib[1]
+    split = np.empty(cap, np.bool_)
+    for i in range(m):
+        ca0[i], cv0[i], ca1[i], cv1[i], cR0[i], cR1[i], cseg[i] = a0[i], v0[i], a1[i], v1[i], R0[i], R1[i], i
+    k = m
     n_sus = n_jump = n_terms = 0
     for depth in range(_MAX_EDGE_DEPTH + 1):
-        k = a0.size
-        d = np.empty(k)
-        split = np.empty(k, np.bool_)
+        if k > d.size:
+            d, split = np.empty(2 * k), np.empty(2 * k, np.bool_)
         n_split = 0
         for i in range(k):
-            if R0[i] == 0 or R1[i] == 0:
+            if cR0[i] == 0 or cR1[i] == 0:
                 d[i] = 0.0
                 n_sus += 1
             else:
-                d[i] = _angle(cdiv(R1[i], R0[i]))
+                d[i] = _angle(cdiv(cR1[i], cR0[i]))
             s = abs(d[i]) > _SPLIT
-            if s and not continuous and max(abs(a1[i] - a0[i]), abs(v1[i] - v0[i])) < _JUMP_LENGTH \
-                    and cabs(R1[i] - R0[i]) > _JUMP_SIZE * (1 + _npmax(cabs(R0[i] - 1), cabs(R1[i] - 1))):
-                am, vm = (a0[i] + a1[i]) / 2, (v0[i] + v1[i]) / 2
+            if s and not continuous and max(abs(ca1[i] - ca0[i]), abs(cv1[i] - cv0[i])) < _JUMP_LENGTH \
+                    and cabs(cR1[i] - cR0[i]) > _JUMP_SIZE * (1 + _npmax(cabs(cR0[i] - 1), cabs(cR1[i] - 1))):
+                am, vm = (ca0[i] + ca1[i]) / 2, (cv0[i] + cv1[i]) / 2
                 Rh = 1.0 + plant(num, den, delay, math.exp(vm)) * element(kind, p, math.exp(am))
                 n_terms += 1
-                if _npmax(cabs(Rh - R0[i]), cabs(R1[i] - Rh)) >= _JUMP_KEEP * cabs(R1[i] - R0[i]):
+                if _npmax(cabs(Rh - cR0[i]), cabs(cR1[i] - Rh)) >= _JUMP_KEEP * cabs(cR1[i] - cR0[i]):
                     n_jump += 1
                     s = False
             split[i] = s
             n_split += s
         if depth == _MAX_EDGE_DEPTH and n_split:
             n_sus += n_split
-            split[:] = False
+            split[:k] = False
             n_split = 0
-        level = np.zeros(m)
+        level[:] = 0.0
         for i in range(k):
             if not split[i]:
-                level[seg[i]] += d[i]
+                level[cseg[i]] += d[i]
         for i in range(m):
             total[i] += level[i]
         if n_split == 0:
             break
         if 2 * n_split > _MAX_SEGMENTS:
             return total, n_sus, n_jump, n_terms, 6
-        na0, nv0, na1, nv1 = np.empty(2 * n_split), np.empty(2 * n_split), np.empty(2 * n_split), np.empty(2 * n_split)
-        nR0, nR1 = np.empty(2 * n_split, np.complex128), np.empty(2 * n_split, np.complex128)
-        nseg = np.empty(2 * n_split, np.int64)
+        if 2 * n_split > na0.size:
+            grow = 4 * n_split
+            na0, nv0, na1, nv1 = np.empty(grow), np.empty(grow), np.empty(grow), np.empty(grow)
+            nR0, nR1, nseg = np.empty(grow, np.complex128), np.empty(grow, np.complex128), np.empty(grow, np.int64)
         j = 0
         for i in range(k):
             if split[i]:
-                am, vm = (a0[i] + a1[i]) / 2, (v0[i] + v1[i]) / 2
+                am, vm = (ca0[i] + ca1[i]) / 2, (cv0[i] + cv1[i]) / 2
                 Rm = 1.0 + plant(num, den, delay, math.exp(vm)) * element(kind, p, math.exp(am))
                 n_terms += 1
                 q = n_split + j
-                na0[j], nv0[j], nR0[j], na1[j], nv1[j], nR1[j] = a0[i], v0[i], R0[i], am, vm, Rm
-                na0[q], nv0[q], nR0[q], na1[q], nv1[q], nR1[q] = am, vm, Rm, a1[i], v1[i], R1[i]
-                nseg[j] = nseg[q] = seg[i]
+                na0[j], nv0[j], nR0[j], na1[j], nv1[j], nR1[j] = ca0[i], cv0[i], cR0[i], am, vm, Rm
+                na0[q], nv0[q], nR0[q], na1[q], nv1[q], nR1[q] = am, vm, Rm, ca1[i], cv1[i], cR1[i]
+                nseg[j] = nseg[q] = cseg[i]
                 j += 1
-        a0, v0, a1, v1, R0, R1, seg = na0, nv0, na1, nv1, nR0, nR1, nseg
+        ca0, cv0, ca1, cv1, cR0, cR1, cseg, na0, nv0, na1, nv1, nR0, nR1, nseg = \
+            na0, nv0, na1, nv1, nR0, nR1, nseg, ca0, cv0, ca1, cv1, cR0, cR1, cseg
+        k = 2 * n_split
     return total, n_sus, n_jump, n_terms, 0
 
 
@@ -1029,24 +1051,31 @@ def _s_min(ra, rv):
 
 
 @njit(**_OPTS)
-def _cell_apart(zeros, poles, delay, a, v, ln_n, eps_a, g, rg, arg_g, eps_v, i, j):
-    """Whether the cell a[i]..a[i+1] x v[j]..v[j+1] provably holds no point where |1 + G N| is within 0.125 % of
-    1 + |G N|: its N piece (monotone, bounded: the preconditions of :func:`_no_root_in`) lies ``_SEED_MARGIN``
-    beyond both discs of G's piece or beyond its thickened chord. arg_g: arg G at the nodes, NaN where not yet
-    computed (filled here)."""
-    if not (eps_a[i] <= _STEP and a[i + 1] - a[i] > _MONOTONE_WIDTH * (1 + abs(a[i]))):
-        return False
-    if not (math.isfinite(ln_n[i].real) and math.isfinite(ln_n[i + 1].real) and math.isfinite(eps_v[j])
-            and math.isfinite(rg[j]) and math.isfinite(rg[j + 1])):
-        return False
-    for q in (j, j + 1):
-        if arg_g[q] != arg_g[q]:
-            arg_g[q] = _angle(g[q])
-    t0, t1 = complex(-rg[j], _PI - arg_g[j]), complex(-rg[j + 1], _PI - arg_g[j + 1])
-    if _npmax(_gap(ln_n[i], ln_n[i + 1], t0, eps_v[j]), _gap(ln_n[i], ln_n[i + 1], t1, eps_v[j])) >= _SEED_MARGIN:
-        return True
-    h = _chord_deviation(zeros, poles, delay, v[j], v[j + 1])
-    return _chord_gap(ln_n[i], ln_n[i + 1], t0, t1, eps_v[j], h) >= _SEED_MARGIN
+def _cells_apart(zeros, poles, delay, a, v, ln_n, eps_a, g, rg, arg_g, eps_v, ci, cj):
+    """Which cells a[i]..a[i+1] x v[j]..v[j+1] (i, j from ci, cj) provably hold no point where |1 + G N| is
+    within 0.125 % of 1 + |G N| (bool mask): the cell's N piece (monotone, bounded: the preconditions of
+    :func:`_no_root_in`) lies ``_SEED_MARGIN`` beyond both discs of G's piece or beyond its thickened chord.
+    arg_g: arg G at the nodes, NaN where not yet computed (filled here). All the cells in one call: a call per
+    cell would pay the reference counting of its eleven arrays, more than the test itself costs."""
+    apart = np.zeros(ci.size, np.bool_)
+    for c in range(ci.size):
+        i, j = ci[c], cj[c]
+        if not (eps_a[i] <= _STEP and a[i + 1] - a[i] > _MONOTONE_WIDTH * (1 + abs(a[i]))):
+            continue
+        if not (math.isfinite(ln_n[i].real) and math.isfinite(ln_n[i + 1].real) and math.isfinite(eps_v[j])
+                and math.isfinite(rg[j]) and math.isfinite(rg[j + 1])):
+            continue
+        for q in (j, j + 1):
+            if arg_g[q] != arg_g[q]:
+                arg_g[q] = _angle(g[q])
+        t0, t1 = complex(-rg[j], _PI - arg_g[j]), complex(-rg[j + 1], _PI - arg_g[j + 1])
+        if _npmax(_gap(ln_n[i], ln_n[i + 1], t0, eps_v[j]), _gap(ln_n[i], ln_n[i + 1], t1, eps_v[j])) \
+                >= _SEED_MARGIN:
+            apart[c] = True
+            continue
+        h = _chord_deviation(zeros, poles, delay, v[j], v[j + 1])
+        apart[c] = _chord_gap(ln_n[i], ln_n[i + 1], t0, t1, eps_v[j], h) >= _SEED_MARGIN
+    return apart
 
 
 @njit(**_OPTS)
@@ -1057,13 +1086,13 @@ def _windings(num, den, zeros, poles, delay, kind, p, continuous, a, v, n, g, ce
     A cell whose four edge steps all turn R by less than pi/2 (with a margin: Re(R1 conj R0) > 1e-6 |Im(..)|)
     winds 0 and splits no edge (its four principal steps sum to exactly 0 of the 2 pi k they must add up to):
     it is passed over without its atan2s, as the full computation would pass it. So is a cell that provably
-    holds no point where |1 + G N| is within 0.125 % of 1 + |G N| (:func:`_cell_apart`, the seed exclusion's
+    holds no point where |1 + G N| is within 0.125 % of 1 + |G N| (:func:`_cells_apart`, the seed exclusion's
     test of one pair of pieces): R has no zero in it, so it winds 0, and its edges (where |R| stays that far
     from 0) are resolved without a suspect; only the count of points evaluated changes."""
     nv = v.size
     n_points = 0
-    keep = np.empty(cells.size, np.int64)
-    nc = 0
+    hard_c, hard_i, hard_j = np.empty(cells.size, np.int64), np.empty(cells.size, np.int64), np.empty(cells.size, np.int64)
+    n_hard = 0
     for c in range(cells.size):
         i, j = cells[c] // nv, cells[c] % nv
         r0 = 1.0 + n[i] * g[j]
@@ -1077,8 +1106,15 @@ def _windings(num, den, zeros, poles, delay, kind, p, continuous, a, v, n, g, ce
                 easy = False
                 break
             r0 = r1
-        if not easy and not _cell_apart(zeros, poles, delay, a, v, ln_n, eps_a, g, rg, arg_g, eps_v, i, j):
-            keep[nc] = cells[c]
+        if not easy:
+            hard_c[n_hard], hard_i[n_hard], hard_j[n_hard] = cells[c], i, j
+            n_hard += 1
+    apart = _cells_apart(zeros, poles, delay, a, v, ln_n, eps_a, g, rg, arg_g, eps_v, hard_i[:n_hard], hard_j[:n_hard])
+    keep = np.empty(n_hard, np.int64)
+    nc = 0
+    for c in range(n_hard):
+        if not apart[c]:
+            keep[nc] = hard_c[c]
             nc += 1
     cells = keep[:nc]
     # windings of the candidate cells, corners counter-clockwise: (i, j) (i+1, j) (i+1, j+1) (i, j+1)
@@ -1325,14 +1361,12 @@ def _close_ends(l0, l1, t0, t1):
 
 
 @njit(**_OPTS)
-def _push(pn, pg, top, x, y):
-    """Push the pair (x, y) on the stack (pn, pg) of size top, growing it when full."""
-    if top == pn.size:
-        gn, gg = np.empty(2 * top, np.int64), np.empty(2 * top, np.int64)
-        gn[:top], gg[:top] = pn[:top], pg[:top]
-        pn, pg = gn, gg
-    pn[top], pg[top] = x, y
-    return pn, pg, top + 1
+def _grown(pn, pg, top):
+    """The stack (pn, pg) of size top with twice the room (called only when a push finds it full: a call per push
+    would pay its arrays' reference counting every time)."""
+    gn, gg = np.empty(2 * pn.size + 2, np.int64), np.empty(2 * pn.size + 2, np.int64)
+    gn[:top], gg[:top] = pn[:top], pg[:top]
+    return gn, gg
 
 
 @njit(**_OPTS)
@@ -1396,7 +1430,8 @@ def _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg
     top = 0
     for x in range(n_n):
         for y in range(n_g):
-            pn, pg, top = _push(pn, pg, top, x, y)
+            pn[top], pg[top] = x, y
+            top += 1
     splits = tests = 0
     while top > 0:
         top -= 1
@@ -1428,8 +1463,10 @@ def _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg
                 n_n += 2
                 pa0[c], pa1[c], pl0[c], pl1[c] = pa0[x], xm, l0, lm
                 pa0[c + 1], pa1[c + 1], pl0[c + 1], pl1[c + 1] = xm, pa1[x], lm, l1
-            pn, pg, top = _push(pn, pg, top, pc[x], y)
-            pn, pg, top = _push(pn, pg, top, pc[x] + 1, y)
+            if top + 2 > pn.size:
+                pn, pg = _grown(pn, pg, top)
+            pn[top], pg[top], pn[top + 1], pg[top + 1] = pc[x], y, pc[x] + 1, y
+            top += 2
         else:  # the G piece's halves
             if qc[y] < 0:
                 splits += 1
@@ -1449,8 +1486,10 @@ def _no_root_in(zeros, poles, num, den, delay, kind, p, a, v, ln_n, eps_a, g, rg
                 n_g += 2
                 qv0[c], qv1[c], qt0[c], qt1[c], qe[c] = qv0[y], xm, qt0[y], tm, e0
                 qv0[c + 1], qv1[c + 1], qt0[c + 1], qt1[c + 1], qe[c + 1] = xm, qv1[y], tm, qt1[y], e1
-            pn, pg, top = _push(pn, pg, top, x, qc[y])
-            pn, pg, top = _push(pn, pg, top, x, qc[y] + 1)
+            if top + 2 > pn.size:
+                pn, pg = _grown(pn, pg, top)
+            pn[top], pg[top], pn[top + 1], pg[top + 1] = x, qc[y], x, qc[y] + 1
+            top += 2
     return True
 
 
@@ -1948,13 +1987,10 @@ def kept_seeds_dispatcher():
 @njit(**_OPTS)
 def _apart_cells(zeros, poles, delay, a, v, n, g, eps_a, eps_v, ci, cj):
     """roots._winding_cells for the Python driver on a compiled loop: the mask of the cells (ci, cj) that
-    :func:`_cell_apart` proves free of anything the refinement could accept, decided as :func:`_windings`
+    :func:`_cells_apart` proves free of anything the refinement could accept, decided as :func:`_windings`
     decides (from the same node logarithms)."""
     ln_n, rg, arg_g = _node_logs(n, g)
-    apart = np.zeros(ci.size, np.bool_)
-    for c in range(ci.size):
-        apart[c] = _cell_apart(zeros, poles, delay, a, v, ln_n, eps_a, g, rg, arg_g, eps_v, ci[c], cj[c])
-    return apart
+    return _cells_apart(zeros, poles, delay, a, v, ln_n, eps_a, g, rg, arg_g, eps_v, ci, cj)
 
 
 def apart_cells(loop, a, v, n, g, eps_a, eps_v, ci, cj):
