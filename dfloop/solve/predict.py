@@ -17,7 +17,7 @@ from .compiled import (driver_parts, driver_wanted, enabled as compiled_enabled,
                        run_batch, run_driver)
 from .grid import FD_MIN_WIDTH, STEP, check_memory, clog, largest_step, resolve_plant, resolve_sampled
 from .plant import as_plant
-from .result import GridReport, JumpCrossing, LimitCycle, LimitCycles, assembled
+from .result import DeferredReport, GridReport, JumpCrossing, LimitCycle, LimitCycles, assembled
 from .roots import (JUMP_BOX, OuterProduct, Residual, accepted, dominant_steps, find_roots, greedy_unique,
                     unresolved_boxes)
 from .stability import MARGINAL_TOL, classify
@@ -515,9 +515,7 @@ def _driver_result(G, N, fl, it, rows, w_given: bool, a_src) -> LimitCycles:
                                 relative_residual=rel.real, loeb_determinant=det.real, loeb_conditioning=cond.real,
                                 G=g, N=n, on_edge=bool(edge.real),
                                 _confidence=functools.partial(_confidence, G, N, A, w)))
-    report = assembled(GridReport, shape=(n_a, n_v), frequency_rule="exact", amplitude_rule="sampled",
-                       max_step_frequency=step_v, max_step_amplitude=step_a, n_jumps=n_jumps, candidate_cells=n_cand,
-                       n_evaluations=n_eval, rejected=rejected)
+    report = DeferredReport(((n_a, n_v), step_v, step_a, n_jumps, n_cand, n_eval, rejected))
     result = LimitCycles(cycles, (A_lo, A_hi), (w_lo, w_hi), {"amplitude": a_src, "omega": w_src}, (n_a, n_v),
                          n_points, (), report)
     result.plant, result.element = G, N

@@ -280,13 +280,27 @@ class LimitCycles(list):
     def __init__(self, cycles, amplitude_window, omega_window, window_source, grid_shape, n_evaluations,
                  jump_crossings=(), grid_report=None):
         super().__init__(cycles)
-        self.grid_report = grid_report
+        self._grid_report = grid_report
         self.jump_crossings = list(jump_crossings)
         self.amplitude_window = amplitude_window
         self.omega_window = omega_window
         self.window_source = window_source
         self.grid_shape = grid_shape
         self.n_evaluations = n_evaluations
+
+    @property
+    def grid_report(self):
+        """How the grid was chosen (:class:`GridReport`), or None. The compiled driver hands over the report's values
+        with the result and the report is built from them on first reading (most batch results are never asked
+        for theirs: ~1 us of a call that takes ~20)."""
+        report = self._grid_report
+        if isinstance(report, DeferredReport):
+            report = self._grid_report = report.build()
+        return report
+
+    @grid_report.setter
+    def grid_report(self, value):
+        self._grid_report = value
 
     def __repr__(self) -> str:
         head = (f"{len(self)} limit cycle(s); amplitude window [{self.amplitude_window[0]:.4g}, "
@@ -387,6 +401,20 @@ class LimitCycles(list):
         from ..plot.nyquist import plot_nyquist
 
         return plot_nyquist(self, ax, **kwargs)
+
+
+class DeferredReport(tuple):
+    """The values of a :class:`GridReport` not built yet (shape, max_step_frequency, max_step_amplitude, n_jumps,
+    candidate_cells, n_evaluations, rejected; the rules "exact" along omega and "sampled" along A, the compiled
+    driver's): :attr:`LimitCycles.grid_report` builds it when first read."""
+
+    __slots__ = ()
+
+    def build(self) -> GridReport:
+        shape, step_v, step_a, n_jumps, n_cand, n_eval, rejected = self
+        return assembled(GridReport, shape=shape, frequency_rule="exact", amplitude_rule="sampled",
+                         max_step_frequency=step_v, max_step_amplitude=step_a, n_jumps=n_jumps, candidate_cells=n_cand,
+                         n_evaluations=n_eval, rejected=rejected)
 
 
 def assembled(cls, **values):

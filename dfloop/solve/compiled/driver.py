@@ -1091,7 +1091,10 @@ def _windings(num, den, zeros, poles, delay, kind, p, continuous, a, v, n, g, ce
     from 0) are resolved without a suspect; only the count of points evaluated changes."""
     nv = v.size
     n_points = 0
-    hard_c, hard_i, hard_j = np.empty(cells.size, np.int64), np.empty(cells.size, np.int64), np.empty(cells.size, np.int64)
+    if cells.size == 0:  # no candidate cell: no winding (and none of the work arrays below)
+        return np.empty(0, np.int64), np.empty(0, np.int64), 0, n_points
+    hard_c, hard_i = np.empty(cells.size, np.int64), np.empty(cells.size, np.int64)
+    hard_j = np.empty(cells.size, np.int64)
     n_hard = 0
     for c in range(cells.size):
         i, j = cells[c] // nv, cells[c] % nv
@@ -1502,6 +1505,8 @@ def _tangent_seeds(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n
     nc, nv, nA, n_wind = cells.size, v.size, a.size, wind_cells.size
     n_points = 0
     none = np.empty(0)
+    if nc == 0:  # no candidate cell: no corner, so no seed
+        return 0, n_points, none, none, np.empty((5, 0), np.complex128), none, none, none, none
     # tangent seeds: local minima of m below the threshold among the corners of the candidate cells
     # a cell's flat index is its lower-left corner's (i nv + j), and the cells ascend: the corners are the union
     # of four ascending runs, merged in two steps
@@ -1831,53 +1836,58 @@ def _drive(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi, dom
     # refinement of the single-winding cells from the linear model's root, in the cell grown by half
     win_a0, win_a1, win_v0, win_v1 = a[0], a[nA - 1], v[0], v[nv - 1]
     window = np.array([win_a0, win_a1, win_v0, win_v1])
-    sa, sv = np.empty(n_wind), np.empty(n_wind)
-    lo_a, hi_a, lo_v, hi_v = np.empty(n_wind), np.empty(n_wind), np.empty(n_wind), np.empty(n_wind)
-    for c in range(n_wind):
-        i, j = wind_cells[c] // nv, wind_cells[c] % nv
-        r00, r10 = 1 + n[i] * g[j], 1 + n[i + 1] * g[j]
-        r01, r11 = 1 + n[i] * g[j + 1], 1 + n[i + 1] * g[j + 1]
-        cl_a, ch_a, cl_v, ch_v = a[i], a[i + 1], v[j], v[j + 1]
-        ha, hv = ch_a - cl_a, ch_v - cl_v
-        ja = cdiv(r10 - r00 + r11 - r01, complex(2 * ha, 0.0))
-        jv = cdiv(r01 - r00 + r11 - r10, complex(2 * hv, 0.0))
-        rc = cdiv(r00 + r10 + r01 + r11, complex(4.0, 0.0))
-        det = ja.real * jv.imag - jv.real * ja.imag
-        da = -(jv.imag * rc.real - jv.real * rc.imag) / det
-        dv = -(-ja.imag * rc.real + ja.real * rc.imag) / det
-        if not math.isfinite(da):
-            da = 0.0
-        if not math.isfinite(dv):
-            dv = 0.0
-        sa[c] = min(max((cl_a + ch_a) / 2 + da, cl_a), ch_a)
-        sv[c] = min(max((cl_v + ch_v) / 2 + dv, cl_v), ch_v)
-        ga, gv = ha * 0.5, hv * 0.5
-        lo_a[c], hi_a[c] = _npmax(cl_a - ga, win_a0), _npmin(ch_a + ga, win_a1)
-        lo_v[c], hi_v[c] = _npmax(cl_v - gv, win_v0), _npmin(ch_v + gv, win_v1)
-    ra, rv, ok, vals, evaluated = refine(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, sa, sv, lo_a, hi_a,
-                                         lo_v, hi_v, tol, False)
-    n_points += evaluated
-    failed = np.zeros(n_wind, np.bool_)
-    for c in range(n_wind):
-        i, j = wind_cells[c] // nv, wind_cells[c] % nv
-        cl_a, ch_a, cl_v, ch_v = a[i], a[i + 1], v[j], v[j + 1]
-        ga, gv = (ch_a - cl_a) * 1e-9, (ch_v - cl_v) * 1e-9
-        inside = (_npmax(cl_a - ga, win_a0) <= ra[c] <= _npmin(ch_a + ga, win_a1)
-                  and _npmax(cl_v - gv, win_v0) <= rv[c] <= _npmin(ch_v + gv, win_v1))
-        failed[c] = not (ok[c] and inside)
-    kept = np.nonzero(~failed)[0]
-    ra, rv, vals = ra[kept], rv[kept], _columns(vals, kept)
-    # cells winding more than once, then the single-winding cells whose refinement failed: isolated (roots._isolate)
-    for box_cells in (nz_cells[np.abs(windings) != 1], wind_cells[failed]):
-        for c in range(box_cells.size):
-            i, j = box_cells[c] // nv, box_cells[c] % nv
-            status, xa, xv, xvals, n_iso = _isolate(num, den, zeros, poles, delay, kind, p, continuous, ln_lo, ln_hi,
-                                                    a[i], a[i + 1], v[j], v[j + 1], window, tol, False, 0.0, 0.0)
-            n_points += n_iso
-            if status:
-                return status, fl, it, empty
-            ra, rv = np.concatenate((ra, xa)), np.concatenate((rv, xv))
-            vals = np.concatenate((vals, xvals), axis=1)
+    if nz_cells.size == 0:  # no cell winds: nothing to refine or isolate (nor the work arrays for it)
+        ra, rv = np.empty(0), np.empty(0)
+        vals = np.empty((5, 0), np.complex128)
+    else:
+        sa, sv = np.empty(n_wind), np.empty(n_wind)
+        lo_a, hi_a, lo_v, hi_v = np.empty(n_wind), np.empty(n_wind), np.empty(n_wind), np.empty(n_wind)
+        for c in range(n_wind):
+            i, j = wind_cells[c] // nv, wind_cells[c] % nv
+            r00, r10 = 1 + n[i] * g[j], 1 + n[i + 1] * g[j]
+            r01, r11 = 1 + n[i] * g[j + 1], 1 + n[i + 1] * g[j + 1]
+            cl_a, ch_a, cl_v, ch_v = a[i], a[i + 1], v[j], v[j + 1]
+            ha, hv = ch_a - cl_a, ch_v - cl_v
+            ja = cdiv(r10 - r00 + r11 - r01, complex(2 * ha, 0.0))
+            jv = cdiv(r01 - r00 + r11 - r10, complex(2 * hv, 0.0))
+            rc = cdiv(r00 + r10 + r01 + r11, complex(4.0, 0.0))
+            det = ja.real * jv.imag - jv.real * ja.imag
+            da = -(jv.imag * rc.real - jv.real * rc.imag) / det
+            dv = -(-ja.imag * rc.real + ja.real * rc.imag) / det
+            if not math.isfinite(da):
+                da = 0.0
+            if not math.isfinite(dv):
+                dv = 0.0
+            sa[c] = min(max((cl_a + ch_a) / 2 + da, cl_a), ch_a)
+            sv[c] = min(max((cl_v + ch_v) / 2 + dv, cl_v), ch_v)
+            ga, gv = ha * 0.5, hv * 0.5
+            lo_a[c], hi_a[c] = _npmax(cl_a - ga, win_a0), _npmin(ch_a + ga, win_a1)
+            lo_v[c], hi_v[c] = _npmax(cl_v - gv, win_v0), _npmin(ch_v + gv, win_v1)
+        ra, rv, ok, vals, evaluated = refine(num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, sa, sv, lo_a, hi_a,
+                                             lo_v, hi_v, tol, False)
+        n_points += evaluated
+        failed = np.zeros(n_wind, np.bool_)
+        for c in range(n_wind):
+            i, j = wind_cells[c] // nv, wind_cells[c] % nv
+            cl_a, ch_a, cl_v, ch_v = a[i], a[i + 1], v[j], v[j + 1]
+            ga, gv = (ch_a - cl_a) * 1e-9, (ch_v - cl_v) * 1e-9
+            inside = (_npmax(cl_a - ga, win_a0) <= ra[c] <= _npmin(ch_a + ga, win_a1)
+                      and _npmax(cl_v - gv, win_v0) <= rv[c] <= _npmin(ch_v + gv, win_v1))
+            failed[c] = not (ok[c] and inside)
+        kept = np.nonzero(~failed)[0]
+        ra, rv, vals = ra[kept], rv[kept], _columns(vals, kept)
+        # cells winding more than once, then the single-winding cells whose refinement failed: isolated (roots._isolate)
+        for box_cells in (nz_cells[np.abs(windings) != 1], wind_cells[failed]):
+            for c in range(box_cells.size):
+                i, j = box_cells[c] // nv, box_cells[c] % nv
+                status, xa, xv, xvals, n_iso = _isolate(num, den, zeros, poles, delay, kind, p, continuous, ln_lo,
+                                                        ln_hi, a[i], a[i + 1], v[j], v[j + 1], window, tol, False,
+                                                        0.0, 0.0)
+                n_points += n_iso
+                if status:
+                    return status, fl, it, empty
+                ra, rv = np.concatenate((ra, xa)), np.concatenate((rv, xv))
+                vals = np.concatenate((vals, xvals), axis=1)
     status, n_seed_points, ta, tv, tvals, b0a, b1a, b0v, b1v = _tangent_seeds(
         num, den, zeros, poles, delay, kind, p, ln_lo, ln_hi, a, v, n, g, cells, nz_cells, tol, ln_n, eps_a, rg, arg_g,
         eps_v)
