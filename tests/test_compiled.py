@@ -10,6 +10,8 @@ or fail with the same error.
 """
 from __future__ import annotations
 
+import math
+import pickle
 import warnings
 
 import control as ct
@@ -22,6 +24,7 @@ from dfloop.solve import as_plant
 from dfloop.solve.compiled import CompiledResidual, driver_parts, residual_for, run_driver
 from dfloop.solve.compiled import kernels as K
 from dfloop.solve.delay import delayed
+from dfloop.solve.result import DeferredReport, GridReport
 from dfloop.solve.grid import clog
 from dfloop.solve.roots import Residual
 
@@ -485,3 +488,24 @@ def test_a_plant_is_converted_once_whatever_its_coefficients_dtype():
     swapped = ct.tf(np.array([1.0], ">f8"), np.array([1.0, 3.0, 2.0, 0.0], ">f8"))
     got = plant_part(swapped)
     assert got is None or all(np.array_equal(x, y) for x, y in zip(got[:4], first[:4]))
+
+
+def test_a_compiled_result_reads_and_pickles_its_grid_report_as_the_python_path_builds_it(monkeypatch):
+    """The compiled driver's result builds its GridReport on first reading (result.DeferredReport): read after a
+    pickle round trip or directly, it is the report the Python driver builds for the loop (rules, shape, counts;
+    the largest steps to 1e-12), and a pickled result keeps its cycles."""
+
+    for G, N in TEXTBOOK[:3] + TEXTBOOK[7:9]:
+        got, ref = _solve(G, N, monkeypatch, True), _solve(G, N, monkeypatch, False)
+        assert isinstance(got._grid_report, DeferredReport)  # not built yet
+        back = pickle.loads(pickle.dumps(got))
+        assert [(c.amplitude, c.frequency, c.stability) for c in back] == \
+            [(c.amplitude, c.frequency, c.stability) for c in got]
+        for report in (back.grid_report, got.grid_report):
+            assert isinstance(report, GridReport) and report == got.grid_report
+            assert (report.shape, report.frequency_rule, report.amplitude_rule, report.n_jumps,
+                    report.candidate_cells) == (ref.grid_report.shape, ref.grid_report.frequency_rule,
+                                                ref.grid_report.amplitude_rule, ref.grid_report.n_jumps,
+                                                ref.grid_report.candidate_cells)
+            assert math.isclose(report.max_step_frequency, ref.grid_report.max_step_frequency, rel_tol=1e-12)
+            assert math.isclose(report.max_step_amplitude, ref.grid_report.max_step_amplitude, rel_tol=1e-12)
