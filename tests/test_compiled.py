@@ -24,8 +24,8 @@ from dfloop.solve import as_plant
 from dfloop.solve.compiled import CompiledResidual, driver_parts, residual_for, run_driver
 from dfloop.solve.compiled import kernels as K
 from dfloop.solve.delay import delayed
-from dfloop.solve.result import DeferredReport, GridReport
 from dfloop.solve.grid import clog
+from dfloop.solve.result import DeferredReport, GridReport
 from dfloop.solve.roots import Residual
 
 from fuzz_loops import random_element, random_plant
