@@ -509,3 +509,32 @@ def test_a_compiled_result_reads_and_pickles_its_grid_report_as_the_python_path_
                                                 ref.grid_report.candidate_cells)
             assert math.isclose(report.max_step_frequency, ref.grid_report.max_step_frequency, rel_tol=1e-12)
             assert math.isclose(report.max_step_amplitude, ref.grid_report.max_step_amplitude, rel_tol=1e-12)
+
+
+def test_the_drivers_sorts_are_numpys_on_runs_ties_and_signed_zeros():
+    """driver._order is np.argsort(kind="stable"), driver._sorted takes the values in that order (so it is
+    np.sort with ties, signed zeros included, in their stable order) and driver._unique gives np.unique's values:
+    on shuffled data, concatenated ascending and descending runs (the grids' case), repeated values and mixed
+    -0.0 / 0.0, empty and one-element arrays."""
+    from dfloop.solve.compiled.driver import _order, _sorted, _unique
+
+    rng = np.random.default_rng(23)
+    for t in range(400):
+        m = int(rng.integers(0, 300))
+        kind = t % 4
+        if kind == 0:
+            x = rng.normal(size=m)
+        elif kind == 1:
+            x = np.concatenate([np.sort(rng.normal(size=int(rng.integers(0, 60)))) * rng.choice([1, -1])
+                                for _ in range(int(rng.integers(1, 6)))])
+        elif kind == 2:
+            x = rng.integers(-4, 4, m).astype(float)
+            x[rng.random(m) < 0.3] = -0.0
+        else:
+            x = np.repeat(rng.normal(size=max(m // 3, 1)), 3)[:m]
+        x = np.ascontiguousarray(x, float)
+        stable = np.argsort(x, kind="stable")
+        assert np.array_equal(_order(x), stable)
+        s = _sorted(x)
+        assert np.array_equal(s, x[stable]) and np.array_equal(np.signbit(s), np.signbit(x[stable]))
+        assert np.array_equal(_unique(x), np.unique(x))

@@ -312,9 +312,72 @@ def _bisect(a, x, right):
 
 
 @njit(**_OPTS)
+def _sorted(x):
+    """x[_order(x)] (NaN-free input), by the same natural merge sort moving the values themselves: the same runs,
+    merged pairwise the same way, the left run first on ties (so equal values keep their order, and a -0.0 its
+    place), without the argsort's indirection."""
+    n = x.size
+    s = x.copy()
+    bounds = np.empty(n + 1, np.int64)
+    nb = 0
+    i = 0
+    while i < n:
+        bounds[nb] = i
+        nb += 1
+        j = i + 1
+        if j < n and s[j] < s[i]:  # a strictly decreasing run, reversed
+            while j < n and s[j] < s[j - 1]:
+                j += 1
+            lo, hi = i, j - 1
+            while lo < hi:
+                s[lo], s[hi] = s[hi], s[lo]
+                lo += 1
+                hi -= 1
+        else:
+            while j < n and s[j] >= s[j - 1]:
+                j += 1
+        i = j
+    bounds[nb] = n
+    if nb <= 1:
+        return s
+    tmp = np.empty(n, x.dtype)
+    while nb > 1:
+        k = 0
+        for r in range(0, nb, 2):
+            lo = bounds[r]
+            if r + 1 < nb:
+                mid, hi = bounds[r + 1], bounds[r + 2]
+            else:
+                mid = hi = bounds[r + 1]
+            i, j, q = lo, mid, lo
+            while i < mid and j < hi:
+                if s[j] < s[i]:
+                    tmp[q] = s[j]
+                    j += 1
+                else:
+                    tmp[q] = s[i]
+                    i += 1
+                q += 1
+            while i < mid:
+                tmp[q] = s[i]
+                i += 1
+                q += 1
+            while j < hi:
+                tmp[q] = s[j]
+                j += 1
+                q += 1
+            bounds[k] = lo
+            k += 1
+        bounds[k] = n
+        nb = k
+        s, tmp = tmp, s
+    return s
+
+
+@njit(**_OPTS)
 def _unique(x):
     """np.unique of a 1-D array (sorted, exact duplicates removed)."""
-    s = x[_order(x)]
+    s = _sorted(x)
     if s.size == 0:
         return s
     out = np.empty(s.size, s.dtype)
