@@ -9,7 +9,9 @@ why). Then a batch of sampled servo loops (examples/monte_carlo_servo.py) throug
 (chunks of loops through the compiled driver in parallel over the cores): microseconds per loop per core (and how
 many of them the example's generator spends building the loops in python-control, timed alone), its floor (G and
 N once on each loop's 64 x 256 grid), the peak traced memory of the streamed batch (tracemalloc, results kept as
-one float per loop), and the same batch from a coarse initial grid (8 x 32) with its answers compared loop by loop.
+one float per loop), the same batch from a coarse initial grid (8 x 32) with its answers compared loop by loop, and
+the compiled driver alone on the loops' inputs converted beforehand (what a batch interface taking and returning
+arrays, with no per-loop Python objects, would cost at best).
 
 Run: python benchmarks/bench_compiled.py [--batch N] [--write]   (default N = 2000 loops; --write also writes
 benchmarks/results/bench_compiled.md). Times are CPU times of this process (time.process_time), best of several
@@ -17,6 +19,7 @@ calls; the batch's wall time is given beside its CPU time.
 """
 from __future__ import annotations
 
+import inspect
 import os
 import pathlib
 import sys
@@ -33,6 +36,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).parents[1] / "examples"))
 import dfloop as df  # noqa: E402
 from bench_solver_vs_control import PROBLEMS, floor  # noqa: E402
 from dfloop.batch import predict_many  # noqa: E402
+from dfloop.solve.compiled import driver_parts, run_batch  # noqa: E402
 from monte_carlo_servo import sample, stable_amplitude  # noqa: E402
 
 COMPILED_REPEATS = 50  # calls of tens of microseconds: the best of many is the one no other job interrupted
@@ -131,6 +135,19 @@ def main() -> str:
         return N(A)[:, None] * plant(w)[None, :]
     t_floor = best(once, 50)[0]
     p = float(np.mean(np.isfinite(amps)))
+    # what an arrays-in, arrays-out batch interface would cost at best: the compiled driver alone on the loops'
+    # inputs converted before the timing (no per-loop Python objects), in the batch's chunks of 256 loops
+    n_k = min(BATCH, 20000)
+    inputs = [driver_parts(G, df.as_element(N)) for G, N in sample(n_k, 1)]
+    windows = [(np.nan,) * 4] * n_k
+    mtol = inspect.signature(df.predict_limit_cycles).parameters["marginal_tol"].default
+    kernel = {}
+    for grid in ((64, 256), COARSE):
+        c0 = time.process_time()
+        answered = 0
+        for s in range(0, n_k, 256):
+            answered += int(np.sum(run_batch(inputs[s:s + 256], windows[s:s + 256], *grid, 1e-10, mtol)[0] == 0))
+        kernel[grid] = ((time.process_time() - c0) / n_k, answered)
     rows += ["", f"Batch: {BATCH} sampled servo loops (examples/monte_carlo_servo.py: K e^(-s tau)/(s(0.5s+1)) with "
              f"backlash) through predict_many(keep=...) in this process (the compiled driver on chunks of 256 loops, "
              f"in parallel over the cores): {cpu / BATCH * 1e6:.0f} us "
@@ -145,7 +162,12 @@ def main() -> str:
              "", f"The batch from a coarse initial grid, grid={COARSE} (the default is (64, 256); both axes are "
              f"refined to the same step bound from there): {cpu_c / BATCH * 1e6:.0f} us CPU per loop per core "
              f"({wall_c / BATCH * 1e6:.0f} us wall), {(cpu_c - gen) / BATCH * 1e6:.0f} us dfloop's; the kept "
-             f"amplitude equal (within 1e-9, or absent in both) on {n_same} of {BATCH} loops."]
+             f"amplitude equal (within 1e-9, or absent in both) on {n_same} of {BATCH} loops.",
+             "", f"The compiled driver alone (the floor of an arrays-in, arrays-out batch interface: the first {n_k} "
+             f"loops' inputs converted before the timing, run_batch on chunks of 256, no result objects): "
+             f"{kernel[(64, 256)][0] * 1e6:.0f} us CPU per loop at the default grid, "
+             f"{kernel[COARSE][0] * 1e6:.0f} us from grid={COARSE}; the driver answered "
+             f"{kernel[(64, 256)][1]} and {kernel[COARSE][1]} of {n_k} loops."]
     return "\n".join(rows)
 
 
