@@ -2120,28 +2120,33 @@ def _pool() -> tuple[ThreadPoolExecutor, int]:
     return _POOL[0], _POOL[1]
 
 
+def _padded(rows: list, dtype, width: int = 1) -> list:
+    """[rows as one zero-padded 2-D array of ``dtype`` (at least ``width`` columns), their lengths] (a batch's
+    ragged arguments: the coefficients and roots of its plants, its elements' parameters), in a few numpy calls
+    for the whole batch instead of one assignment per row."""
+    n = len(rows)
+    lengths = np.fromiter(map(len, rows), np.int64, n)
+    total = int(lengths.sum())
+    out = np.zeros((n, max(width, int(lengths.max()) if n else 0)), dtype)
+    if total:
+        starts = np.cumsum(lengths) - lengths
+        r = np.repeat(np.arange(n), lengths)
+        out[r, np.arange(total) - np.repeat(starts, lengths)] = np.concatenate(rows)
+    return [out, lengths]
+
+
 def solve_many(parts, windows, na, nw, tol, marginal_tol):
     """The driver over loops [(gpart, npart), ...] with windows [(w_lo, w_hi, A_lo, A_hi), ...], its rows shared
     among the threads of :func:`_pool`: arrays (status, floats, ints, roots (L, MAX_ROOTS, 10), root counts)."""
     L = len(parts)
     padded = []
     for q in range(4):  # num, den, zeros, poles: rows padded to the longest, with their lengths
-        width = max(1, max(len(g[q]) for g, _ in parts))
-        arr = np.zeros((L, width), complex if q >= 2 else float)
-        lengths = np.empty(L, np.int64)
-        for k, (g, _) in enumerate(parts):
-            arr[k, :len(g[q])], lengths[k] = g[q], len(g[q])
-        padded += [arr, lengths]
-    p = np.zeros((L, 4))
-    cols = [np.empty(L) for _ in range(9)]
-    kind = np.empty(L, np.int64)
-    cont = np.empty(L, np.bool_)
-    for k, (g, npart) in enumerate(parts):
-        kind[k], cont[k] = npart[0], npart[2]
-        p[k, :npart[1].size] = npart[1]
-        cols[0][k] = g[4]
-        for q in range(8):
-            cols[1 + q][k] = npart[3 + q]
+        padded += _padded([g[q] for g, _ in parts], complex if q >= 2 else float)
+    p = _padded([npart[1] for _, npart in parts], float, 4)[0]
+    kind = np.fromiter((npart[0] for _, npart in parts), np.int64, L)
+    cont = np.fromiter((npart[2] for _, npart in parts), np.bool_, L)
+    # delay, then the element's ln_lo, ln_hi, domain, tail and head constants and breakpoint: one row each
+    cols = np.array([(g[4],) + npart[3:11] for g, npart in parts], float).reshape(L, 9).T.copy()
     win = np.asarray(windows, float).reshape(L, 4)
     out = (np.zeros(L, np.int64), np.empty((L, 10)), np.empty((L, 9), np.int64),
            np.empty((L, MAX_ROOTS, 10), np.complex128), np.zeros(L, np.int64))
