@@ -233,14 +233,17 @@ def _dlog(l1, l0, wrapped):
 
 
 @njit(**_OPTS)
-def _order(x):
-    """A stable argsort of a 1-D array (NaN-free input): np.argsort(kind="stable"), by a natural merge sort.
+def _merge_sort(x):
+    """(x sorted, the stable order that sorts it) of a 1-D array (NaN-free input): np.sort and
+    np.argsort(kind="stable") at once, by a natural merge sort.
 
     The array is cut into its runs (non-decreasing, or strictly decreasing and then reversed: no ties inside, so
     no order among equal values changes), and adjacent runs are merged pairwise, the left one first on ties:
     the unique stable order, in O(n log(runs)). Sampled curves (|G| along the frequency grid) have few runs; input
-    already in order (most grids) is the identity, after one pass."""
+    already in order (most grids) is the identity, after one pass. The values move with their indices, so the
+    merge compares them directly."""
     n = x.size
+    s = x.copy()
     idx = np.arange(n)
     bounds = np.empty(n + 1, np.int64)
     nb = 0
@@ -249,22 +252,23 @@ def _order(x):
         bounds[nb] = i
         nb += 1
         j = i + 1
-        if j < n and x[j] < x[i]:  # a strictly decreasing run, reversed
-            while j < n and x[j] < x[j - 1]:
+        if j < n and s[j] < s[i]:  # a strictly decreasing run, reversed
+            while j < n and s[j] < s[j - 1]:
                 j += 1
             lo, hi = i, j - 1
             while lo < hi:
+                s[lo], s[hi] = s[hi], s[lo]
                 idx[lo], idx[hi] = idx[hi], idx[lo]
                 lo += 1
                 hi -= 1
         else:
-            while j < n and x[j] >= x[j - 1]:
+            while j < n and s[j] >= s[j - 1]:
                 j += 1
         i = j
     bounds[nb] = n
     if nb <= 1:
-        return idx
-    tmp = np.empty(n, np.int64)
+        return s, idx
+    tmp, tmp_idx = np.empty(n, x.dtype), np.empty(n, np.int64)
     while nb > 1:
         k = 0
         for r in range(0, nb, 2):
@@ -275,27 +279,34 @@ def _order(x):
                 mid = hi = bounds[r + 1]
             i, j, q = lo, mid, lo
             while i < mid and j < hi:
-                if x[idx[j]] < x[idx[i]]:
-                    tmp[q] = idx[j]
+                if s[j] < s[i]:
+                    tmp[q], tmp_idx[q] = s[j], idx[j]
                     j += 1
                 else:
-                    tmp[q] = idx[i]
+                    tmp[q], tmp_idx[q] = s[i], idx[i]
                     i += 1
                 q += 1
             while i < mid:
-                tmp[q] = idx[i]
+                tmp[q], tmp_idx[q] = s[i], idx[i]
                 i += 1
                 q += 1
             while j < hi:
-                tmp[q] = idx[j]
+                tmp[q], tmp_idx[q] = s[j], idx[j]
                 j += 1
                 q += 1
             bounds[k] = lo
             k += 1
         bounds[k] = n
         nb = k
-        idx, tmp = tmp, idx
-    return idx
+        s, tmp = tmp, s
+        idx, tmp_idx = tmp_idx, idx
+    return s, idx
+
+
+@njit(**_OPTS)
+def _order(x):
+    """A stable argsort of a 1-D array (NaN-free input): np.argsort(kind="stable") (:func:`_merge_sort`)."""
+    return _merge_sort(x)[1]
 
 
 @njit(**_OPTS)
@@ -313,65 +324,8 @@ def _bisect(a, x, right):
 
 @njit(**_OPTS)
 def _sorted(x):
-    """x[_order(x)] (NaN-free input), by the same natural merge sort moving the values themselves: the same runs,
-    merged pairwise the same way, the left run first on ties (so equal values keep their order, and a -0.0 its
-    place), without the argsort's indirection."""
-    n = x.size
-    s = x.copy()
-    bounds = np.empty(n + 1, np.int64)
-    nb = 0
-    i = 0
-    while i < n:
-        bounds[nb] = i
-        nb += 1
-        j = i + 1
-        if j < n and s[j] < s[i]:  # a strictly decreasing run, reversed
-            while j < n and s[j] < s[j - 1]:
-                j += 1
-            lo, hi = i, j - 1
-            while lo < hi:
-                s[lo], s[hi] = s[hi], s[lo]
-                lo += 1
-                hi -= 1
-        else:
-            while j < n and s[j] >= s[j - 1]:
-                j += 1
-        i = j
-    bounds[nb] = n
-    if nb <= 1:
-        return s
-    tmp = np.empty(n, x.dtype)
-    while nb > 1:
-        k = 0
-        for r in range(0, nb, 2):
-            lo = bounds[r]
-            if r + 1 < nb:
-                mid, hi = bounds[r + 1], bounds[r + 2]
-            else:
-                mid = hi = bounds[r + 1]
-            i, j, q = lo, mid, lo
-            while i < mid and j < hi:
-                if s[j] < s[i]:
-                    tmp[q] = s[j]
-                    j += 1
-                else:
-                    tmp[q] = s[i]
-                    i += 1
-                q += 1
-            while i < mid:
-                tmp[q] = s[i]
-                i += 1
-                q += 1
-            while j < hi:
-                tmp[q] = s[j]
-                j += 1
-                q += 1
-            bounds[k] = lo
-            k += 1
-        bounds[k] = n
-        nb = k
-        s, tmp = tmp, s
-    return s
+    """x[_order(x)] (NaN-free input): np.sort with equal values in their stable order (-0.0 in its place)."""
+    return _merge_sort(x)[0]
 
 
 @njit(**_OPTS)
