@@ -289,7 +289,7 @@ class LimitCycles(list):
         self.n_evaluations = n_evaluations
 
     @property
-    def grid_report(self):
+    def grid_report(self) -> GridReport | None:
         """How the grid was chosen (:class:`GridReport`), or None. The compiled driver hands over the report's values
         with the result and the report is built from them on first reading (most batch results are never asked
         for theirs: ~1 us of a call that takes ~20)."""
@@ -299,7 +299,7 @@ class LimitCycles(list):
         return report
 
     @grid_report.setter
-    def grid_report(self, value):
+    def grid_report(self, value: GridReport | None) -> None:
         self._grid_report = value
 
     def __repr__(self) -> str:
