@@ -5,6 +5,7 @@ Inputs mix NaN, +/-inf, negative, zero, huge and tiny floats, Python integers be
 complex numbers, strings, None, booleans, ragged lists and arrays of other shapes (docs/errors.md).
 """
 import math
+import re
 
 import control as ct
 import numpy as np
@@ -47,6 +48,12 @@ FREQUENCY_DEPENDENT = [df.MassBacklash(1.0, 3.0, 0.1), df.LinearThenStatic(G, df
                        df.LinearThenStatic(lambda s: 1.0 / (s * s), df.PreloadedSpring(1.0))]
 
 
+def _test_id(el) -> str:
+    """The element's repr without object addresses (a lambda's): the same test ids in every process (pytest-xdist
+    checks that its workers collect the same tests)."""
+    return re.sub(r" at 0x[0-9a-f]+", "", repr(el))
+
+
 def check_element(el, A, omega=None):
     """N is either rejected by a ValueError or free of NaN wherever no input entry is NaN."""
     try:
@@ -66,7 +73,7 @@ def test_amplitude_only_elements(el, A):
     check_element(el, A)
 
 
-@pytest.mark.parametrize("el", FREQUENCY_DEPENDENT, ids=repr)
+@pytest.mark.parametrize("el", FREQUENCY_DEPENDENT, ids=_test_id)
 @SETTINGS
 @given(A=values, omega=values)
 def test_frequency_dependent_elements(el, A, omega):
