@@ -30,9 +30,11 @@ import numba
 import numpy as np
 from numba import njit
 
+sys.path.insert(0, str(pathlib.Path(__file__).parent))
 sys.path.insert(0, str(pathlib.Path(__file__).parents[1] / "examples"))
 
 import dfloop as df  # noqa: E402
+from bench_compiled import best  # noqa: E402
 from dfloop.solve.compiled import driver as D  # noqa: E402
 from dfloop.solve.compiled import driver_parts, run_batch  # noqa: E402
 from dfloop.solve.compiled.kernels import element, plant, refine  # noqa: E402
@@ -181,7 +183,7 @@ def one_loop(num, den, zeros, poles, delay, kind, p, ln_h, nw, nodes, size, R0, 
         comp[c] = x
     heads = np.unique(comp)
     nr = heads.size
-    sa, sv, best = np.empty(nr), np.empty(nr), np.full(nr, np.inf)
+    sa, sv, lowest = np.empty(nr), np.empty(nr), np.full(nr, np.inf)
     la, lv = np.full(nr, np.inf), np.full(nr, np.inf)
     ha, hv = np.full(nr, -np.inf), np.full(nr, -np.inf)
     for c in range(nc):
@@ -193,8 +195,8 @@ def one_loop(num, den, zeros, poles, delay, kind, p, ln_h, nw, nodes, size, R0, 
         am, vm = 0.5 * (a0 + a1), 0.5 * (sv0[j] + sv1[j])
         P = element(kind, p, math.exp(am)) * plant(num, den, delay, math.exp(vm))
         m = abs(1 + P) / (1 + abs(P))
-        if m < best[r]:
-            best[r], sa[r], sv[r] = m, am, vm
+        if m < lowest[r]:
+            lowest[r], sa[r], sv[r] = m, am, vm
     ra, rv, ok, _, _ = refine(num, den, zeros, poles, delay, kind, p, -np.inf, np.inf, sa, sv, la, ha, lv, hv,
                               1e-10, False)
     return nsub, nr, ra, rv, ok
@@ -208,15 +210,6 @@ def _run(nums, dens, zs, ps, dls, kind, pp, lnh, nw, nodes, size, R0, R1, I0, I1
                                  R1, I0, I1, margin, stage)
         a, b = a + x, b + y
     return a, b
-
-
-def best_cpu(fn, repeat=5):
-    t = math.inf
-    for _ in range(repeat):
-        t0 = time.process_time()
-        fn()
-        t = min(t, time.process_time() - t0)
-    return t
 
 
 def main() -> str:
@@ -246,12 +239,12 @@ def main() -> str:
     windows = [(np.nan,) * 4] * n
     drive = lambda: run_batch(parts, windows, 8, nw, 1e-10, 1e-4)  # noqa: E731
     drive()
-    t_driver = best_cpu(drive)
+    t_driver = best(drive, 5)[0]
     rows = [f"| the compiled driver alone, grid (8, {nw}) | {t_driver / n * 1e6:.1f} | 1.00 | |"]
     for stage in (1, 2, 3, 4):
         run = lambda: _run(nums, dens, zs, ps, dls, kind, pp, lnh, nw, *tree, margin, stage)  # noqa: E731
         counts = run()
-        t = best_cpu(run)
+        t = best(run, 5)[0]
         what = (f"{counts[0] / n:.0f} nodes of G" if stage < 3 else f"{counts[0] / n:.0f} pieces of G") + \
                (f", {counts[1] / n:.1f} candidate pieces" if stage in (2, 3) else "") + \
                (f", {counts[1] / n:.1f} clusters" if stage == 4 else "")
