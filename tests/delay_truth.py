@@ -32,7 +32,8 @@ _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 
 
 def static_element(f, kinks):
-    """A static element y = f(x) with the x values ``kinks`` where f' jumps."""
+    """A static element y = f(x) with the x values ``kinks`` where f' or f jumps (at a jump, the run reads f on
+    the side x moves to)."""
     return ("static", f, np.asarray(kinks, float))
 
 
@@ -81,6 +82,11 @@ class DelayTruth:
     def y_at(self, t):
         x = self.x_at(t)
         if self.el[0] == "static":
+            for b in self.el[2]:   # on a kink (a delayed switch: a piece's first point), the side x moves to
+                tiny = 1e-9 * (1.0 + abs(b))
+                if abs(x - b) <= tiny:   # (f may jump there: Coulomb friction, a preload)
+                    side = -math.copysign(1.0, self.x_at(t - 1e-9 * self.T) - b)   # away from where it was
+                    return float(self.el[1](b + side * 1e-12 * (1.0 + abs(b))))
             return float(self.el[1](x))
         k = bisect.bisect_right(self.sw_t, t) - 1
         mode, e = self.sw[k]

@@ -132,32 +132,75 @@ class DelayDDE:
         idx = (o.astype(int)[..., None] - 1 + np.arange(4)) % N
         return idx, w
 
-    def points(self, x: np.ndarray):
-        """Quadrature points of the N steps: (step k, E_p (n,), node indices (4,), weights (4,)) as arrays."""
+    def crossings(self, x: np.ndarray) -> list:
+        """The kinks the delayed x crosses inside a step: (step k, kink b, time r into the step), in the order of
+        the kinks, then of the steps."""
+        N = x.size
+        k = np.arange(N)
+        out = []
+        if self.kinks.size:
+            ends_i, ends_w = self.stencil(np.stack([k * self.h - self.delay, (k + 1) * self.h - self.delay], 1), N)
+            xe = np.einsum("kej,kej->ke", x[ends_i], ends_w)
+            for b in self.kinks:
+                for kk in np.flatnonzero((xe[:, 0] - b) * (xe[:, 1] - b) < 0):
+                    out.append((int(kk), float(b), self._crossing(x, kk, b)))
+        return out
+
+    def points(self, x: np.ndarray, crossings: list | None = None):
+        """Quadrature points of the N steps: (step k, E_p (n,), node indices (4,), weights (4,)) as arrays.
+        ``crossings``: :meth:`crossings` of x when already known."""
         N = x.size
         k = np.arange(N)
         times = k[:, None] * self.h + self.tau[None, :] - self.delay            # delayed times (N, 3)
         idx, w = self.stencil(times, N)
         ks, Es, idxs, ws = [np.repeat(k, 3)], [np.tile(self.E, (N, 1))], [idx.reshape(-1, 4)], [w.reshape(-1, 4)]
-        if self.kinks.size:
-            ends_i, ends_w = self.stencil(np.stack([k * self.h - self.delay, (k + 1) * self.h - self.delay], 1), N)
-            xe = np.einsum("kej,kej->ke", x[ends_i], ends_w)
+        crossings = self.crossings(x) if crossings is None else crossings
+        if crossings:
             keep = np.ones(N * 3, bool)
-            for b in self.kinks:
-                for kk in np.flatnonzero((xe[:, 0] - b) * (xe[:, 1] - b) < 0):
-                    r = self._crossing(x, kk, b)
-                    keep[3 * kk:3 * kk + 3] = False
-                    for a0, a1 in ((0.0, r), (r, self.h)):
-                        tq = a0 + _GL_NODES * (a1 - a0)
-                        Eq = np.array([expm(self.A * (self.h - t)) @ self.B for t in tq]) * \
-                            ((a1 - a0) * _GL_WEIGHTS)[:, None]
-                        i2, w2 = self.stencil(kk * self.h + tq - self.delay, N)
-                        ks.append(np.full(3, kk))
-                        Es.append(Eq)
-                        idxs.append(i2)
-                        ws.append(w2)
+            for kk, _, r in crossings:
+                keep[3 * kk:3 * kk + 3] = False
+                for a0, a1 in ((0.0, r), (r, self.h)):
+                    tq = a0 + _GL_NODES * (a1 - a0)
+                    Eq = np.array([expm(self.A * (self.h - t)) @ self.B for t in tq]) * \
+                        ((a1 - a0) * _GL_WEIGHTS)[:, None]
+                    i2, w2 = self.stencil(kk * self.h + tq - self.delay, N)
+                    ks.append(np.full(3, kk))
+                    Es.append(Eq)
+                    idxs.append(i2)
+                    ws.append(w2)
             ks[0], Es[0], idxs[0], ws[0] = ks[0][keep], Es[0][keep], idxs[0][keep], ws[0][keep]
         return np.concatenate(ks), np.concatenate(Es), np.concatenate(idxs), np.concatenate(ws)
+
+    def jump_terms(self, x: np.ndarray, crossings: list) -> list:
+        """The derivatives of the steps' states through the crossing times where f jumps (a relay part: Coulomb
+        friction, a preload): (step k, node indices (4,), d s_{k+1} / d x at those nodes (n, 4)) per crossing.
+
+        Where the delayed x crosses b at r into step k, the step's input integral changes with r by
+        e^{A(h - r)} B (f before - f after), and r with the node values by dr/dx_j = -w_j(r) / xi'(r) (xi the
+        Lagrange interpolant, w_j its weights). Zero where f is continuous (a kink of the slope only), so only
+        the jumps are listed; without them Newton's Jacobian misses the switch's first-order effect and stalls on
+        a relay-like element."""
+        N, h, T = x.size, self.h, self.delay
+        out = []
+        for kk, b, r in crossings:
+            lo, hi = (float(v) for v in self.f(np.array([np.nextafter(b, -np.inf), np.nextafter(b, np.inf)])))
+            if lo == hi:
+                continue
+            pos = (kk * h + r - T) / h
+            o = math.floor(pos)
+            th = pos - o
+            idx = (o - 1 + np.arange(4)) % N
+            w = np.array([-th * (th - 1) * (th - 2) / 6, (th + 1) * (th - 1) * (th - 2) / 2,
+                          -(th + 1) * th * (th - 2) / 2, (th + 1) * th * (th - 1) / 6])
+            dw = np.array([-(3 * th * th - 6 * th + 2) / 6, (3 * th * th - 4 * th - 1) / 2,
+                           -(3 * th * th - 2 * th - 2) / 2, (3 * th * th - 1) / 6]) / h     # d w / d r
+            slope = float(dw @ x[idx])                                  # xi'(r)
+            if slope == 0.0:
+                continue
+            before, after = (lo, hi) if slope > 0 else (hi, lo)
+            kernel = expm(self.A * (h - r)) @ self.B
+            out.append((kk, idx, np.outer(kernel * (before - after), -w / slope)))
+        return out
 
     def _crossing(self, x, k, b):
         """Time into step k where the interpolated delayed x crosses b (bisection to rounding level, on the
@@ -186,10 +229,12 @@ class DelayDDE:
 
 
 def node_states(dde: DelayDDE, x: np.ndarray, s0: np.ndarray):
-    """(S (N + 1, n), (points, xi)): the plant states at the N + 1 nodes of one period driven by the delayed
-    element output of the node values x, by the steps' recursion s_{k+1} = Phi s_k + sum_p E_p f(xi_p) from s0."""
+    """(S (N + 1, n), (points, xi, crossings)): the plant states at the N + 1 nodes of one period driven by the
+    delayed element output of the node values x, by the steps' recursion s_{k+1} = Phi s_k + sum_p E_p f(xi_p)
+    from s0."""
     N = x.size
-    pts = dde.points(x)
+    crossings = dde.crossings(x)
+    pts = dde.points(x, crossings)
     k, E, idx, w = pts
     xi = np.einsum("pj,pj->p", x[idx], w)
     F = np.zeros((N, dde.n))
@@ -198,7 +243,7 @@ def node_states(dde: DelayDDE, x: np.ndarray, s0: np.ndarray):
     S[0] = s0
     for j in range(N):
         S[j + 1] = dde.Phi @ S[j] + F[j]
-    return S, (pts, xi)
+    return S, (pts, xi, crossings)
 
 
 def _equations(A, B, C, f, delay, kinks, s0: np.ndarray, x: np.ndarray, P: float):
@@ -212,13 +257,17 @@ def _equations(A, B, C, f, delay, kinks, s0: np.ndarray, x: np.ndarray, P: float
 
 
 def node_jacobian(dde: DelayDDE, x: np.ndarray, data) -> np.ndarray:
-    """d R / d (x, s_0) ((N + n + 1) x (N + n)), exact for the discrete equations at fixed quadrature points:
-    the tangent of the steps' recursion, ds_k/dx and ds_k/ds_0, carried along the period."""
-    (k, E, idx, w), xi = data
+    """d R / d (x, s_0) ((N + n + 1) x (N + n)): the tangent of the steps' recursion, ds_k/dx and ds_k/ds_0,
+    carried along the period, at fixed quadrature points, plus the moving crossing times where f jumps
+    (:meth:`DelayDDE.jump_terms`)."""
+    (k, E, idx, w), xi, crossings = data
     N, n, C = x.size, dde.n, dde.C
     fp = dde.slope(xi)
     order = np.argsort(k, kind="stable")
     bounds = np.searchsorted(k[order], np.arange(N + 1))
+    jumps: dict = {}
+    for kk, j_idx, term in dde.jump_terms(x, crossings):
+        jumps.setdefault(kk, []).append((j_idx, term))
     J = np.zeros((N + n + 1, N + n))
     D = np.zeros((n, N))                 # ds_k / dx
     Pk = np.eye(n)                       # ds_k / ds_0
@@ -229,6 +278,8 @@ def node_jacobian(dde: DelayDDE, x: np.ndarray, data) -> np.ndarray:
         D = dde.Phi @ D
         for p in order[bounds[j]:bounds[j + 1]]:
             D[:, idx[p]] += np.outer(E[p] * fp[p], w[p])
+        for j_idx, term in jumps.get(j, ()):
+            np.add.at(D.T, j_idx, term.T)
         Pk = dde.Phi @ Pk
     J[N:N + n, :N] = D
     J[N:N + n, N:] = Pk - np.eye(n)
@@ -292,14 +343,18 @@ def multipliers(A, B, C, f, delay, S: np.ndarray, P: float, kinks=(), count: int
     N, n = S.shape
     dde = DelayDDE(A, B, C, f, delay, P / N, kinks)
     x = -(S @ dde.C) if x is None else np.asarray(x, float)
-    k, E, idx, w = dde.points(x)
+    crossings = dde.crossings(x)
+    k, E, idx, w = dde.points(x, crossings)
     xi = np.einsum("pj,pj->p", x[idx], w)
     fp = dde.slope(xi)
     # node offsets relative to the step (<= 0): congruent to idx - k modulo N, within the 5-node window around
     # -T / h (a delay longer than half the period, or than the period, wraps the periodic indices)
     r_lo = -int(math.ceil(delay / dde.h)) - 3
     rel = (idx - k[:, None] - r_lo) % N + r_lo
-    lo = int(rel.min())
+    jumps: dict = {}
+    for kk, j_idx, term in dde.jump_terms(x, crossings):   # the crossing times where f jumps, as node offsets
+        jumps.setdefault(kk, []).append(((j_idx - kk - r_lo) % N + r_lo, term))
+    lo = int(min([rel.min()] + [int(j_rel.min()) for terms in jumps.values() for j_rel, _ in terms]))
     H = -lo + 1                                              # history slots: x_{k+lo} .. x_k
     D = n + H
     M = np.eye(D)
@@ -312,6 +367,9 @@ def multipliers(A, B, C, f, delay, S: np.ndarray, P: float, kinks=(), count: int
         for p in range(bounds[step_k], bounds[step_k + 1]):
             for i in range(4):
                 step[:n, n + rel[p, i] - lo] += fp[p] * w[p, i] * E[p]
+        for j_rel, term in jumps.get(step_k, ()):
+            for i in range(4):
+                step[:n, n + j_rel[i] - lo] += term[:, i]
         step[n:n + H - 1, n + 1:n + H] = np.eye(H - 1)
         step[n + H - 1, :] = -dde.C @ step[:n, :]
         M = step @ M
