@@ -108,3 +108,25 @@ def test_a_strongly_distorted_orbit_is_found_where_the_df_misplaces_it():
     err = (abs(e.amplitude / run.amplitude - 1), abs(e.frequency / run.frequency - 1))
     assert max(err) < 1e-8, err
     assert abs(math.log(c[0].frequency / run.frequency)) > 0.5     # beyond the default max_deviation
+
+
+@pytest.mark.parametrize("limit", [1e-3, 1e-2])
+def test_a_steep_saturation_crossing_both_kinks_in_one_step(limit):
+    # A saturation whose sloped part (|x| < limit, output +-1) is far narrower than a step of the discretisation
+    # (A ~ 3.4): the delayed x crosses both kinks inside one step. The step is cut at both crossings (it was
+    # integrated twice, once per kink: at 1e-3 the orbit was 1e-4 off after 12 s; at 1e-2 it was called unstable).
+    G0, T = ct.tf([12.0], [1.0, 1.0]) * ct.tf([1.0], [0.5, 1.0]), 0.4
+    N = df.Saturation(limit, 1.0 / limit)
+    el = static_element(lambda x: np.clip(x, -limit, limit) / limit, [-limit, limit])
+    _check_element(N, el)
+    G = delayed(G0, T)
+    c = [c for c in df.predict_limit_cycles(G, N) if c.stable][0]
+    e = df.exact_cycle(G, N, c)
+    assert e.success and e.stable and e.extra["target_met"], e.message
+    est = e.extra["error_estimate"]
+    ss = ct.ss(G0)
+    run = DelayTruth(ss.A, ss.B, ss.C, T, el).run(c.amplitude, c.frequency, settle=1e-10, max_periods=60)
+    assert run.settled, run
+    err = (abs(e.amplitude / run.amplitude - 1), abs(e.frequency / run.frequency - 1))
+    assert max(err) < 1e-8 and err[0] <= est[0] + 2e-10 and err[1] <= est[1] + 2e-10, (err, est)
+    assert np.min(np.abs(e.multipliers - 1)) < 1e-3, e.multipliers

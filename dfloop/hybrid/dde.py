@@ -157,14 +157,14 @@ class DelayDDE:
         crossings = self.crossings(x) if crossings is None else crossings
         if crossings:
             keep = np.ones(N * 3, bool)
+            cuts: dict = {}
             for kk, _, r in crossings:
+                cuts.setdefault(kk, []).append(r)
+            for kk, rs in cuts.items():   # a step crossing several kinks (a steep saturation) is cut at each
                 keep[3 * kk:3 * kk + 3] = False
-                for a0, a1 in ((0.0, r), (r, self.h)):
-                    tq = a0 + _GL_NODES * (a1 - a0)
-                    Eq = np.array([expm(self.A * (self.h - t)) @ self.B for t in tq]) * \
-                        ((a1 - a0) * _GL_WEIGHTS)[:, None]
+                for tq, Eq in split_step(self.A, self.B, self.h, rs):
                     i2, w2 = self.stencil(kk * self.h + tq - self.delay, N)
-                    ks.append(np.full(3, kk))
+                    ks.append(np.full(tq.size, kk))
                     Es.append(Eq)
                     idxs.append(i2)
                     ws.append(w2)
@@ -226,6 +226,18 @@ class DelayDDE:
             else:
                 hi = mid
         return 0.5 * (lo + hi)
+
+
+def split_step(A, B, h: float, cuts) -> list:
+    """The quadrature of a step [0, h] cut at the times ``cuts`` (where the delayed x crosses kinks of f): per
+    piece between consecutive cuts, its 3 Gauss-Legendre times tq and the matrices E_q = w_q e^{A(h - tq)} B
+    times the piece's length (so the integrand is smooth on every piece and the order is kept)."""
+    ends = [0.0, *sorted(cuts), h]
+    out = []
+    for a0, a1 in zip(ends[:-1], ends[1:]):
+        tq = a0 + _GL_NODES * (a1 - a0)
+        out.append((tq, np.array([expm(A * (h - t)) @ B for t in tq]) * ((a1 - a0) * _GL_WEIGHTS)[:, None]))
+    return out
 
 
 def node_states(dde: DelayDDE, x: np.ndarray, s0: np.ndarray):
@@ -600,6 +612,7 @@ def dde_simulation(loop: DDELoop, amplitude: float, frequency: float, periods: f
         u_int = dde.E.T @ f(interp(t0 + dde.tau - T))
         if kinks.size:
             ends = interp(np.array([t0 - T, t0 + h - T]))
+            cuts = []
             for b in kinks:
                 if (ends[0] - b) * (ends[1] - b) < 0:
                     lo, hi = 0.0, h
@@ -610,13 +623,9 @@ def dde_simulation(loop: DDELoop, amplitude: float, frequency: float, periods: f
                             lo = mid
                         else:
                             hi = mid
-                    r = 0.5 * (lo + hi)
-                    u_int = np.zeros(dde.n)
-                    for a0, a1 in ((0.0, r), (r, h)):
-                        tq = a0 + _GL_NODES * (a1 - a0)
-                        Eq = np.array([expm(dde.A * (h - t)) @ dde.B for t in tq]) * ((a1 - a0) * _GL_WEIGHTS)[:, None]
-                        u_int += Eq.T @ f(interp(t0 + tq - T))
-                    break
+                    cuts.append(0.5 * (lo + hi))
+            if cuts:   # cut at every kink crossed in the step
+                u_int = sum(Eq.T @ f(interp(t0 + tq - T)) for tq, Eq in split_step(dde.A, dde.B, h, cuts))
         s = dde.Phi @ s + u_int
         x[H + k + 1] = float(-C @ s)
         k_done = k + 1
