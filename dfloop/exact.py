@@ -241,8 +241,11 @@ def exact_cycle(G, N, cycle, *, harmonics: int = 15, samples: int = _SAMPLES, to
         detected on the settled motion). With 0 the shooting starts on the predicted sinusoidal orbit itself
         (right for unstable cycles, which a flow leaves); a few periods help a stable cycle that the DF places
         poorly. None (default): the loop model's own choice, 0 except for the dynamic backlash (200: the masses'
-        motion is not set by the prediction). Not used on the exact delay flow (its start is the exact periodic
-        response to the delayed output of the predicted sinusoid).
+        motion is not set by the prediction). With a pure delay it is used by the delay equation of a static
+        element (saturation, dead zone, friction, smooth elements: Newton then starts from the motion settled
+        after that many periods, the default 0 on the prediction), and not by the exact delay flow (its start is
+        the exact periodic response to the delayed output of the predicted sinusoid), the delay equation with
+        memory (backlash) or with impacts.
     max_events : int
         Bound on switches (impacts) per flow, >= 1 (a flow reaching it fails with a message that says so).
     nodes : int
@@ -338,7 +341,8 @@ def _exact_cycle(G, N, cycle, predicted, harmonics, samples, tol, max_iterations
     loop = loop_model(G, N, A0 + abs(bias), w0, what="exact_cycle", r0=r0, load=load)
     if loop.delay > 0:   # a pure delay: Newton on the return map of the exact delay flow (dfloop.hybrid.delay)
         out = delay_orbit(loop, A0, w0, tol=tol, max_iterations=max_iterations, harmonics=harmonics,
-                          samples=samples, max_events=max_events, max_deviation=max_deviation, bias=bias)
+                          samples=samples, max_events=max_events, max_deviation=max_deviation, bias=bias,
+                          settle_periods=settle_periods or 0.0)
         if "another_orbit" in out.get("extra", {}):   # the orbit Newton found instead, for the globalisation
             out["extra"]["another_orbit"] = ExactCycle(**out["extra"]["another_orbit"])
         return ExactCycle(**out)

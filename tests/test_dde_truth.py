@@ -130,3 +130,27 @@ def test_a_steep_saturation_crossing_both_kinks_in_one_step(limit):
     err = (abs(e.amplitude / run.amplitude - 1), abs(e.frequency / run.frequency - 1))
     assert max(err) < 1e-8 and err[0] <= est[0] + 2e-10 and err[1] <= est[1] + 2e-10, (err, est)
     assert np.min(np.abs(e.multipliers - 1)) < 1e-3, e.multipliers
+
+
+def test_settle_periods_finds_the_stable_orbit_beside_an_unstable_one():
+    # A softening cubic around a lightly damped lag with a long delay: the DF's one stable cycle (A 9.33) has two
+    # true orbits near it, an unstable one (A 9.02, a real multiplier 1.56) that Newton from the sinusoid finds,
+    # and the stable one (A 8.71) that the loop settles on. settle_periods (ignored with a delay before) starts
+    # Newton from the settled motion: the stable orbit, equal to the independent long run.
+    G0, T = ct.tf([0.0996], [1.0, 0.574, 0.254]), 2.0
+    N = df.CubicStiffness(9.81, -0.0927)
+    el = static_element(lambda x: 9.81 * x - 0.0927 * x ** 3, [])
+    _check_element(N, el)
+    G = delayed(G0, T)
+    c = df.predict_limit_cycles(G, N)[0]
+    assert c.stable
+    near = df.exact_cycle(G, N, c)
+    settled = df.exact_cycle(G, N, c, settle_periods=50)
+    assert near.success and not near.stable and max(abs(near.multipliers)) > 1.2, near.multipliers
+    assert settled.success and settled.stable, settled.message
+    assert abs(near.amplitude / settled.amplitude - 1) > 0.02      # two orbits, not one found twice
+    ss = ct.ss(G0)
+    run = DelayTruth(ss.A, ss.B, ss.C, T, el).run(c.amplitude, c.frequency, settle=1e-10, max_periods=200)
+    assert run.settled, run
+    err = (abs(settled.amplitude / run.amplitude - 1), abs(settled.frequency / run.frequency - 1))
+    assert max(err) < 1e-8, err

@@ -477,7 +477,8 @@ MAX_NODES = 4096       # the finest resolution dde_orbit tries (nodes per period
 
 
 def dde_orbit(loop: DDELoop, A0: float, w0: float, *, nodes: int = 128, target: float = TARGET,
-              max_nodes: int = MAX_NODES, tol: float = 1e-12, harmonics: int = 15, samples: int = 512) -> dict:
+              max_nodes: int = MAX_NODES, tol: float = 1e-12, harmonics: int = 15, samples: int = 512,
+              settle_periods: float = 0.0) -> dict:
     """The periodic orbit of a delayed loop with a static element, by the discretised DDE (module notes).
 
     Solves at ``nodes``, 2 ``nodes``, 4 ``nodes``, ... points per period (at least 3 P / T + 1, so the step
@@ -488,8 +489,10 @@ def dde_orbit(loop: DDELoop, A0: float, w0: float, *, nodes: int = 128, target: 
     error is then about 1/15 of the change). When the target is not met within ``max_nodes`` the orbit is still
     returned, with ``extra["target_met"]`` False and the message saying so. The multipliers are those of the
     discretised history at the first two resolutions (``multipliers`` the finer, ``extra["multipliers_coarse"]``
-    the coarser: their change is the convergence test). Returns a dict of :class:`dfloop.exact.ExactCycle`
-    fields (``success`` False with the reason when Newton fails).
+    the coarser: their change is the convergence test). ``settle_periods`` > 0: Newton starts from the motion
+    settled after that many periods of the prediction (:func:`settled_start`; from the sinusoid when it does not
+    settle, said in the message), as it does anyway when Newton from the sinusoid fails. Returns a dict of
+    :class:`dfloop.exact.ExactCycle` fields (``success`` False with the reason when Newton fails).
     """
     A, B, C, f, kinks, T = loop.A, loop.B, loop.C, loop.f, loop.kinks, loop.delay
     P0 = 2 * math.pi / w0
@@ -504,6 +507,14 @@ def dde_orbit(loop: DDELoop, A0: float, w0: float, *, nodes: int = 128, target: 
     levels = []                     # (nodes, A, w, S, P, residual, iterations, X)
     mus = []
     Nn = nodes
+    note = ""
+    if settle_periods > 0:          # the caller's choice: start from the settled motion
+        start = settled_start(loop, A0, w0, Nn, (A, B, C), periods=settle_periods)
+        if start is None:
+            note = f"; the motion did not settle in {settle_periods:g} periods: Newton started on the prediction"
+        else:
+            x, s0, P = start
+            Nn = x.size
     while True:
         try:
             S, P, res, it = periodic_orbit(A, B, C, f, T, s0, x, P, kinks=kinks, tol=tol)
@@ -557,6 +568,7 @@ def dde_orbit(loop: DDELoop, A0: float, w0: float, *, nodes: int = 128, target: 
     if not met:
         msg += (f" - above the target {target:g}: the finest resolution allowed is max_nodes = {max_nodes}; "
                 "raise max_nodes for a smaller error")
+    msg += note
     return dict(success=True, message=msg, method=_method(levels, Nn), amplitude=float(abs(X[0])),
                 frequency=2 * math.pi / P, period=P, t=t_new, x=x_s, y=f(x_s),
                 switching_times=np.empty(0), harmonics=X, multipliers=mu2, stable=stable, residual=res,

@@ -533,7 +533,7 @@ def _pack(s, queue):
 
 def delay_orbit(loop: DelayLoop | DDELoop | MemoryDDELoop, A0: float, w0: float, *, tol: float = 1e-11, max_iterations: int = 40,
                 harmonics: int = 15, samples: int = 512, max_events: int = 100_000, max_deviation: float = 0.5,
-                start=None, bias: float = 0.0) -> dict:
+                start=None, bias: float = 0.0, settle_periods: float = 0.0) -> dict:
     """:func:`delay_periodic_orbit` (:func:`~dfloop.hybrid.dde.dde_orbit` for a
     :class:`~dfloop.hybrid.dde.DDELoop`, :func:`~dfloop.hybrid.dde_memory.memory_orbit` for a
     :class:`~dfloop.hybrid.dde_memory.MemoryDDELoop`) with the prediction's errors and the ``max_deviation`` test: a dict of the
@@ -541,7 +541,9 @@ def delay_orbit(loop: DelayLoop | DDELoop | MemoryDDELoop, A0: float, w0: float,
 
     A loop with a constant input (``loop.r0``, ``loop.load``: :mod:`dfloop.hybrid.constant`) is solved around its
     shifted element and read back (x, y and ``mean`` in the loop's own signals); ``bias`` is the predicted mean of
-    x, where the exact delay flow's start sits (x = bias + A0 sin(w0 t)).
+    x, where the exact delay flow's start sits (x = bias + A0 sin(w0 t)). ``settle_periods`` > 0: on the delay
+    equation of a static element (:class:`~dfloop.hybrid.dde.DDELoop`) Newton starts from the motion settled
+    after that many periods; the other delayed loops start on the prediction.
 
     Raises
     ------
@@ -558,7 +560,7 @@ def delay_orbit(loop: DelayLoop | DDELoop | MemoryDDELoop, A0: float, w0: float,
         out = impact_orbit(loop, A0, w0, tol=max(tol, 1e-10), max_iterations=max_iterations, harmonics=harmonics,
                            samples=samples)
     elif isinstance(loop, DDELoop):   # a static element with sloped pieces or a smooth one: the delay equation
-        out = dde_orbit(loop, A0, w0, harmonics=harmonics, samples=samples)
+        out = dde_orbit(loop, A0, w0, harmonics=harmonics, samples=samples, settle_periods=settle_periods)
     elif isinstance(loop, MemoryDDELoop):   # an element with memory (backlash): its state in the history
         out = memory_orbit(loop, A0, w0, tol=max(tol, 1e-12), max_iterations=max_iterations, harmonics=harmonics,
                            samples=samples, offset=bias - r0)
