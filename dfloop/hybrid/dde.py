@@ -184,14 +184,11 @@ class DelayDDE:
         out = []
         for kk, b, r in crossings:
             lo, hi = (float(v) for v in self.f(np.array([np.nextafter(b, -np.inf), np.nextafter(b, np.inf)])))
-            if lo == hi:
-                continue
+            if abs(hi - lo) <= 1e-9 * (abs(lo) + abs(hi)):
+                continue                                                # continuous: a kink of the slope only
+            idx, w = (a[0] for a in self.stencil(np.array([kk * h + r - T]), N))
             pos = (kk * h + r - T) / h
-            o = math.floor(pos)
-            th = pos - o
-            idx = (o - 1 + np.arange(4)) % N
-            w = np.array([-th * (th - 1) * (th - 2) / 6, (th + 1) * (th - 1) * (th - 2) / 2,
-                          -(th + 1) * th * (th - 2) / 2, (th + 1) * th * (th - 1) / 6])
+            th = pos - math.floor(pos)
             dw = np.array([-(3 * th * th - 6 * th + 2) / 6, (3 * th * th - 4 * th - 1) / 2,
                            -(3 * th * th - 2 * th - 2) / 2, (3 * th * th - 1) / 6]) / h     # d w / d r
             slope = float(dw @ x[idx])                                  # xi'(r)
