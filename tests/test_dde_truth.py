@@ -44,6 +44,16 @@ def _check_element(N, el):
         np.testing.assert_allclose(el[1](x), N.output(x), atol=1e-14)
 
 
+def _error_against_long_run(G0, T, el, start, orbit, max_periods=60):
+    """((|A / A_run - 1|, |w / w_run - 1|), run): ``orbit`` against the long run of the loop (G0, delay T, truth
+    element ``el``) from the prediction ``start``, which must settle (successive periods within 1e-10)."""
+    ss = ct.ss(G0)
+    run = DelayTruth(ss.A, ss.B, ss.C, T, el).run(start.amplitude, start.frequency, settle=1e-10,
+                                                  max_periods=max_periods)
+    assert run.settled, run
+    return (abs(orbit.amplitude / run.amplitude - 1), abs(orbit.frequency / run.frequency - 1)), run
+
+
 @pytest.mark.parametrize("name", list(CASES))
 def test_exact_cycle_equals_a_long_exact_delay_simulation_to_1e8(name):
     G0, T, N, el = CASES[name]
@@ -54,10 +64,7 @@ def test_exact_cycle_equals_a_long_exact_delay_simulation_to_1e8(name):
     assert e.success and e.stable and "delay equation" in e.method, e.message
     est = e.extra["error_estimate"]
     assert e.extra["target_met"] and max(est) <= 1e-8
-    ss = ct.ss(G0)
-    run = DelayTruth(ss.A, ss.B, ss.C, T, el).run(c.amplitude, c.frequency, settle=1e-10, max_periods=60)
-    assert run.settled, run
-    err = (abs(e.amplitude / run.amplitude - 1), abs(e.frequency / run.frequency - 1))
+    err, run = _error_against_long_run(G0, T, el, c, e)
     assert max(err) < 1e-8, (err, est)
     # the stated estimate is honest: it bounds the difference (the run's own error is ~1e-10)
     assert err[0] <= est[0] + 2e-10 and err[1] <= est[1] + 2e-10, (err, est)
@@ -81,10 +88,7 @@ def test_a_relay_like_element_on_a_first_order_lag_converges_to_the_long_run():
     e = df.exact_cycle(G, N, c)
     assert e.success and e.stable and e.iterations <= 4, e.message
     est = e.extra["error_estimate"]
-    ss = ct.ss(G0)
-    run = DelayTruth(ss.A, ss.B, ss.C, T, el).run(c.amplitude, c.frequency, settle=1e-10, max_periods=60)
-    assert run.settled, run
-    err = (abs(e.amplitude / run.amplitude - 1), abs(e.frequency / run.frequency - 1))
+    err, run = _error_against_long_run(G0, T, el, c, e)
     assert err[0] <= est[0] + 2e-10 and err[1] <= est[1] + 2e-10, (err, est)
     assert max(err) < 1e-6 and np.min(np.abs(e.multipliers - 1)) < 1e-2, (err, e.multipliers)
 
@@ -102,10 +106,7 @@ def test_a_strongly_distorted_orbit_is_found_where_the_df_misplaces_it():
     e = df.exact_cycle(G, df.DeadZone(0.3), c[0])
     assert e.success and e.stable, e.message
     assert "no other DF prediction" in e.message
-    ss = ct.ss(G0)
-    run = DelayTruth(ss.A, ss.B, ss.C, T, DZ).run(c[0].amplitude, c[0].frequency, settle=1e-10, max_periods=60)
-    assert run.settled, run
-    err = (abs(e.amplitude / run.amplitude - 1), abs(e.frequency / run.frequency - 1))
+    err, run = _error_against_long_run(G0, T, DZ, c[0], e)
     assert max(err) < 1e-8, err
     assert abs(math.log(c[0].frequency / run.frequency)) > 0.5     # beyond the default max_deviation
 
@@ -124,10 +125,7 @@ def test_a_steep_saturation_crossing_both_kinks_in_one_step(limit):
     e = df.exact_cycle(G, N, c)
     assert e.success and e.stable and e.extra["target_met"], e.message
     est = e.extra["error_estimate"]
-    ss = ct.ss(G0)
-    run = DelayTruth(ss.A, ss.B, ss.C, T, el).run(c.amplitude, c.frequency, settle=1e-10, max_periods=60)
-    assert run.settled, run
-    err = (abs(e.amplitude / run.amplitude - 1), abs(e.frequency / run.frequency - 1))
+    err, run = _error_against_long_run(G0, T, el, c, e)
     assert max(err) < 1e-8 and err[0] <= est[0] + 2e-10 and err[1] <= est[1] + 2e-10, (err, est)
     assert np.min(np.abs(e.multipliers - 1)) < 1e-3, e.multipliers
 
@@ -149,8 +147,5 @@ def test_settle_periods_finds_the_stable_orbit_beside_an_unstable_one():
     assert near.success and not near.stable and max(abs(near.multipliers)) > 1.2, near.multipliers
     assert settled.success and settled.stable, settled.message
     assert abs(near.amplitude / settled.amplitude - 1) > 0.02      # two orbits, not one found twice
-    ss = ct.ss(G0)
-    run = DelayTruth(ss.A, ss.B, ss.C, T, el).run(c.amplitude, c.frequency, settle=1e-10, max_periods=200)
-    assert run.settled, run
-    err = (abs(settled.amplitude / run.amplitude - 1), abs(settled.frequency / run.frequency - 1))
+    err, run = _error_against_long_run(G0, T, el, c, settled, max_periods=200)
     assert max(err) < 1e-8, err
